@@ -1,0 +1,27 @@
+# Two set-up commands: `make demo` and `make test`. Both create .venv and install into it.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	mkdir -p demo
+	$(VENV)/bin/cosserat-channel point --eps 0.0333333333333 --L 10 --K 0.5 --A 0.3333333333333 --N 1 --plot demo/point_fig2.png
+	@echo "demo outputs are in demo/"
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+bench: $(STAMP)
+	$(PY) benchmarks/bench_point.py
+
+clean:
+	rm -rf $(VENV) demo

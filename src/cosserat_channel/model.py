@@ -1,0 +1,241 @@
+"""The equations of the Cosserat channel-flow model, as Numba scalars.
+
+Source: Mohan, Nott & Rao, "A frictional Cosserat model for the flow of granular materials
+through a vertical channel"; the labels (``e-61``, ``eq:56`` ...) are the paper's ``\\label``s and
+``docs/model.md`` (shared) restates the problem. Nothing here integrates, sweeps or writes files.
+
+Scaled variables
+----------------
+All stresses are divided by ``rho_p g W nu`` (nu scales out exactly), velocities by the wall spin
+``omega_w``. With the exact similarity of model.md, ``eta = eps * L`` and the couple stress is carried
+as
+
+    delta = (m + N L) / L = mu + N  >= 0,      mu = m / L,
+
+the cancellation-free state of model.md scaled by ``L``. Stage 1 then reads
+
+    eta d(delta)/d(xi) = (A+1) xi - sqrt(D)                                  (e-61, eq:56, root E-)
+    D = (A^2-1) xi^2 + 2(A+1) delta (2N - delta)                             (eq:a3)
+
+and depends on ``(eta, A, N)`` only; ``m = L (delta - N)``. Stage 2 (``e-59``, ``e-60``) uses
+
+    B = -2(A+1) mu / (eta sqrt(D)),    h = (A+1) (1 - (A-1) xi / sqrt(D)).
+
+Near the axis we evaluate ``D`` as ``c0^2 xi^2 + 2(A+1)[2N (delta - y xi^2/2) - delta^2]``, which is the
+same polynomial (``c0^2 = A^2 - 1 + 2(A+1) N y``, a consequence of eq:20) but does not subtract two
+nearly equal O(xi^2) numbers: ``D`` stays exact to round-off down to ``xi -> 0`` even close to the
+axis edge where ``c0 -> 0``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from . import status as st
+
+# Gravity and the critical-state closure eq:24 (paper section "Parameter values").
+G_DEFAULT = 9.81
+LAMBDA_DEFAULT = 817.0  # Pa; used as a stress in pascals (model.md: reproduces nu = 0.60, 0.59)
+NU_MIN_DEFAULT = 0.5
+NU_MAX_DEFAULT = 0.65
+P_DEFAULT = 2.5
+Q_DEFAULT = 2.2
+
+# Slots of the axis-constants array returned by `axis_constants`.
+AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)
+AX_C0 = 1  # sqrt(D)/xi at the axis, = A + 1 - eta*y
+AX_K = 2  # fourth-order coefficient of the axis series of delta
+AX_BETA = 3  # B ~ beta / xi near the axis (Appendix B)
+N_AX = 4
+
+
+# --------------------------------------------------------------------------------------------
+# Regimes (Appendix A) and the axis condition (eq:20)
+# --------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def axis_margin(eta, A, N):
+    """Axis existence condition of eq:20, ``(A-1) eta + 2(A+1) N``.
+
+    The smaller root ``x`` of ``eps^2 x^2 - 2(A+1)(eps + N/L) x + 2(A+1) = 0`` exists and satisfies
+    ``eps x <= A + 1`` (the root choice the paper prescribes) exactly when this is ``>= 0`` (derived in
+    model.md; checked in the tests).
+    """
+    return (A - 1.0) * eta + 2.0 * (A + 1.0) * N
+
+
+@njit(nogil=True, cache=True)
+def classify(eta, A, N):
+    """Status decided before any integration, for the regimes of Appendix A.
+
+    Returns ``OK`` when stage 1 must be integrated (A > -1, axis series admissible) or when the
+    A = -1 closed form applies.
+    """
+    if A < 1.0 - 2.0 * N * N:
+        return st.WALL_INADMISSIBLE
+    if A < -1.0:
+        return st.AXIS_SPIN_UNBOUNDED
+    if A == -1.0:
+        return st.OK
+    if axis_margin(eta, A, N) < 0.0:
+        return st.EPS_TOO_LARGE_AXIS
+    return st.OK
+
+
+@njit(nogil=True, cache=True)
+def axis_constants(eta, A, N, out):
+    """Fill ``out[N_AX]`` with the axis series of eq:20 in cancellation-free form (A > -1).
+
+    ``y = mu''(0)`` is the smaller root of ``eta^2 y^2 - 2(A+1)(eta+N) y + 2(A+1) = 0`` (eq:20 with
+    ``x = L y``), written as ``y = 2(A+1) / [(A+1)(eta+N) + s]``. ``c0 = A + 1 - eta y`` equals
+    ``(A+1) g / (s + (A+1) N)`` with ``g`` the axis margin, so it needs no subtraction. The quartic
+    term ``k xi^4`` follows from e-61 at the next order. Requires ``axis_margin >= 0``.
+    """
+    a1 = A + 1.0
+    s = math.sqrt(a1 * a1 * (eta + N) * (eta + N) - 2.0 * a1 * eta * eta)
+    y = 2.0 * a1 / (a1 * (eta + N) + s)
+    c0 = a1 * axis_margin(eta, A, N) / (s + a1 * N)
+    out[AX_Y] = y
+    out[AX_C0] = c0
+    out[AX_K] = a1 * y * y / (4.0 * (4.0 * eta * c0 + 2.0 * a1 * N))
+    out[AX_BETA] = 2.0 * a1 * N / (eta * c0) if c0 > 0.0 else math.inf
+
+
+@njit(nogil=True, cache=True)
+def delta_axis_series(xi, ax):
+    """``delta`` near the axis: ``m = -N L + x xi^2 / 2`` (eq:54, eq:20) plus the quartic term."""
+    x2 = xi * xi
+    return x2 * (0.5 * ax[AX_Y] + ax[AX_K] * x2)
+
+
+# --------------------------------------------------------------------------------------------
+# Stage 1: stresses, xi = 0 -> 1
+# --------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def yield_D(xi, delta, A, N, ax):
+    """``D`` under the square root of eq:56 / eq:a3 (scaled), evaluated cancellation-free."""
+    r = delta - 0.5 * ax[AX_Y] * xi * xi
+    c0xi = ax[AX_C0] * xi
+    return c0xi * c0xi + 2.0 * (A + 1.0) * (2.0 * N * r - delta * delta)
+
+
+@njit(nogil=True, cache=True)
+def ddelta_dxi(xi, delta, eta, A, N, ax):
+    """Stage-1 right-hand side, e-61 with eq:56 (root ``E-`` of eq:a2): ``eta delta' = (A+1) xi - sqrt(D)``.
+
+    ``D`` is clipped at 0: a trial RK stage may step just outside the admissible region, and the
+    ``D = 0`` event (not a NaN) is what reports that the path left it.
+    """
+    D = yield_D(xi, delta, A, N, ax)
+    return ((A + 1.0) * xi - math.sqrt(max(D, 0.0))) / eta
+
+
+@njit(nogil=True, cache=True)
+def dw_dxi(xi, w, eta, A, N, ax):
+    """Stage 1 for the integrator, in ``w = delta / xi^2``: ``w' = (delta' - 2 xi w) / xi^2``.
+
+    ``delta`` grows like ``xi^2`` off the axis, so a relative error control on ``delta`` forces
+    geometric steps there (about 230 of them at eta = 1/3, rtol = 1e-8); ``w = y/2 + k xi^2 + ...``
+    is smooth and O(1), which leaves only the stability limit ``h < 3.3 xi / (beta + 2)``.
+    """
+    delta = xi * xi * w
+    return (ddelta_dxi(xi, delta, eta, A, N, ax) - 2.0 * xi * w) / (xi * xi)
+
+
+@njit(nogil=True, cache=True)
+def sigma_xy(xi):
+    """eq:19: ``sigma_xy = -xi`` (scaled by nu)."""
+    return -xi
+
+
+@njit(nogil=True, cache=True)
+def sigma_yx(xi, D, A):
+    """eq:56 with the root the paper keeps: ``sigma_yx = A xi - sqrt(D)`` (scaled by nu)."""
+    return A * xi - math.sqrt(max(D, 0.0))
+
+
+# --------------------------------------------------------------------------------------------
+# Stage 2: velocities, xi = 1 -> 0
+# --------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def spin_rate_B(delta, D, eta, A, N):
+    """``B`` of eq:18 / e-60, ``d omega/d xi = B omega``; with ``s = sigma_yx + A sigma_xy = -sqrt(D)``.
+
+    Also minus the Jacobian of the stage-1 right-hand side with respect to ``delta`` (model.md).
+    """
+    return 2.0 * (A + 1.0) * (N - delta) / (eta * math.sqrt(D))
+
+
+@njit(nogil=True, cache=True)
+def shear_rate_h(xi, D, A):
+    """``h`` of e-59: ``du/d xi = -h omega``."""
+    return (A + 1.0) * (1.0 - (A - 1.0) * xi / math.sqrt(D))
+
+
+@njit(nogil=True, cache=True)
+def plug_target(J_axis, eps_K):
+    """Right-hand side of eq:13 in terms of ``J``: ``J(xi_p) = 0.95 J(0) - 0.05 eps K``.
+
+    ``u(xi)/omega_w = eps K + J(xi)`` (eq:7), so ``u(xi_p) = 0.95 u(0)`` is this. Negative or zero
+    means the wall already moves at >= 95 % of the centre: ``xi_p = 1`` and ``Delta = 0``.
+    """
+    return 0.95 * J_axis - 0.05 * eps_K
+
+
+# --------------------------------------------------------------------------------------------
+# A = -1 (Appendix A): closed form
+# --------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def a_minus_one_J(xi, c):
+    """``J(xi) = 2 (1 - xi^(c+1)) / (c+1)`` for A = -1, with ``omega_hat = xi^c``, ``c = 2N/eta``."""
+    if xi <= 0.0:
+        return 2.0 / (c + 1.0)
+    return -2.0 * math.expm1((c + 1.0) * math.log(xi)) / (c + 1.0)
+
+
+@njit(nogil=True, cache=True)
+def a_minus_one_one_minus_xi_p(eps_K, c):
+    """``1 - xi_p`` for A = -1: ``xi_p^(c+1) = 0.05 (1 + eps K (c+1)/2)``; 0 when the plug fills the channel."""
+    arg = 0.05 * (1.0 + 0.5 * eps_K * (c + 1.0))
+    if arg >= 1.0:
+        return 0.0
+    return -math.expm1(math.log(arg) / (c + 1.0))
+
+
+# --------------------------------------------------------------------------------------------
+# Solids fraction and dimensional wall stresses (eq:24, eq:35)
+# --------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def sigma_c(nu, Lambda, nu_min, nu_max, p, q):
+    """Critical-state mean stress, eq:24 (Pa when ``Lambda`` is in Pa)."""
+    if nu <= nu_min:
+        return 0.0
+    return Lambda * (nu - nu_min) ** p / (nu_max - nu) ** q
+
+
+@njit(nogil=True, cache=True)
+def solids_fraction(rho_g_W, tan_delta, Lambda, nu_min, nu_max, p, q):
+    """The root of eq:35, ``rho_p g W nu = tan(delta) sigma_c(nu)``, in ``(nu_min, nu_max)``.
+
+    In logarithms the residual ``ln(tan(delta) sigma_c) - ln(rho_p g W nu)`` has derivative
+    ``p/(nu-nu_min) + q/(nu_max-nu) - 1/nu > 0`` (as ``p/(nu - nu_min) > 1/nu`` for p >= 1), so the
+    root is unique; bisection to round-off.
+    """
+    lo = nu_min
+    hi = nu_max
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        f = (
+            math.log(tan_delta * Lambda)
+            + p * math.log(mid - nu_min)
+            - q * math.log(nu_max - mid)
+            - math.log(rho_g_W * mid)
+        )
+        if f > 0.0:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)

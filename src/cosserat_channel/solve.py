@@ -1,0 +1,592 @@
+"""One point through both stages: the only module that joins the physics and the integrator.
+
+Stage 1 marches the scaled couple stress ``delta`` (see :mod:`cosserat_channel.model`) from the
+axis to the wall with :func:`rk45.dopri5`, stopping at ``D = 0`` if the stress path leaves the
+yield-admissible region. Stage 2 marches ``(log omega_hat, J)`` from the wall towards the axis on
+the dense output of stage 1 and stops once what is left of ``J`` is below the tolerance. Both
+stages depend on ``(eta = eps L, A, N)`` only (the similarity of model.md); ``eps`` and ``K``
+enter afterwards, through ``eps K`` in the plug-edge condition eq:13, so one integration serves a
+whole ``K`` axis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+from numba import njit
+
+from . import model
+from . import rk45
+from . import status as st
+from .model import AX_BETA, AX_C0, N_AX
+
+# Work budgets per stage: bounded work per point (a point that needs more is reported as
+# integration_failed, never left running).
+MAX_STEPS_STAGE1 = 200_000
+MAX_STEPS_STAGE2 = 20_000
+# Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
+TAIL_FRACTION = 1e-3
+# Stage 2 never marches below this xi: J's remaining tail there is < XI_FLOOR * max h.
+XI_FLOOR = 1e-14
+
+# Slots of the per-(eta, A, N) result vector of `solve_eta`.
+R_STATUS = 0
+R_XI_STOP = 1  # where the stress path met D = 0 (eps_too_large_path), NaN otherwise
+R_J_AXIS = 2  # J(0) = u(0)/omega_w - eps K
+R_MU_WALL = 3  # m(1)/(nu L)
+R_SIGMA_YX_WALL = 4  # sigma_yx(1)/nu
+R_XI1 = 5  # where stage 1 left the axis series
+R_XI_TAIL = 6  # where stage 2 stopped
+R_N1 = 7  # accepted steps kept in the stage-1 dense output
+R_N2 = 8
+N_R = 9
+
+
+# ---------------------------------------------------------------------------------------------
+# Right-hand sides and events in the integrator's calling convention
+# ---------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def _stage1_rhs(xi, y, args, out):
+    # The state is w = delta / xi^2 (see model.dw_dxi).
+    eta, A, N, ax = args
+    out[0] = model.dw_dxi(xi, y[0], eta, A, N, ax)
+
+
+@njit(nogil=True, cache=True)
+def _stage1_event(xi, y, args):
+    # D = 0: the stress path leaves the yield-admissible region (Appendix A).
+    eta, A, N, ax = args
+    return model.yield_D(xi, xi * xi * y[0], A, N, ax)
+
+
+@njit(nogil=True, cache=True)
+def _delta_at(xi, xi1, ax, T1, Q1, n1, buf):
+    """Stage-1 solution anywhere in [0, 1]: the axis series below ``xi1``, the dense output above."""
+    if xi <= xi1:
+        return model.delta_axis_series(xi, ax)
+    rk45.dense_eval(T1, Q1, n1, xi, buf)
+    return xi * xi * buf[0]
+
+
+@njit(nogil=True, cache=True)
+def _stage2_rhs(xi, y, args, out):
+    eta, A, N, ax, xi1, T1, Q1, n1, buf, tail_tol = args
+    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
+    D = model.yield_D(xi, delta, A, N, ax)
+    out[0] = model.spin_rate_B(delta, D, eta, A, N)  # d log(omega_hat) / d xi   (e-60)
+    out[1] = -model.shear_rate_h(xi, D, A) * math.exp(y[0])  # dJ/d xi   (e-59)
+
+
+@njit(nogil=True, cache=True)
+def _h_axis(A, ax):
+    # h at the axis, where sqrt(D) -> c0 xi.
+    return (A + 1.0) * (1.0 - (A - 1.0) / ax[AX_C0])
+
+
+@njit(nogil=True, cache=True)
+def _stage2_event(xi, y, args):
+    # Positive while the rest of J (from xi down to the axis) can still matter: that rest is at
+    # most xi * max(h) * omega_hat(xi), because omega_hat increases with xi (B > 0 near the axis).
+    eta, A, N, ax, xi1, T1, Q1, n1, buf, tail_tol = args
+    J = y[1]
+    if J <= 0.0:
+        return 1.0
+    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
+    D = model.yield_D(xi, delta, A, N, ax)
+    h_bound = 2.0 * max(model.shear_rate_h(xi, D, A), _h_axis(A, ax))
+    return y[0] + math.log(xi * h_bound) - math.log(tail_tol * J)
+
+
+# ---------------------------------------------------------------------------------------------
+# The kernel for one (eta, A, N)
+# ---------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def start_xi(ax):
+    """Where stage 1 leaves the axis series: small enough that the neglected O(xi^6) term is far
+    below round-off, scaled with ``c0`` because the series' radius shrinks at the axis edge."""
+    return 1e-3 * min(1.0, ax[AX_C0])
+
+
+@njit(nogil=True, cache=True)
+def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
+    """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``.
+
+    Fills ``res[N_R]`` (slots ``R_*``), the axis constants ``ax``, the dense outputs (T1, Q1) of
+    stage 1 and (T2, Q2) of stage 2 and the counters. Returns the status code.
+    """
+    for i in range(N_R):
+        res[i] = math.nan
+    for i in range(stats1.size):
+        stats1[i] = 0
+        stats2[i] = 0
+    res[R_N1] = 0.0
+    res[R_N2] = 0.0
+    code = model.classify(eta, A, N)
+    res[R_STATUS] = code
+    if code != st.OK:
+        return code
+    if A == -1.0:
+        # Appendix A closed form: m = -NL, sigma_yx = -xi, omega_hat = xi^c.
+        c = 2.0 * N / eta
+        res[R_J_AXIS] = model.a_minus_one_J(0.0, c)
+        res[R_MU_WALL] = -N
+        res[R_SIGMA_YX_WALL] = -1.0
+        return code
+
+    model.axis_constants(eta, A, N, ax)
+    xi1 = start_xi(ax)
+    res[R_XI1] = xi1
+    buf = np.empty(1)
+
+    # Stage 1: axis -> wall.
+    y0 = np.empty(1)
+    y0[0] = model.delta_axis_series(xi1, ax) / (xi1 * xi1)
+    atol1 = np.empty(1)
+    atol1[0] = atol
+    args1 = (eta, A, N, ax)
+    s1, n1, t1 = rk45.dopri5(
+        _stage1_rhs, _stage1_event, xi1, y0, 1.0, args1, rtol, atol1, 0.0, 0.0, T1, Q1, stats1
+    )
+    res[R_N1] = n1
+    if s1 == rk45.EVENT:
+        res[R_STATUS] = st.EPS_TOO_LARGE_PATH
+        res[R_XI_STOP] = t1
+        return st.EPS_TOO_LARGE_PATH
+    if s1 != rk45.SUCCESS:
+        res[R_STATUS] = st.INTEGRATION_FAILED
+        return st.INTEGRATION_FAILED
+    delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
+    D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
+    if not D_wall > 0.0:
+        # Reached the wall exactly on D = 0: no admissible sigma_yx there.
+        res[R_STATUS] = st.EPS_TOO_LARGE_PATH
+        res[R_XI_STOP] = 1.0
+        return st.EPS_TOO_LARGE_PATH
+    res[R_MU_WALL] = delta_wall - N
+    res[R_SIGMA_YX_WALL] = model.sigma_yx(1.0, D_wall, A)
+
+    # Stage 2: wall -> axis, in (log omega_hat, J); omega_hat(1) = 1, J(1) = 0 (eq:7).
+    y2 = np.zeros(2)
+    atol2 = np.empty(2)
+    atol2[0] = rtol  # an absolute error in log(omega_hat) is a relative error in omega_hat
+    atol2[1] = atol * min(1.0, eta)
+    args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, TAIL_FRACTION * rtol)
+    s2, n2, t2 = rk45.dopri5(
+        _stage2_rhs, _stage2_event, 1.0, y2, XI_FLOOR, args2, rtol, atol2, 0.0, 0.0, T2, Q2,
+        stats2,
+    )
+    res[R_N2] = n2
+    if s2 != rk45.SUCCESS and s2 != rk45.EVENT:
+        res[R_STATUS] = st.INTEGRATION_FAILED
+        return st.INTEGRATION_FAILED
+    yb = np.empty(2)
+    rk45.dense_eval(T2, Q2, n2, t2, yb)
+    res[R_XI_TAIL] = t2
+    res[R_J_AXIS] = yb[1]
+    return st.OK
+
+
+@njit(nogil=True, cache=True)
+def _J_at(T2, Q2, n2, xi, yb):
+    rk45.dense_eval(T2, Q2, n2, xi, yb)
+    return yb[1]
+
+
+@njit(nogil=True, cache=True)
+def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
+    """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi)."""
+    J_axis = res[R_J_AXIS]
+    target = model.plug_target(J_axis, eps_K)
+    if target <= 0.0:
+        return 0.0
+    if A == -1.0:
+        return model.a_minus_one_one_minus_xi_p(eps_K, 2.0 * N / eta)
+    n2 = int(res[R_N2])
+    yb = np.empty(2)
+    # Bracket on step ends: T2 runs from 1 down, J from 0 up.
+    lo = 0
+    hi = n2
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if _J_at(T2, Q2, n2, T2[mid], yb) < target:
+            lo = mid
+        else:
+            hi = mid
+    a = T2[lo]  # J(a) < target
+    # T2[n2] is the end of the last step, which overshoots where an event stopped stage 2.
+    b = T2[hi] if hi < n2 else res[R_XI_TAIL]
+    fa = _J_at(T2, Q2, n2, a, yb) - target
+    fb = _J_at(T2, Q2, n2, b, yb) - target
+    # Illinois regula falsi on the interpolant, safeguarded by bisection.
+    side = 0
+    x = a
+    for _ in range(100):
+        if fb == fa:
+            x = 0.5 * (a + b)
+        else:
+            x = b - fb * (b - a) / (fb - fa)
+            if not (min(a, b) < x < max(a, b)):
+                x = 0.5 * (a + b)
+        fx = _J_at(T2, Q2, n2, x, yb) - target
+        if fx == 0.0 or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
+            break
+        if (fx < 0.0) == (fa < 0.0):
+            a = x
+            fa = fx
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            b = x
+            fb = fx
+            if side == 1:
+                fa *= 0.5
+            side = 1
+    return 1.0 - x
+
+
+# ---------------------------------------------------------------------------------------------
+# Python API
+# ---------------------------------------------------------------------------------------------
+class ParameterError(ValueError):
+    """A parameter outside the model's or the solver's domain; the message names it and its range."""
+
+
+MATERIAL_KEYS = {
+    "d_p": ("particle diameter d_p in m", 0.0, math.inf, False),
+    "rho_p": ("particle density rho_p in kg/m^3", 0.0, math.inf, False),
+    "phi": ("angle of internal friction phi in degrees", 0.0, 90.0, False),
+    "g": ("gravity g in m/s^2", 0.0, math.inf, False),
+    "Lambda": ("closure constant Lambda in Pa (eq:24)", 0.0, math.inf, False),
+    "nu_min": ("closure nu_min (eq:24)", 0.0, 1.0, True),
+    "nu_max": ("closure nu_max (eq:24)", 0.0, 1.0, False),
+    "p": ("closure exponent p (eq:24)", 1.0, math.inf, True),
+    "q": ("closure exponent q (eq:24)", 0.0, math.inf, True),
+}
+MATERIAL_REQUIRED = ("d_p", "rho_p", "phi")
+
+
+def _number(name: str, value, lo: float, hi: float, lo_closed: bool, hi_closed: bool, what: str):
+    """``float(value)`` checked to lie in the interval; a ParameterError naming it otherwise."""
+    lb = "[" if lo_closed else "("
+    rb = "]" if hi_closed else ")"
+    rng = f"{lb}{lo:g}, {hi:g}{rb}"
+    if isinstance(value, bool):
+        raise ParameterError(f"{name} must be a number in {rng} ({what}); got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number in {rng} ({what}); got {value!r}") from None
+    ok = math.isfinite(x) and (x >= lo if lo_closed else x > lo) and (x <= hi if hi_closed else x < hi)
+    if not ok:
+        raise ParameterError(f"{name} = {value!r} is outside the allowed range {rng} ({what})")
+    return x
+
+
+def check_point(eps, L, K, A, N):
+    """Validate ``(eps, L, K, A, N)``; returns them as floats or raises :class:`ParameterError`."""
+    inf = math.inf
+    return (
+        _number("eps", eps, 0.0, 1.0, False, True, "particle diameter / channel half-width"),
+        _number("L", L, 0.0, inf, False, False, "Cosserat length in particle diameters"),
+        _number("K", K, 0.0, inf, True, False, "wall roughness in u = eps K omega at the wall"),
+        _number("A", A, -inf, inf, False, False, "yield-surface constant a2/a1"),
+        _number("N", N, 0.0, inf, False, False, "sin(phi)/tan(delta)"),
+    )
+
+
+def check_tolerances(rtol, atol):
+    rtol = _number("rtol", rtol, 1e-13, 1.0, True, False, "relative tolerance")
+    atol = _number("atol", atol, 0.0, math.inf, False, False, "absolute tolerance")
+    return rtol, atol
+
+
+def check_material(material: Mapping | None) -> dict | None:
+    """Validate a material mapping; fill in the paper's closure constants; None stays None."""
+    if material is None:
+        return None
+    if not isinstance(material, Mapping):
+        raise ParameterError("material must be a mapping with keys " + ", ".join(MATERIAL_KEYS))
+    unknown = sorted(set(material) - set(MATERIAL_KEYS))
+    if unknown:
+        raise ParameterError(
+            f"material: unknown key(s) {', '.join(map(repr, unknown))}; allowed: "
+            + ", ".join(MATERIAL_KEYS)
+        )
+    missing = [k for k in MATERIAL_REQUIRED if k not in material]
+    if missing:
+        raise ParameterError(f"material: missing required key(s) {', '.join(missing)}")
+    full = {
+        "g": model.G_DEFAULT,
+        "Lambda": model.LAMBDA_DEFAULT,
+        "nu_min": model.NU_MIN_DEFAULT,
+        "nu_max": model.NU_MAX_DEFAULT,
+        "p": model.P_DEFAULT,
+        "q": model.Q_DEFAULT,
+    }
+    for key, value in material.items():
+        what, lo, hi, lo_closed = MATERIAL_KEYS[key]
+        full[key] = _number(f"material.{key}", value, lo, hi, lo_closed, False, what)
+    if not full["nu_min"] < full["nu_max"]:
+        raise ParameterError(
+            f"material.nu_min = {full['nu_min']:g} must be below material.nu_max = {full['nu_max']:g}"
+        )
+    return full
+
+
+@dataclass
+class PointResult:
+    """Everything one point yields. Dimensionless values follow model.md's scalings.
+
+    Attributes
+    ----------
+    status : Status
+        Why the point has or has no solution; ``status.message`` explains.
+    Delta : float
+        Shear-layer thickness ``(1 - xi_p)/eps`` in particle diameters (0 when the wall moves at
+        >= 95 % of the centre).
+    xi_p : float
+        Plug edge, ``u(xi_p) = 0.95 u(0)`` (eq:13).
+    slip : float
+        ``u(1)/u(0)``.
+    u_axis : float
+        ``u(0)/omega_w`` (dimensionless, ``eps K + J(0)``).
+    m_wall, sigma_yx_wall : float
+        ``m(1)/nu`` and ``sigma_yx(1)/nu`` (paper's scalings of eq:54 and eq:56 divided by nu).
+    xi_stop : float
+        Where the stress path met ``D = 0`` (status ``eps_too_large_path``), NaN otherwise.
+    nu : float
+        Solids fraction from eq:35 (only with a material).
+    sigma_xx_wall_Pa, sigma_xy_wall_Pa, sigma_yx_wall_Pa : float
+        Wall stresses in Pa, compressive positive as in the paper (only with a material):
+        normal ``sigma_c(nu)``, shear ``-rho_p g W nu`` and ``rho_p g W nu sigma_yx_wall``.
+    m_wall_Pa_m : float
+        Wall couple stress in Pa m (N/m) (only with a material).
+    counters : dict
+        Accepted/rejected steps and right-hand-side evaluations of both stages, and whether the
+        stage-1 stiffness detector fired.
+    profile : dict or None
+        With ``profile=xi``: arrays ``xi``, ``u_over_u0``, ``omega_hat``, ``m`` (``m/nu``),
+        ``sigma_xy``, ``sigma_yx`` (over nu).
+    """
+
+    eps: float
+    L: float
+    K: float
+    A: float
+    N: float
+    status: st.Status
+    Delta: float = math.nan
+    xi_p: float = math.nan
+    slip: float = math.nan
+    u_axis: float = math.nan
+    m_wall: float = math.nan
+    sigma_yx_wall: float = math.nan
+    xi_stop: float = math.nan
+    nu: float = math.nan
+    sigma_xx_wall_Pa: float = math.nan
+    sigma_xy_wall_Pa: float = math.nan
+    sigma_yx_wall_Pa: float = math.nan
+    m_wall_Pa_m: float = math.nan
+    counters: dict = field(default_factory=dict)
+    profile: dict | None = None
+
+    SCALARS = (
+        "Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall", "xi_stop", "nu",
+        "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m",
+    )
+
+    @property
+    def ok(self) -> bool:
+        return self.status == st.Status.ok
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict: parameters, status by name and message, outputs (NaN as None)."""
+
+        def clean(x):
+            return None if x is None or (isinstance(x, float) and not math.isfinite(x)) else x
+
+        d = {"eps": self.eps, "L": self.L, "K": self.K, "A": self.A, "N": self.N}
+        d["status"] = self.status.name
+        d["message"] = self.status.message
+        for k in self.SCALARS:
+            d[k] = clean(float(getattr(self, k)))
+        d["counters"] = dict(self.counters)
+        if self.profile is not None:
+            d["profile"] = {k: [clean(float(v)) for v in a] for k, a in self.profile.items()}
+        return d
+
+
+class Workspace:
+    """Preallocated work arrays for :func:`solve_eta` (reuse one across many points)."""
+
+    def __init__(self, max_steps_stage1=MAX_STEPS_STAGE1, max_steps_stage2=MAX_STEPS_STAGE2):
+        self.ax = np.empty(N_AX)
+        self.T1 = np.empty(max_steps_stage1 + 1)
+        self.Q1 = np.empty((max_steps_stage1, 5, 1))
+        self.T2 = np.empty(max_steps_stage2 + 1)
+        self.Q2 = np.empty((max_steps_stage2, 5, 2))
+        self.stats1 = np.zeros(rk45.N_STATS, dtype=np.int64)
+        self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
+        self.res = np.empty(N_R)
+
+    def run(self, eta, A, N, rtol, atol):
+        return solve_eta(
+            eta, A, N, rtol, atol, self.ax, self.T1, self.Q1, self.T2, self.Q2,
+            self.stats1, self.stats2, self.res,
+        )
+
+
+DEFAULT_ATOL = 1e-12
+
+
+def solve_point(eps, L, K, A, N, *, rtol=1e-8, atol=DEFAULT_ATOL, material=None, profile=None,
+                workspace: Workspace | None = None) -> PointResult:
+    """Solve one point ``(eps, L, K, A, N)`` of the channel-flow model through both stages.
+
+    Parameters
+    ----------
+    eps, L, K, A, N : float
+        The model's parameters (model.md): ``eps = d_p/W`` in (0, 1], ``L > 0``, ``K >= 0``,
+        ``A`` real, ``N > 0``.
+    rtol, atol : float
+        Tolerances of both integrations (mixed relative/absolute error per step).
+    material : mapping, optional
+        ``d_p`` (m), ``rho_p`` (kg/m^3), ``phi`` (degrees), optionally ``g``, ``Lambda`` (Pa),
+        ``nu_min``, ``nu_max``, ``p``, ``q``. Adds ``nu`` and the dimensional wall stresses.
+    profile : array_like, optional
+        ``xi`` values in [0, 1] at which to return u/u(0), omega_hat, m, sigma_xy and sigma_yx.
+
+    Returns
+    -------
+    PointResult
+        Never raises for a point the model has no solution at: the status says why.
+
+    Raises
+    ------
+    ParameterError
+        (a ``ValueError``) for input outside the domain, naming the parameter and its range.
+    """
+    eps, L, K, A, N = check_point(eps, L, K, A, N)
+    rtol, atol = check_tolerances(rtol, atol)
+    mat = check_material(material)
+    xi_prof = None
+    if profile is not None:
+        xi_prof = np.atleast_1d(np.asarray(profile, dtype=float))
+        if xi_prof.ndim != 1 or not np.all(np.isfinite(xi_prof)) or np.any((xi_prof < 0) | (xi_prof > 1)):
+            raise ParameterError("profile must be xi values in [0, 1]")
+    ws = workspace or Workspace()
+    eta = eps * L
+    code = ws.run(eta, A, N, rtol, atol)
+    res = ws.res
+    out = PointResult(eps=eps, L=L, K=K, A=A, N=N, status=st.Status(code))
+    out.counters = _counters(ws)
+    if code == st.EPS_TOO_LARGE_PATH:
+        out.xi_stop = float(res[R_XI_STOP])
+    if code == st.OK:
+        eps_K = eps * K
+        J_axis = float(res[R_J_AXIS])
+        one_minus = float(one_minus_xi_p(A, N, eta, eps_K, res, ws.T2, ws.Q2))
+        out.xi_p = 1.0 - one_minus
+        out.Delta = one_minus / eps
+        out.u_axis = eps_K + J_axis
+        out.slip = eps_K / out.u_axis
+        out.m_wall = L * float(res[R_MU_WALL])
+        out.sigma_yx_wall = float(res[R_SIGMA_YX_WALL])
+        if xi_prof is not None:
+            out.profile = _profile(xi_prof, eps, L, K, A, N, ws)
+    if mat is not None:
+        _add_material(out, mat)
+    return out
+
+
+def _counters(ws: Workspace) -> dict:
+    s1, s2 = ws.stats1, ws.stats2
+    return {
+        "stage1_accepted": int(s1[rk45.STAT_ACCEPTED]),
+        "stage1_rejected": int(s1[rk45.STAT_REJECTED]),
+        "stage1_fev": int(s1[rk45.STAT_FEV]),
+        "stage1_stiff": bool(s1[rk45.STAT_STIFF]),
+        "stage2_accepted": int(s2[rk45.STAT_ACCEPTED]),
+        "stage2_rejected": int(s2[rk45.STAT_REJECTED]),
+        "stage2_fev": int(s2[rk45.STAT_FEV]),
+    }
+
+
+def _add_material(out: PointResult, mat: dict) -> None:
+    """Solids fraction (eq:35) and the dimensional wall stresses."""
+    W = mat["d_p"] / out.eps
+    tan_delta = math.sin(math.radians(mat["phi"])) / out.N
+    rho_g_W = mat["rho_p"] * mat["g"] * W
+    nu = model.solids_fraction(
+        rho_g_W, tan_delta, mat["Lambda"], mat["nu_min"], mat["nu_max"], mat["p"], mat["q"]
+    )
+    out.nu = float(nu)
+    scale = rho_g_W * nu  # Pa; sigma_bar * nu * rho_p g W
+    out.sigma_xx_wall_Pa = scale / tan_delta  # eq:33 with eq:35: sigma_xx = sigma_c(nu)
+    out.sigma_xy_wall_Pa = -scale  # eq:19 at the wall
+    if out.ok:
+        out.sigma_yx_wall_Pa = scale * out.sigma_yx_wall
+        out.m_wall_Pa_m = scale * mat["d_p"] * out.m_wall
+
+
+@njit(nogil=True, cache=True)
+def _profile_kernel(xis, eta, A, N, eps_K, ax, res, T1, Q1, T2, Q2, out):
+    """Columns of ``out``: u/u(0), omega_hat, m/(nu L) + N = delta, sigma_yx/nu."""
+    buf = np.empty(1)
+    yb = np.empty(2)
+    xi1 = res[R_XI1]
+    n1 = int(res[R_N1])
+    n2 = int(res[R_N2])
+    xi_tail = res[R_XI_TAIL]
+    J_axis = res[R_J_AXIS]
+    # Below where stage 2 stopped, omega_hat ~ xi^beta (Appendix B) and J has converged.
+    rk45.dense_eval(T2, Q2, n2, xi_tail, yb)
+    logw_tail = yb[0]
+    for i in range(xis.size):
+        xi = xis[i]
+        delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
+        D = model.yield_D(xi, delta, A, N, ax)
+        if xi >= xi_tail:
+            rk45.dense_eval(T2, Q2, n2, xi, yb)
+            logw = yb[0]
+            J = yb[1]
+        else:
+            logw = logw_tail + ax[AX_BETA] * math.log(xi / xi_tail) if xi > 0.0 else -math.inf
+            J = J_axis
+        out[i, 0] = (eps_K + J) / (eps_K + J_axis)
+        out[i, 1] = math.exp(logw)
+        out[i, 2] = delta
+        out[i, 3] = model.sigma_yx(xi, D, A)
+
+
+def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
+    eta = eps * L
+    eps_K = eps * K
+    if A == -1.0:
+        c = 2.0 * N / eta
+        J = np.array([model.a_minus_one_J(x, c) for x in xi])
+        J_axis = model.a_minus_one_J(0.0, c)
+        with np.errstate(divide="ignore"):
+            omega_hat = np.exp(c * np.log(xi))
+        return {
+            "xi": xi.copy(),
+            "u_over_u0": (eps_K + J) / (eps_K + J_axis),
+            "omega_hat": omega_hat,
+            "m": np.full_like(xi, -N * L),
+            "sigma_xy": -xi,
+            "sigma_yx": -xi.copy(),
+        }
+    out = np.empty((xi.size, 4))
+    _profile_kernel(xi, eta, A, N, eps_K, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, out)
+    return {
+        "xi": xi.copy(),
+        "u_over_u0": out[:, 0],
+        "omega_hat": out[:, 1],
+        "m": L * (out[:, 2] - N),
+        "sigma_xy": -xi,
+        "sigma_yx": out[:, 3],
+    }

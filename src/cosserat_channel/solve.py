@@ -27,6 +27,8 @@ from .model import AX_BETA, AX_C0, N_AX
 # integration_failed, never left running).
 MAX_STEPS_STAGE1 = 200_000
 MAX_STEPS_STAGE2 = 20_000
+# Passes that re-march the step where stage 1 met D = 0 (see solve_eta).
+EVENT_REFINEMENTS = 4
 # Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
 TAIL_FRACTION = 1e-3
 # Stage 2 never marches below this xi: J's remaining tail there is < XI_FLOOR * max h.
@@ -150,6 +152,29 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
     s1, n1, t1 = rk45.dopri5(
         _stage1_rhs, _stage1_event, xi1, y0, 1.0, args1, rtol, atol1, 0.0, 0.0, T1, Q1, stats1
     )
+    # Where the path meets D = 0, sqrt(D) ~ sqrt(xi_stop - xi): the RHS has a kink that the last
+    # (wide, error-controlled) step glides over, so the dense output locates xi_stop only to ~1e-4.
+    # March that last step again with steps 1/16 as wide, until the location settles.
+    stats_r = np.zeros_like(stats1)
+    for _ in range(EVENT_REFINEMENTS):
+        if s1 != rk45.EVENT:
+            break
+        k = n1 - 1
+        span = t1 - T1[k]
+        if not span > 0.0:
+            break
+        y0[0] = Q1[k, 0, 0]
+        s1, nb, t_new = rk45.dopri5(
+            _stage1_rhs, _stage1_event, T1[k], y0, 1.0, args1, rtol, atol1, 0.0, span / 16.0,
+            T1[k:], Q1[k:], stats_r,
+        )
+        for i in range(rk45.STAT_STIFF):
+            stats1[i] += stats_r[i]
+        n1 = k + nb
+        settled = abs(t_new - t1) <= rtol * t1
+        t1 = t_new
+        if settled:
+            break
     res[R_N1] = n1
     if s1 == rk45.EVENT:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
@@ -299,6 +324,7 @@ def check_point(eps, L, K, A, N):
 
 
 def check_tolerances(rtol, atol):
+    """Validate the tolerances; returns them as floats or raises :class:`ParameterError`."""
     rtol = _number("rtol", rtol, 1e-13, 1.0, True, False, "relative tolerance")
     atol = _number("atol", atol, 0.0, math.inf, False, False, "absolute tolerance")
     return rtol, atol
@@ -335,6 +361,24 @@ def check_material(material: Mapping | None) -> dict | None:
             f"material.nu_min = {full['nu_min']:g} must be below material.nu_max = {full['nu_max']:g}"
         )
     return full
+
+
+# Every scalar output of a point: (units, description). The single source for the CLI table,
+# plot labels and the NetCDF attributes.
+OUTPUTS = {
+    "Delta": ("particle diameters", "shear-layer thickness (1 - xi_p)/eps"),
+    "xi_p": ("1", "plug edge, u(xi_p) = 0.95 u(0) (eq:13)"),
+    "slip": ("1", "wall slip u(1)/u(0)"),
+    "u_axis": ("1", "centre-line velocity u(0)/omega_w"),
+    "m_wall": ("1", "wall couple stress m(1)/nu (rho_p g W d_p units)"),
+    "sigma_yx_wall": ("1", "wall shear stress sigma_yx(1)/nu (rho_p g W units)"),
+    "xi_stop": ("1", "where the stress path met D = 0"),
+    "nu": ("1", "solids fraction (eq:35)"),
+    "sigma_xx_wall_Pa": ("Pa", "wall normal stress sigma_xx, compressive positive"),
+    "sigma_xy_wall_Pa": ("Pa", "wall shear stress sigma_xy"),
+    "sigma_yx_wall_Pa": ("Pa", "wall shear stress sigma_yx"),
+    "m_wall_Pa_m": ("Pa m", "wall couple stress m"),
+}
 
 
 @dataclass
@@ -394,10 +438,7 @@ class PointResult:
     counters: dict = field(default_factory=dict)
     profile: dict | None = None
 
-    SCALARS = (
-        "Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall", "xi_stop", "nu",
-        "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m",
-    )
+    SCALARS = tuple(OUTPUTS)
 
     @property
     def ok(self) -> bool:
@@ -440,10 +481,11 @@ class Workspace:
         )
 
 
+DEFAULT_RTOL = 1e-8
 DEFAULT_ATOL = 1e-12
 
 
-def solve_point(eps, L, K, A, N, *, rtol=1e-8, atol=DEFAULT_ATOL, material=None, profile=None,
+def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=None, profile=None,
                 workspace: Workspace | None = None) -> PointResult:
     """Solve one point ``(eps, L, K, A, N)`` of the channel-flow model through both stages.
 

@@ -1,0 +1,155 @@
+"""Every figure of the project: the only module that imports matplotlib.
+
+Figures are built as :class:`matplotlib.figure.Figure` objects on an Agg canvas instead of through
+``pyplot``: no global figure registry to leak memory in long sweeps, no interactive backend
+picked up from the environment, and nothing to close afterwards. Files are written atomically
+(:func:`save_figure`), so an interrupted run never leaves a truncated image behind.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+DPI = 120
+FIGSIZE = (10.0, 7.0)
+
+# Axis labels in the paper's symbols (bars: the paper's scaled variables).
+XI_LABEL = r"$\xi = x/W$"
+LABELS = {
+    "u_over_u0": r"$u/u(0)$",
+    "omega_hat": r"$\hat\omega=\bar\omega/\bar\omega_w$",
+    "sigma_xy": r"$\bar\sigma_{xy}/\nu$",
+    "sigma_yx": r"$\bar\sigma_{yx}/\nu$",
+    "m": r"$\bar m/\nu$",
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# Small reusable helpers
+# ---------------------------------------------------------------------------------------------
+def new_figure(figsize=FIGSIZE) -> Figure:
+    """A constrained-layout figure attached to an Agg canvas (no pyplot state)."""
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def parameter_title(eps=None, L=None, K=None, A=None, N=None) -> str:
+    """``"ε = …, L = …, K = …, A = …, N = …"`` in mathtext, leaving out parameters given as None.
+
+    Parameters are in the project's order (eps, L, K, A, N); a figure over one axis of a sweep
+    passes only the fixed ones.
+    """
+    symbols = (r"$\varepsilon$", "$L$", "$K$", "$A$", "$N$")
+    parts = [f"{s} = {v:.6g}" for s, v in zip(symbols, (eps, L, K, A, N)) if v is not None]
+    return ", ".join(parts)
+
+
+def figure_format(path) -> str:
+    """The file format matplotlib will write for ``path``, from its suffix (PNG if none).
+
+    Raises
+    ------
+    ValueError
+        If the suffix names a format the Agg canvas cannot write.
+    """
+    suffix = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+    if not suffix:
+        return "png"
+    supported = FigureCanvasAgg.get_supported_filetypes()
+    if suffix not in supported:
+        raise ValueError(
+            f"cannot write a figure to {os.fspath(path)!r}: unknown file type '.{suffix}' "
+            f"(use one of {', '.join('.' + s for s in sorted(supported))})"
+        )
+    return suffix
+
+
+def save_figure(fig: Figure, path, *, dpi: int = DPI) -> None:
+    """Write ``fig`` to ``path`` atomically: a temporary file in the same directory, then rename.
+
+    The temporary file is created with mode 0o666 so the umask applies as for any new file, and
+    it is removed if drawing or writing fails; an existing file at ``path`` is replaced only by a
+    complete one.
+    """
+    path = os.fspath(path)
+    fmt = figure_format(path)
+    directory, name = os.path.split(os.path.abspath(path))
+    tmp = os.path.join(directory, f".{name}.{secrets.token_hex(4)}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fig.savefig(fh, format=fmt, dpi=dpi)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+# ---------------------------------------------------------------------------------------------
+# Figures
+# ---------------------------------------------------------------------------------------------
+def point_profiles(result, path=None) -> Figure:
+    """Profiles of one solved point against ``xi``: velocity, spin, shear stresses, couple stress.
+
+    Parameters
+    ----------
+    result : PointResult
+        From :func:`cosserat_channel.solve.solve_point` with ``profile=`` given and status ok.
+    path : str or path-like, optional
+        Where to save the figure (format from the suffix, PNG at 120 dpi by default).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Four panels: ``u/u(0)``, ``omega_hat``, ``sigma_xy`` with ``sigma_yx``, and ``m``; the
+        plug edge ``xi_p`` (eq:13) is a dashed vertical line on each.
+
+    Raises
+    ------
+    ValueError
+        If the result has no profile (a point without solution, or solved without ``profile=``).
+    """
+    prof = result.profile
+    if prof is None:
+        if result.ok:
+            raise ValueError("result has no profile: solve it with profile=xi")
+        raise ValueError(
+            f"no profile to plot: status {result.status.name} ({result.status.message})"
+        )
+    xi = prof["xi"]
+    fig = new_figure()
+    axes = fig.subplots(2, 2, sharex=True)
+    ax_u, ax_w, ax_s, ax_m = axes.flat
+
+    ax_u.plot(xi, prof["u_over_u0"], color="C0")
+    ax_u.set_ylabel(LABELS["u_over_u0"])
+    ax_w.plot(xi, prof["omega_hat"], color="C1")
+    ax_w.set_ylabel(LABELS["omega_hat"])
+    ax_s.plot(xi, prof["sigma_xy"], color="C2", label=LABELS["sigma_xy"])
+    ax_s.plot(xi, prof["sigma_yx"], color="C3", ls="-.", label=LABELS["sigma_yx"])
+    ax_s.set_ylabel(LABELS["sigma_xy"] + ", " + LABELS["sigma_yx"])
+    ax_m.plot(xi, prof["m"], color="C4")
+    ax_m.set_ylabel(LABELS["m"])
+
+    plug_label = rf"plug edge $\xi_p$ ($\Delta$ = {result.Delta:.3g} $d_p$)"
+    for i, ax in enumerate(axes.flat):
+        # Labelled once: the same line on every panel needs only one legend entry.
+        ax.axvline(result.xi_p, color="0.4", ls="--", lw=1.0, label=plug_label if i == 0 else None)
+        ax.set_xlim(0.0, 1.0)
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel(XI_LABEL)
+    ax_u.legend(loc="best")
+    ax_s.legend(loc="best")
+    fig.suptitle(parameter_title(result.eps, result.L, result.K, result.A, result.N))
+    if path is not None:
+        save_figure(fig, path)
+    return fig

@@ -1,0 +1,146 @@
+"""Figures: the right data on the right axes, labelled in the paper's symbols, saved atomically."""
+
+import os
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from cosserat_channel import plot
+from cosserat_channel.solve import solve_point
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def result():
+    """Paper figure 2 (eps = 1/30, L = 10, K = 0.5, A = 1/3, N = 1) with a profile."""
+    return solve_point(1 / 30, 10, 0.5, 1 / 3, 1, profile=np.linspace(0, 1, 201))
+
+
+@pytest.fixture(scope="module")
+def fig(result):
+    """The profiles figure of figure 2, not saved."""
+    return plot.point_profiles(result)
+
+
+def _data_lines(ax):
+    """Lines of ``ax`` other than the vertical plug-edge marker."""
+    return [ln for ln in ax.get_lines() if not np.allclose(ln.get_xdata(), ln.get_xdata()[0])]
+
+
+def _axes_with_ylabel(fig, symbol):
+    found = [ax for ax in fig.axes if symbol in ax.get_ylabel()]
+    assert len(found) == 1, f"{symbol!r} is the y label of {len(found)} axes"
+    return found[0]
+
+
+def test_returns_figure_with_four_panels(fig):
+    """A Figure with at least four axes comes back."""
+    assert isinstance(fig, Figure)
+    assert len(fig.axes) >= 4
+
+
+@pytest.mark.parametrize(
+    "symbol, keys",
+    [
+        (r"$u/u(0)$", ["u_over_u0"]),
+        (r"\hat\omega", ["omega_hat"]),
+        (r"\bar\sigma_{xy}", ["sigma_xy", "sigma_yx"]),  # both shear stresses share a panel
+        (r"\bar m/\nu", ["m"]),
+    ],
+)
+def test_panel_plots_profile_arrays(fig, result, symbol, keys):
+    """Each panel, found by its y label, draws the matching profile arrays against xi."""
+    ax = _axes_with_ylabel(fig, symbol)
+    lines = _data_lines(ax)
+    for key in keys:
+        assert any(
+            np.allclose(ln.get_xdata(), result.profile["xi"])
+            and np.allclose(ln.get_ydata(), result.profile[key])
+            for ln in lines
+        ), f"no line with profile[{key!r}] on the {symbol} panel"
+
+
+def test_shear_stress_panel_has_legend_for_both(fig):
+    """The two-line stress panel has a legend naming sigma_xy and sigma_yx."""
+    ax = _axes_with_ylabel(fig, r"\bar\sigma_{xy}")
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any(r"\sigma_{xy}" in t for t in texts)
+    assert any(r"\sigma_{yx}" in t for t in texts)
+
+
+def test_xi_axis_labelled(fig):
+    """The bottom panels carry the xi = x/W label."""
+    labels = [ax.get_xlabel() for ax in fig.axes]
+    assert labels.count(r"$\xi = x/W$") >= 2
+
+
+def test_plug_edge_line_at_xi_p(fig, result):
+    """Every panel has a dashed vertical line at xi_p, and one legend entry names it with Delta."""
+    for ax in fig.axes:
+        vlines = [
+            ln for ln in ax.get_lines()
+            if np.allclose(ln.get_xdata(), result.xi_p) and ln.get_linestyle() == "--"
+        ]
+        assert len(vlines) == 1
+    entries = [
+        t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()
+    ]
+    plug = [t for t in entries if r"\xi_p" in t]
+    assert len(plug) == 1
+    assert "plug edge" in plug[0] and f"{result.Delta:.3g}" in plug[0]
+
+
+def test_suptitle_names_parameters(fig):
+    """The suptitle states eps, L, K, A and N with their values."""
+    title = fig.get_suptitle()
+    parts = (r"$\varepsilon$ = 0.0333333", "$L$ = 10", "$K$ = 0.5", "$A$ = 0.333333", "$N$ = 1")
+    for part in parts:
+        assert part in title
+
+
+def test_parameter_title_omits_missing():
+    """parameter_title leaves out parameters passed as None (a sweep axis is not fixed)."""
+    title = plot.parameter_title(eps=0.1, K=2.0)
+    assert title == r"$\varepsilon$ = 0.1, $K$ = 2"
+
+
+def test_save_writes_png(result, tmp_path):
+    """Given a path, point_profiles writes a PNG there and no temporary file."""
+    target = tmp_path / "profiles.png"
+    fig = plot.point_profiles(result, target)
+    assert isinstance(fig, Figure)
+    assert target.read_bytes()[:8] == PNG_SIGNATURE
+    assert os.listdir(tmp_path) == ["profiles.png"]
+
+
+def test_failed_save_leaves_old_file_intact(fig, tmp_path, monkeypatch):
+    """A save that fails half-way removes its temporary file and keeps the existing target."""
+    target = tmp_path / "keep.png"
+    target.write_bytes(b"old")
+
+    def broken_savefig(fh, **kwargs):
+        fh.write(b"partial")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(fig, "savefig", broken_savefig)
+    with pytest.raises(RuntimeError, match="disk full"):
+        plot.save_figure(fig, target)
+    assert os.listdir(tmp_path) == ["keep.png"]
+    assert target.read_bytes() == b"old"
+
+
+def test_unknown_suffix_rejected():
+    """figure_format refuses a suffix matplotlib cannot write and defaults to PNG without one."""
+    assert plot.figure_format("a/b") == "png"
+    assert plot.figure_format("a/b.PDF") == "pdf"
+    with pytest.raises(ValueError, match="nosuch"):
+        plot.figure_format("a/b.nosuch")
+
+
+def test_result_without_profile_is_refused():
+    """A point without solution has no profile: point_profiles says so with its status."""
+    r = solve_point(0.4, 10, 0.5, 1 / 3, 1, profile=np.linspace(0, 1, 11))
+    with pytest.raises(ValueError, match="eps_too_large_axis"):
+        plot.point_profiles(r)

@@ -1,0 +1,304 @@
+"""solve_point against an independent scipy reference, the paper's numbers and model.md's facts."""
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_channel import asymptotics
+from cosserat_channel import status as st
+from cosserat_channel.solve import ParameterError, solve_point
+
+from reference import profile as ref_profile
+from reference import reference
+
+FIG2 = dict(eps=1 / 30, L=10.0, K=0.5, A=1 / 3, N=1.0)  # paper figure 2 (L = 10 curve)
+OUTPUTS = ("Delta", "m_wall", "sigma_yx_wall", "slip")
+
+
+def _ref(eps, L, K, A, N):
+    # Radau is fast on the stiff small-eps points; DOP853 elsewhere (they agree to ~1e-11).
+    return reference(eps, L, K, A, N, method="Radau" if eps * L < 0.05 else "DOP853")
+
+
+# A spread over the acceptance ranges: eps 1e-4 .. the edge, L 1..30, A in (-0.9, 3), N 0.7..3,
+# K 0.1..100; comments say why each row is there.
+SPREAD = [
+    (1e-4, 1.0, 0.5, 1 / 3, 1.0),  # smallest eps, stiff (eta = 1e-4)
+    (1e-4, 30.0, 0.1, 1 / 3, 1.0),  # smallest eps, large L
+    (1e-4, 3.0, 5.0, 2.0, 2.0),  # large A, smoother wall
+    (1e-3, 10.0, 100.0, 0.5, 1.5),  # large K: thin shear layer, big slip
+    (1 / 600, 10.0, 0.5, 1 / 3, 1.0),  # paper figure 4
+    (1 / 30, 10.0, 0.5, 1 / 3, 1.0),  # paper figure 2
+    (1 / 30, 2.0, 0.5, 1 / 3, 1.0),  # figure 2, L = 2
+    (0.12, 10.0, 0.5, 1 / 3, 1.0),  # paper figure 3
+    (0.05, 5.0, 1.0, -0.85, 3.0),  # A close to -1 with large N
+    (0.02, 20.0, 0.3, -0.5, 1.2),  # negative A
+    (0.01, 1.0, 10.0, 2.9, 0.7),  # largest A, smallest N
+    (0.2, 15.0, 2.0, 1.0, 1.0),  # A = 1: axis condition always met
+    (0.3, 10.0, 0.5, 1 / 3, 1.0),  # near the edge
+    (0.32, 10.0, 0.5, 1 / 3, 1.0),  # nearer the edge (D(1) ~ 5e-3)
+    (0.33, 10.0, 0.5, 1 / 3, 1.0),  # at the edge (D(1) ~ 2e-4): feasible, see test below
+    (0.335, 10.0, 0.5, 1 / 3, 1.0),  # just over the edge: path fails
+    (0.38, 10.0, 0.5, 1 / 3, 1.0),  # path fails early
+    (0.45, 10.0, 0.5, 1 / 3, 1.0),  # axis fails: (A-1) eta + 2(A+1) N < 0
+    (0.05, 10.0, 0.5, 0.0, 0.7),  # A < 1 - 2N^2 = 0.02: wall inadmissible
+    (0.05, 10.0, 0.5, 0.1, 0.7),  # A just above 1 - 2N^2: path meets D = 0 before the wall
+]
+
+
+@pytest.mark.parametrize("point", SPREAD, ids=[str(p) for p in SPREAD])
+def test_agrees_with_scipy_reference(point):
+    """At the default rtol, Delta, m_wall, sigma_yx_wall and slip agree with solve_ivp (rtol 1e-12) to 1e-6; statuses agree."""
+    eps, L, K, A, N = point
+    ours = solve_point(eps, L, K, A, N)
+    ref = _ref(eps, L, K, A, N)
+    assert ours.status.name == ref["status"]
+    if ref["status"] == "ok":
+        for name in OUTPUTS:
+            assert getattr(ours, name) == pytest.approx(ref[name], rel=1e-6), name
+        assert math.isnan(ours.xi_stop)
+    else:
+        for name in OUTPUTS:
+            assert math.isnan(getattr(ours, name))
+    if ref["status"] == "eps_too_large_path":
+        # Where the path meets D = 0 the RHS has a sqrt kink; even DOP853 and Radau at rtol 1e-12
+        # place it ~1e-6 apart, so xi_stop is held to 1e-5 (it is not one of the 1e-6 outputs).
+        assert ours.xi_stop == pytest.approx(ref["xi_stop"], rel=1e-5)
+
+
+def test_profiles_agree_with_reference():
+    """u/u(0), omega_hat, m and sigma_yx profiles match the reference to 1e-6."""
+    xi = np.linspace(0.05, 1.0, 39)
+    ours = solve_point(**FIG2, profile=xi)
+    ref = _ref(**FIG2)
+    want = ref_profile(ref, xi, **FIG2)
+    for name in ("u_over_u0", "omega_hat", "m", "sigma_yx"):
+        np.testing.assert_allclose(ours.profile[name], want[name], rtol=1e-6, atol=1e-9, err_msg=name)
+    assert ours.profile["u_over_u0"][-1] == pytest.approx(ours.slip, rel=1e-12)
+    assert ours.profile["omega_hat"][-1] == pytest.approx(1.0, rel=1e-12)
+
+
+def test_profile_down_to_the_axis():
+    """Below where stage 2 stopped the profile stays monotone, omega_hat -> 0 and u/u(0) -> 1."""
+    xi = np.concatenate([[0.0, 1e-6, 1e-3], np.linspace(0.01, 1, 100)])
+    prof = solve_point(**FIG2, profile=xi).profile
+    assert prof["u_over_u0"][0] == pytest.approx(1.0, abs=1e-12)
+    assert prof["omega_hat"][0] == 0.0
+    assert np.all(np.diff(prof["omega_hat"]) >= 0)
+    assert np.all(np.diff(prof["u_over_u0"]) <= 1e-14)
+    assert prof["m"][0] == pytest.approx(-FIG2["N"] * FIG2["L"], rel=1e-12)  # eq:54
+    assert prof["sigma_yx"][0] == 0.0  # eq:11
+
+
+def test_tolerance_is_honoured():
+    """Tightening rtol tightens the error: rtol 1e-10 is 1e-8 accurate where 1e-6 is not."""
+    ref = _ref(**FIG2)
+    errs = {rtol: abs(solve_point(**FIG2, rtol=rtol).Delta / ref["Delta"] - 1) for rtol in (1e-6, 1e-10)}
+    assert errs[1e-10] < 1e-8
+    assert errs[1e-10] < errs[1e-6]
+
+
+# --------------------------------------------------------------------------------------------
+# The paper's numbers (model.md's table); each assertion message says what the paper states.
+# --------------------------------------------------------------------------------------------
+def test_paper_figure2_shear_layer_thickness():
+    """Paper (figure 2): Delta 'about 10.5' at eps = 1/30, L = 10, A = 1/3, N = 1, K = 0.5."""
+    r = solve_point(**FIG2)
+    assert r.status == st.Status.ok
+    # We get 10.253 (the reference agrees to 1e-8); "about 10.5" is read off a figure.
+    assert r.Delta == pytest.approx(10.5, rel=0.03), f"paper: about 10.5; ours: {r.Delta:.4f}"
+
+
+def test_paper_delta_vanishes_for_K_above_200():
+    """Paper: for K > 200 (eps = 1/30) the wall moves at > 95 % of the centre, so Delta = 0."""
+    r = solve_point(**FIG2)
+    J_axis = r.u_axis - FIG2["eps"] * FIG2["K"]
+    K_star = 19 * J_axis / FIG2["eps"]  # eps K = 19 J(0)
+    assert K_star == pytest.approx(200, rel=0.02), f"paper: 200; ours: {K_star:.2f}"
+    params = dict(FIG2)
+    params["K"] = 1.01 * K_star
+    assert solve_point(**params).Delta == 0.0
+    params["K"] = 0.99 * K_star
+    assert 0 < solve_point(**params).Delta < 0.5
+
+
+def test_paper_figure7_delta_grows_with_channel_width():
+    """Paper (figure 7): Delta increases with W/d_p."""
+    widths = [10, 20, 30, 60, 100, 200, 600]
+    deltas = [solve_point(1 / w, 10, 0.5, 1 / 3, 1).Delta for w in widths]
+    assert np.all(np.diff(deltas) > 0), deltas
+
+
+def test_paper_figure8_delta_grows_weakly_with_L():
+    """Paper (figure 8): Delta is a weak (sub-linear) increasing function of L."""
+    Ls = np.array([2.0, 5.0, 10.0, 20.0])
+    deltas = np.array([solve_point(1 / 30, L, 0.5, 1 / 3, 1).Delta for L in Ls])
+    assert np.all(np.diff(deltas) > 0)
+    assert deltas[-1] / deltas[0] < (Ls[-1] / Ls[0]) ** (2 / 3)  # at most the small-eps L^(2/3)
+
+
+def test_paper_figure9_delta_flat_in_K_for_small_K():
+    """Paper (figure 9): little variation with K for small K, significant in K ~ 1..200."""
+    d = {K: solve_point(1 / 30, 10, K, 1 / 3, 1).Delta for K in (0.0, 0.1, 1.0, 50.0, 150.0)}
+    assert abs(d[0.1] / d[0.0] - 1) < 0.01
+    assert d[1.0] > d[50.0] > d[150.0]
+    assert d[150.0] < 0.2 * d[1.0]
+
+
+def test_paper_edge_eps_033_is_feasible_with_round_off_care():
+    """Paper (Appendix A): 'no solution at eps = 0.33'; exact arithmetic says there is one, just."""
+    r = solve_point(0.33, 10, 0.5, 1 / 3, 1)
+    ref = _ref(0.33, 10, 0.5, 1 / 3, 1)
+    # The reference (different formulation, rtol 1e-12) also reaches the wall, with D(1) ~ 2.2e-4.
+    assert ref["status"] == "ok" and r.status == st.Status.ok, (
+        "paper: no solution at eps = 0.33; we (and scipy at rtol 1e-12) find one, D(1) = "
+        f"{(ref['sigma_yx_wall'] - 1 / 3) ** 2:.2e}: the paper's verdict is round-off near the axis"
+    )
+    assert solve_point(0.335, 10, 0.5, 1 / 3, 1).status == st.Status.eps_too_large_path
+
+
+@pytest.mark.parametrize(
+    "eps, material, nu_paper",
+    [
+        (1 / 30, dict(d_p=0.002, rho_p=2940, phi=25), 0.603),  # figure 2 (and 12): 0.60 / 0.603
+        (0.003 / 0.0255, dict(d_p=0.003, rho_p=2940, phi=28), 0.59),  # figure 3
+    ],
+)
+def test_paper_solids_fraction(eps, material, nu_paper):
+    """Paper: nu = 0.60 (0.603) for figure 2 and 0.59 for figure 3, with Lambda = 817 Pa."""
+    r = solve_point(eps, 10, 0.5, 1 / 3, 1, material=material)
+    assert r.nu == pytest.approx(nu_paper, abs=0.005), f"paper: {nu_paper}; ours: {r.nu:.4f}"
+
+
+def test_paper_table1_wall_stresses():
+    """Paper (table 1): 7.97 kPa normal, 1.12 kPa shear at nu = 0.625; the printed closure gives ~1 % less."""
+    N = math.sin(math.radians(30)) / math.tan(math.radians(8))
+    r = solve_point(2.29e-3 / 0.155, 10, 0.5, 1 / 3, N,
+                    material=dict(d_p=2.29e-3, rho_p=1180, phi=30))
+    assert r.nu == pytest.approx(0.625, rel=0.02), f"paper: 0.625; ours: {r.nu:.4f}"
+    assert r.sigma_xx_wall_Pa == pytest.approx(7970, rel=0.02), f"paper: 7.97 kPa; ours {r.sigma_xx_wall_Pa:.0f} Pa"
+    assert -r.sigma_xy_wall_Pa == pytest.approx(1120, rel=0.02), f"paper: 1.12 kPa; ours {-r.sigma_xy_wall_Pa:.0f} Pa"
+    # Internal consistency: sigma_xx = sigma_c(nu) and the wall friction law eq:5.
+    assert -r.sigma_xy_wall_Pa / r.sigma_xx_wall_Pa == pytest.approx(math.tan(math.radians(8)), rel=1e-12)
+
+
+def test_small_eps_approaches_the_airy_asymptote():
+    """Appendix C: for N = 1, Delta / ((L^2/2)^(1/3) eps^(-1/3) 1.2748) -> 1 as eps -> 0."""
+    ratios = [solve_point(eps, 10, 0.0, 1 / 3, 1).Delta / asymptotics.Delta_asymptotic(eps, 10)
+              for eps in (1e-2, 1e-3, 1e-4)]
+    assert ratios[0] < ratios[1] < ratios[2] < 1.0
+    assert ratios[2] == pytest.approx(1.0, abs=0.01)
+
+
+# --------------------------------------------------------------------------------------------
+# model.md's similarity and the closed form
+# --------------------------------------------------------------------------------------------
+SIMILAR = [(1 / 30, 10.0, 0.5), (1 / 60, 20.0, 1.0), (1 / 15, 5.0, 0.25)]
+
+
+def test_similarity_holds_in_the_reference():
+    """model.md: 1-xi_p, J(0), sigma_yx(1), m(1)/L depend on (eps L, A, N, eps K) only (independent solver)."""
+    refs = [reference(eps, L, K, 1 / 3, 1.0, rtol=1e-13) for eps, L, K in SIMILAR]
+    base = refs[0]
+    for (eps, L, K), r in zip(SIMILAR[1:], refs[1:]):
+        assert 1 - r["xi_p"] == pytest.approx(1 - base["xi_p"], rel=1e-9)
+        assert r["J_axis"] == pytest.approx(base["J_axis"], rel=1e-9)
+        assert r["sigma_yx_wall"] == pytest.approx(base["sigma_yx_wall"], rel=1e-9)
+        assert r["m_wall"] / L == pytest.approx(base["m_wall"] / SIMILAR[0][1], rel=1e-9)
+
+
+def test_similarity_holds_in_solve_point():
+    """The same three points through solve_point agree to 13 digits (model.md's check)."""
+    rs = [solve_point(eps, L, K, 1 / 3, 1.0) for eps, L, K in SIMILAR]
+    for (eps, L, K), r in zip(SIMILAR, rs):
+        assert r.Delta * eps == pytest.approx(rs[0].Delta * SIMILAR[0][0], rel=1e-13)
+        assert r.m_wall / L == pytest.approx(rs[0].m_wall / SIMILAR[0][1], rel=1e-13)
+        assert r.sigma_yx_wall == pytest.approx(rs[0].sigma_yx_wall, rel=1e-13)
+
+
+def test_K_costs_no_integration():
+    """J(0) = u_axis - eps K is the same for every K (K enters only through eq:13 and eq:7)."""
+    J = [solve_point(1 / 30, 10, K, 1 / 3, 1).u_axis - K / 30 for K in (0.0, 0.5, 50.0)]
+    assert J[1] == pytest.approx(J[0], rel=1e-15) and J[2] == pytest.approx(J[0], rel=1e-15)
+
+
+@pytest.mark.parametrize("eps, L, K, N", [(1 / 30, 10, 0.5, 1.0), (1e-3, 10, 0.0, 1.0), (0.01, 2, 5, 3.0)])
+def test_A_minus_one_closed_form(eps, L, K, N):
+    """A = -1 follows Appendix A's closed form (independent implementation in asymptotics)."""
+    r = solve_point(eps, L, K, -1.0, N, profile=np.linspace(0, 1, 11))
+    cf = asymptotics.a_minus_one_outputs(eps, L, K, N)
+    assert r.status == st.Status.ok
+    assert r.Delta == pytest.approx(cf.Delta, rel=1e-12)
+    assert r.slip == pytest.approx(cf.slip, rel=1e-12)
+    assert r.m_wall == pytest.approx(-N * L) and r.sigma_yx_wall == -1.0
+    prof = asymptotics.a_minus_one(r.profile["xi"], eps, L, K, N)
+    np.testing.assert_allclose(r.profile["u_over_u0"], prof.u_over_u0, rtol=1e-12)
+    np.testing.assert_allclose(r.profile["omega_hat"], prof.omega_hat, rtol=1e-12)
+
+
+def test_regime_statuses_and_messages():
+    """Each regime of Appendix A gets its status, with a message, and no numbers."""
+    cases = {
+        st.Status.wall_inadmissible: (0.05, 10, 0.5, -2.0, 1.0),
+        st.Status.axis_spin_unbounded: (0.05, 10, 0.5, -1.5, 2.0),
+        st.Status.eps_too_large_axis: (0.45, 10, 0.5, 1 / 3, 1.0),
+        st.Status.eps_too_large_path: (0.36, 10, 0.5, 1 / 3, 1.0),
+    }
+    for want, point in cases.items():
+        r = solve_point(*point)
+        assert r.status == want
+        assert r.status.message and r.to_dict()["status"] == want.name
+        assert r.to_dict()["Delta"] is None
+
+
+def test_counters_are_reported():
+    """The result carries both stages' step counts, which grow when the tolerance tightens."""
+    loose = solve_point(**FIG2, rtol=1e-5).counters
+    tight = solve_point(**FIG2, rtol=1e-10).counters
+    assert 0 < loose["stage1_accepted"] < tight["stage1_accepted"]
+    assert 0 < loose["stage2_accepted"] < tight["stage2_accepted"]
+    assert tight["stage1_fev"] >= 6 * tight["stage1_accepted"]
+
+
+# --------------------------------------------------------------------------------------------
+# Bad input
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(eps=math.nan), "eps"),
+        (dict(eps=math.inf), "eps"),
+        (dict(eps=0.0), "eps"),
+        (dict(eps=-0.1), "eps"),
+        (dict(L=0.0), "L"),
+        (dict(L=math.nan), "L"),
+        (dict(K=-1.0), "K"),
+        (dict(K=math.inf), "K"),
+        (dict(A=math.nan), "A"),
+        (dict(N=0.0), "N"),
+        (dict(N=-1.0), "N"),
+        (dict(rtol=0.0), "rtol"),
+        (dict(rtol=1.0), "rtol"),
+        (dict(rtol=math.nan), "rtol"),
+        (dict(atol=0.0), "atol"),
+        (dict(eps="abc"), "eps"),
+        (dict(eps=True), "eps"),
+        (dict(material=dict(d_p=0.002, rho_p=2940, phi=25, colour="red")), "colour"),
+        (dict(material=dict(d_p=0.002, rho_p=2940)), "phi"),
+        (dict(material=dict(d_p=-1, rho_p=2940, phi=25)), "material.d_p"),
+        (dict(material=dict(d_p=0.002, rho_p=2940, phi=95)), "material.phi"),
+        (dict(material=dict(d_p=0.002, rho_p=2940, phi=25, nu_min=0.7)), "nu_min"),
+        (dict(profile=[0.5, 1.5]), "profile"),
+    ],
+)
+def test_bad_input_raises_naming_the_parameter(kwargs, name):
+    """Bad input raises a ValueError subclass naming the parameter (and its range)."""
+    args = dict(FIG2)
+    args.update(kwargs)
+    with pytest.raises(ParameterError) as info:
+        solve_point(args.pop("eps"), args.pop("L"), args.pop("K"), args.pop("A"), args.pop("N"), **args)
+    assert isinstance(info.value, ValueError)
+    assert name in str(info.value)
+    if name in ("eps", "L", "K", "N", "rtol"):
+        assert "(" in str(info.value) or "[" in str(info.value)  # the allowed range is stated

@@ -41,10 +41,17 @@ R_J_AXIS = 2  # J(0) = u(0)/omega_w - eps K
 R_MU_WALL = 3  # m(1)/(nu L)
 R_SIGMA_YX_WALL = 4  # sigma_yx(1)/nu
 R_XI1 = 5  # where stage 1 left the axis series
-R_XI_TAIL = 6  # where stage 2 stopped
+R_T_TAIL = 6  # ln(xi) where stage 2 stopped
 R_N1 = 7  # accepted steps kept in the stage-1 dense output
 R_N2 = 8
 N_R = 9
+
+# Rows of a triple's profile array (see profile_kernel).
+P_J = 0  # J(xi) = u(xi)/omega_w - eps K
+P_OMEGA_HAT = 1  # omega(xi)/omega_w
+P_DELTA = 2  # (m/nu + N L)/L
+P_SIGMA_YX = 3  # sigma_yx/nu
+N_PROF = 4
 
 
 # ---------------------------------------------------------------------------------------------
@@ -74,12 +81,15 @@ def _delta_at(xi, xi1, ax, T1, Q1, n1, buf):
 
 
 @njit(nogil=True, cache=True)
-def _stage2_rhs(xi, y, args, out):
+def _stage2_rhs(t, y, args, out):
+    # Independent variable t = ln(xi): near the axis B ~ beta/xi, so d log(omega_hat)/dt -> beta
+    # is smooth all the way down, where marching in xi would crawl in geometric steps.
     eta, A, N, ax, xi1, T1, Q1, n1, buf, tail_tol = args
+    xi = math.exp(t)
     delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
     D = model.yield_D(xi, delta, A, N, ax)
-    out[0] = model.spin_rate_B(delta, D, eta, A, N)  # d log(omega_hat) / d xi   (e-60)
-    out[1] = -model.shear_rate_h(xi, D, A) * math.exp(y[0])  # dJ/d xi   (e-59)
+    out[0] = xi * model.spin_rate_B(delta, D, eta, A, N)  # d log(omega_hat)/dt   (e-60)
+    out[1] = -xi * model.shear_rate_h(xi, D, A) * math.exp(y[0])  # dJ/dt   (e-59)
 
 
 @njit(nogil=True, cache=True)
@@ -89,17 +99,18 @@ def _h_axis(A, ax):
 
 
 @njit(nogil=True, cache=True)
-def _stage2_event(xi, y, args):
+def _stage2_event(t, y, args):
     # Positive while the rest of J (from xi down to the axis) can still matter: that rest is at
     # most xi * max(h) * omega_hat(xi), because omega_hat increases with xi (B > 0 near the axis).
     eta, A, N, ax, xi1, T1, Q1, n1, buf, tail_tol = args
     J = y[1]
     if J <= 0.0:
         return 1.0
+    xi = math.exp(t)
     delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
     D = model.yield_D(xi, delta, A, N, ax)
     h_bound = 2.0 * max(model.shear_rate_h(xi, D, A), _h_axis(A, ax))
-    return y[0] + math.log(xi * h_bound) - math.log(tail_tol * J)
+    return y[0] + t + math.log(h_bound) - math.log(tail_tol * J)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -193,14 +204,14 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
     res[R_MU_WALL] = delta_wall - N
     res[R_SIGMA_YX_WALL] = model.sigma_yx(1.0, D_wall, A)
 
-    # Stage 2: wall -> axis, in (log omega_hat, J); omega_hat(1) = 1, J(1) = 0 (eq:7).
+    # Stage 2: wall -> axis in t = ln(xi), state (log omega_hat, J); omega_hat(1) = 1, J(1) = 0 (eq:7).
     y2 = np.zeros(2)
     atol2 = np.empty(2)
     atol2[0] = rtol  # an absolute error in log(omega_hat) is a relative error in omega_hat
     atol2[1] = atol * min(1.0, eta)
     args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, TAIL_FRACTION * rtol)
     s2, n2, t2 = rk45.dopri5(
-        _stage2_rhs, _stage2_event, 1.0, y2, XI_FLOOR, args2, rtol, atol2, 0.0, 0.0, T2, Q2,
+        _stage2_rhs, _stage2_event, 0.0, y2, math.log(XI_FLOOR), args2, rtol, atol2, 0.0, 0.0, T2, Q2,
         stats2,
     )
     res[R_N2] = n2
@@ -209,20 +220,24 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
         return st.INTEGRATION_FAILED
     yb = np.empty(2)
     rk45.dense_eval(T2, Q2, n2, t2, yb)
-    res[R_XI_TAIL] = t2
+    res[R_T_TAIL] = t2
     res[R_J_AXIS] = yb[1]
     return st.OK
 
 
 @njit(nogil=True, cache=True)
-def _J_at(T2, Q2, n2, xi, yb):
-    rk45.dense_eval(T2, Q2, n2, xi, yb)
+def _J_at(T2, Q2, n2, t, yb):
+    rk45.dense_eval(T2, Q2, n2, t, yb)
     return yb[1]
 
 
 @njit(nogil=True, cache=True)
 def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
-    """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi)."""
+    """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi).
+
+    The root is found in ``t = ln(xi_p)`` and returned as ``-expm1(t)``: no cancellation even when
+    the shear layer is a tiny fraction of the channel.
+    """
     J_axis = res[R_J_AXIS]
     target = model.plug_target(J_axis, eps_K)
     if target <= 0.0:
@@ -231,7 +246,7 @@ def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
         return model.a_minus_one_one_minus_xi_p(eps_K, 2.0 * N / eta)
     n2 = int(res[R_N2])
     yb = np.empty(2)
-    # Bracket on step ends: T2 runs from 1 down, J from 0 up.
+    # Bracket on step ends: T2 (= ln xi) runs from 0 down, J from 0 up.
     lo = 0
     hi = n2
     while hi - lo > 1:
@@ -242,7 +257,7 @@ def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
             hi = mid
     a = T2[lo]  # J(a) < target
     # T2[n2] is the end of the last step, which overshoots where an event stopped stage 2.
-    b = T2[hi] if hi < n2 else res[R_XI_TAIL]
+    b = T2[hi] if hi < n2 else res[R_T_TAIL]
     fa = _J_at(T2, Q2, n2, a, yb) - target
     fb = _J_at(T2, Q2, n2, b, yb) - target
     # Illinois regula falsi on the interpolant, safeguarded by bisection.
@@ -256,7 +271,7 @@ def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
             if not (min(a, b) < x < max(a, b)):
                 x = 0.5 * (a + b)
         fx = _J_at(T2, Q2, n2, x, yb) - target
-        if fx == 0.0 or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
+        if fx == 0.0 or abs(b - a) <= 4e-16 * abs(x) + 1e-300:
             break
         if (fx < 0.0) == (fa < 0.0):
             a = x
@@ -270,7 +285,41 @@ def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
             if side == 1:
                 fa *= 0.5
             side = 1
-    return 1.0 - x
+    return -math.expm1(x)
+
+
+@njit(nogil=True, cache=True)
+def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_steps_stage2,
+                res, stats, one_minus, xi_profile, profiles):
+    """Many ``(eta, A, N)`` triples, each with its own run of ``eps K`` values, on one core.
+
+    Triple ``i`` owns ``eps_K[offsets[i]:offsets[i+1]]``; ``one_minus`` (same length as ``eps_K``)
+    receives ``1 - xi_p`` for each (NaN where the triple has no solution). ``res[i]`` gets the
+    triple's ``R_*`` slots and ``stats[i, 0]`` / ``stats[i, 1]`` the counters of the two stages.
+    When ``xi_profile`` is not empty, ``profiles[i]`` (shape ``(N_PROF, xi_profile.size)``)
+    receives the triple's profiles (slots ``P_*``; NaN without a solution).
+    One integration per triple, whatever the number of ``eps K`` values (model.md's similarity).
+    The work arrays are allocated once, here, so the kernel releases the GIL for its whole run.
+    """
+    ax = np.empty(N_AX)
+    T1 = np.empty(max_steps_stage1 + 1)
+    Q1 = np.empty((max_steps_stage1, 5, 1))
+    T2 = np.empty(max_steps_stage2 + 1)
+    Q2 = np.empty((max_steps_stage2, 5, 2))
+    for i in range(eta.size):
+        code = solve_eta(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, T2, Q2, stats[i, 0],
+                         stats[i, 1], res[i])
+        for j in range(offsets[i], offsets[i + 1]):
+            if code == st.OK:
+                one_minus[j] = one_minus_xi_p(A[i], N[i], eta[i], eps_K[j], res[i], T2, Q2)
+            else:
+                one_minus[j] = math.nan
+        if xi_profile.size > 0:
+            if code == st.OK:
+                profile_kernel(xi_profile, eta[i], A[i], N[i], ax, res[i], T1, Q1, T2, Q2,
+                               profiles[i])
+            else:
+                profiles[i, :, :] = math.nan
 
 
 # ---------------------------------------------------------------------------------------------
@@ -576,33 +625,37 @@ def _add_material(out: PointResult, mat: dict) -> None:
 
 
 @njit(nogil=True, cache=True)
-def _profile_kernel(xis, eta, A, N, eps_K, ax, res, T1, Q1, T2, Q2, out):
-    """Columns of ``out``: u/u(0), omega_hat, m/(nu L) + N = delta, sigma_yx/nu."""
+def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
+    """Profiles of one solved triple at ``xis``: rows ``P_J``, ``P_OMEGA_HAT``, ``P_DELTA``, ``P_SIGMA_YX``.
+
+    ``u/u(0) = (eps K + J) / (eps K + J(0))`` for any K, so ``J`` is stored, not ``u``.
+    """
     buf = np.empty(1)
     yb = np.empty(2)
     xi1 = res[R_XI1]
     n1 = int(res[R_N1])
     n2 = int(res[R_N2])
-    xi_tail = res[R_XI_TAIL]
+    t_tail = res[R_T_TAIL]
     J_axis = res[R_J_AXIS]
     # Below where stage 2 stopped, omega_hat ~ xi^beta (Appendix B) and J has converged.
-    rk45.dense_eval(T2, Q2, n2, xi_tail, yb)
+    rk45.dense_eval(T2, Q2, n2, t_tail, yb)
     logw_tail = yb[0]
     for i in range(xis.size):
         xi = xis[i]
         delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
         D = model.yield_D(xi, delta, A, N, ax)
-        if xi >= xi_tail:
-            rk45.dense_eval(T2, Q2, n2, xi, yb)
+        t = math.log(xi) if xi > 0.0 else -math.inf
+        if t >= t_tail:
+            rk45.dense_eval(T2, Q2, n2, t, yb)
             logw = yb[0]
             J = yb[1]
         else:
-            logw = logw_tail + ax[AX_BETA] * math.log(xi / xi_tail) if xi > 0.0 else -math.inf
+            logw = logw_tail + ax[AX_BETA] * (t - t_tail)
             J = J_axis
-        out[i, 0] = (eps_K + J) / (eps_K + J_axis)
-        out[i, 1] = math.exp(logw)
-        out[i, 2] = delta
-        out[i, 3] = model.sigma_yx(xi, D, A)
+        out[P_J, i] = J
+        out[P_OMEGA_HAT, i] = math.exp(logw)
+        out[P_DELTA, i] = delta
+        out[P_SIGMA_YX, i] = model.sigma_yx(xi, D, A)
 
 
 def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
@@ -622,13 +675,14 @@ def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
             "sigma_xy": -xi,
             "sigma_yx": -xi.copy(),
         }
-    out = np.empty((xi.size, 4))
-    _profile_kernel(xi, eta, A, N, eps_K, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, out)
+    out = np.empty((N_PROF, xi.size))
+    profile_kernel(xi, eta, A, N, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, out)
+    J_axis = ws.res[R_J_AXIS]
     return {
         "xi": xi.copy(),
-        "u_over_u0": out[:, 0],
-        "omega_hat": out[:, 1],
-        "m": L * (out[:, 2] - N),
+        "u_over_u0": (eps_K + out[P_J]) / (eps_K + J_axis),
+        "omega_hat": out[P_OMEGA_HAT],
+        "m": L * (out[P_DELTA] - N),
         "sigma_xy": -xi,
-        "sigma_yx": out[:, 3],
+        "sigma_yx": out[P_SIGMA_YX],
     }

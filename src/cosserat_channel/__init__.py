@@ -4,11 +4,58 @@ The physics is Mohan, Nott & Rao, "A frictional Cosserat model for the flow of g
 materials through a vertical channel". See ``README.md`` for the set-up commands.
 """
 
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
 from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
 
 try:
     __version__ = version("cosserat-channel")
 except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0.0.0+unknown"
 
-__all__ = ["__version__"]
+
+def _numba_cache_dir() -> str:
+    """A Numba cache directory keyed by a hash of every source file of this package.
+
+    Numba checks a cached kernel against the source file of the function itself only, so the
+    compiled ``solve`` kernels, which inline ``model``, ``rk45`` and ``rosenbrock``, would be
+    reloaded unchanged after an edit (or a ``git pull``) of those modules: a silent wrong answer.
+    Keying the directory on all sources makes any change a clean recompile.
+    """
+    here = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(here.rglob("*.py")):
+        digest.update(path.relative_to(here).as_posix().encode())
+        digest.update(path.read_bytes())
+    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "cosserat-channel"
+    return str(base / f"numba-{__version__}-{digest.hexdigest()[:16]}")
+
+
+if not os.environ.get("NUMBA_CACHE_DIR"):
+    # Must happen before any submodule defines a cached kernel. numba reads the variable when it
+    # is first imported and its config per decorated function afterwards, so cover both without
+    # importing numba here (the CLI stays light).
+    os.environ["NUMBA_CACHE_DIR"] = _numba_cache_dir()
+    if "numba" in sys.modules:
+        sys.modules["numba"].config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
+
+
+def run_sweep(*args, **kwargs):
+    """Run a sweep file or mapping; see :func:`cosserat_channel.sweep.run_sweep`."""
+    from .sweep import run_sweep as _run
+
+    return _run(*args, **kwargs)
+
+
+def open_results(path):
+    """Open a result file lazily; see :func:`cosserat_channel.query.open_results`."""
+    from .query import open_results as _open
+
+    return _open(path)
+
+
+__all__ = ["__version__", "run_sweep", "open_results"]

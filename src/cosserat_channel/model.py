@@ -144,6 +144,26 @@ def dw_dxi(xi, w, eta, A, N, ax):
 
 
 @njit(nogil=True, cache=True)
+def dw_dxi_jacobian(xi, w, eta, A, N, ax):
+    """Exact ``(d f/d w, d f/d xi)`` of :func:`dw_dxi` ``= f(xi, w)``, for the Rosenbrock path.
+
+    With ``g(xi, delta) = ((A+1) xi - sqrt(D))/eta`` and ``delta = xi^2 w``:
+    ``df/dw = g_delta - 2/xi = -B - 2/xi`` (model.md: the stage-1 Jacobian is ``-B``), and
+    ``df/dxi = (g_xi + 2 xi w g_delta - 2w)/xi^2 - 2 (g - 2 xi w)/xi^3`` with
+    ``g_xi = ((A+1) - (A^2-1) xi / sqrt(D))/eta``.
+    """
+    delta = xi * xi * w
+    D = yield_D(xi, delta, A, N, ax)
+    sq = math.sqrt(max(D, 1e-300))
+    g = ((A + 1.0) * xi - sq) / eta
+    g_delta = -2.0 * (A + 1.0) * (N - delta) / (eta * sq)
+    g_xi = ((A + 1.0) - (A * A - 1.0) * xi / sq) / eta
+    dfdw = g_delta - 2.0 / xi
+    dfdxi = (g_xi + 2.0 * xi * w * g_delta - 2.0 * w) / (xi * xi) - 2.0 * (g - 2.0 * xi * w) / (xi * xi * xi)
+    return dfdw, dfdxi
+
+
+@njit(nogil=True, cache=True)
 def sigma_xy(xi):
     """eq:19: ``sigma_xy = -xi`` (scaled by nu)."""
     return -xi

@@ -20,6 +20,7 @@ from numba import njit
 
 from . import model
 from . import rk45
+from . import rosenbrock
 from . import status as st
 from .model import AX_BETA, AX_C0, N_AX
 
@@ -44,7 +45,15 @@ R_XI1 = 5  # where stage 1 left the axis series
 R_T_TAIL = 6  # ln(xi) where stage 2 stopped
 R_N1 = 7  # accepted steps kept in the stage-1 dense output
 R_N2 = 8
-N_R = 9
+R_PATH = 9  # stage 1 took the explicit (0) or the stiff (1) path
+N_R = 10
+
+METHOD_AUTO = 0
+METHOD_EXPLICIT = 1
+METHOD_STIFF = 2
+# Stage 1 switches to RODAS4 when the stiffness 2/eta of the interior exceeds this (see
+# use_stiff_path and docs/performance.md for the measurement behind it).
+STIFF_LAMBDA = 20.0
 
 # Rows of a triple's profile array (see profile_kernel).
 P_J = 0  # J(xi) = u(xi)/omega_w - eps K
@@ -62,6 +71,12 @@ def _stage1_rhs(xi, y, args, out):
     # The state is w = delta / xi^2 (see model.dw_dxi).
     eta, A, N, ax = args
     out[0] = model.dw_dxi(xi, y[0], eta, A, N, ax)
+
+
+@njit(nogil=True, cache=True)
+def _stage1_jac(xi, y, args):
+    eta, A, N, ax = args
+    return model.dw_dxi_jacobian(xi, y[0], eta, A, N, ax)
 
 
 @njit(nogil=True, cache=True)
@@ -117,6 +132,27 @@ def _stage2_event(t, y, args):
 # The kernel for one (eta, A, N)
 # ---------------------------------------------------------------------------------------------
 @njit(nogil=True, cache=True)
+def use_stiff_path(eta, ax):
+    """Whether stage 1 should take the stiff path: the Jacobian is known in closed form.
+
+    It is ``-B - 2/xi`` in ``w``: about ``-2/eta`` in the interior. An explicit method needs
+    O(1/eta) steps there (stability, and accuracy along the slow manifold), RODAS4 a number set
+    by the smoothness of the solution alone.
+    """
+    return 2.0 / eta > STIFF_LAMBDA
+
+
+@njit(nogil=True, cache=True)
+def _march_stage1(stiff, xi0, y0, h_max, args1, rtol, atol1, T1, Q1, stats1):
+    # The only place that picks stage 1's integrator; both write the same dense-output layout.
+    if stiff:
+        return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, 1.0, args1,
+                                 rtol, atol1, 0.0, h_max, T1, Q1, stats1)
+    return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, 1.0, args1, rtol, atol1, 0.0, h_max,
+                       T1, Q1, stats1)
+
+
+@njit(nogil=True, cache=True)
 def start_xi(ax):
     """Where stage 1 leaves the axis series: small enough that the neglected O(xi^6) term is far
     below round-off, scaled with ``c0`` because the series' radius shrinks at the axis edge."""
@@ -124,8 +160,11 @@ def start_xi(ax):
 
 
 @njit(nogil=True, cache=True)
-def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
+def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method=METHOD_AUTO):
     """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``.
+
+    ``method`` picks stage 1's integrator: ``METHOD_AUTO`` (by :func:`use_stiff_path`),
+    ``METHOD_EXPLICIT`` (Dormand-Prince) or ``METHOD_STIFF`` (RODAS4).
 
     Fills ``res[N_R]`` (slots ``R_*``), the axis constants ``ax``, the dense outputs (T1, Q1) of
     stage 1 and (T2, Q2) of stage 2 and the counters. Returns the status code.
@@ -137,6 +176,7 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
         stats2[i] = 0
     res[R_N1] = 0.0
     res[R_N2] = 0.0
+    res[R_PATH] = 0.0
     code = model.classify(eta, A, N)
     res[R_STATUS] = code
     if code != st.OK:
@@ -160,9 +200,9 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
     atol1 = np.empty(1)
     atol1[0] = atol
     args1 = (eta, A, N, ax)
-    s1, n1, t1 = rk45.dopri5(
-        _stage1_rhs, _stage1_event, xi1, y0, 1.0, args1, rtol, atol1, 0.0, 0.0, T1, Q1, stats1
-    )
+    stiff = use_stiff_path(eta, ax) if method == METHOD_AUTO else method == METHOD_STIFF
+    res[R_PATH] = 1.0 if stiff else 0.0
+    s1, n1, t1 = _march_stage1(stiff, xi1, y0, 0.0, args1, rtol, atol1, T1, Q1, stats1)
     # Where the path meets D = 0, sqrt(D) ~ sqrt(xi_stop - xi): the RHS has a kink that the last
     # (wide, error-controlled) step glides over, so the dense output locates xi_stop only to ~1e-4.
     # March that last step again with steps 1/16 as wide, until the location settles.
@@ -175,10 +215,8 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res):
         if not span > 0.0:
             break
         y0[0] = Q1[k, 0, 0]
-        s1, nb, t_new = rk45.dopri5(
-            _stage1_rhs, _stage1_event, T1[k], y0, 1.0, args1, rtol, atol1, 0.0, span / 16.0,
-            T1[k:], Q1[k:], stats_r,
-        )
+        s1, nb, t_new = _march_stage1(stiff, T1[k], y0, span / 16.0, args1, rtol, atol1,
+                                      T1[k:], Q1[k:], stats_r)
         for i in range(rk45.STAT_STIFF):
             stats1[i] += stats_r[i]
         n1 = k + nb
@@ -523,10 +561,10 @@ class Workspace:
         self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
         self.res = np.empty(N_R)
 
-    def run(self, eta, A, N, rtol, atol):
+    def run(self, eta, A, N, rtol, atol, method=METHOD_AUTO):
         return solve_eta(
             eta, A, N, rtol, atol, self.ax, self.T1, self.Q1, self.T2, self.Q2,
-            self.stats1, self.stats2, self.res,
+            self.stats1, self.stats2, self.res, method,
         )
 
 

@@ -1,0 +1,240 @@
+"""RODAS4: the L-stable Rosenbrock method of order 4(3), for the stiff scalar stage 1.
+
+Why a second integrator
+-----------------------
+Stage 1 has the Jacobian ``-B - 2/xi`` (model.md): about ``-2/eta`` in the interior and
+``-(beta + 2)/xi`` near the axis, with ``beta ~ 2N/eta``. For small ``eta = eps L`` an explicit
+method pays O(1/eta) steps twice over: for stability (``h < 3.3/|lambda|``) and, even below that,
+because following a slow manifold with an explicit method costs accuracy in proportion to
+``(h lambda)^p``. A Rosenbrock method with the exact Jacobian is L-stable, needs no Newton
+iteration (one scalar division per stage here) and its step size depends on the smoothness of the
+solution only, so the work per point stays bounded as ``eta -> 0``.
+
+The method is RODAS4 of Hairer & Wanner [HW96, IV.7] (6 stages, stiffly accurate, embedded
+3rd-order error estimate, 3rd-order continuous extension), with the step-size controller of
+Gustafsson as in Hairer's ``rodas``. The coefficients are the published ones, written in the
+``(1/(gamma h) - J) k_i = f(...) + h d_i f_t + sum c_ij k_j / h`` form.
+
+Like :mod:`.rk45` it knows no physics; it is written for a scalar state (``y`` of length 1, the
+calling convention of :func:`.rk45.dopri5`) and writes its dense output in the layout of
+:func:`.rk45.dense_coefficients` so that :func:`.rk45.dense_eval` reads either method's output.
+
+References
+----------
+[HW96] E. Hairer, G. Wanner, Solving Ordinary Differential Equations II, 2nd ed., Springer 1996,
+       section IV.7, Table 7.? ("RODAS"), and the code ``rodas.f``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from . import rk45
+from .rk45 import EPS, EVENT, MAX_STEPS, NONFINITE, STEP_TOO_SMALL, SUCCESS
+
+# A tableau is (gamma, c2, c3, c4, d1, d2, d3, d4, a21, a31, a32, a41, a42, a43, a51, a52, a53,
+# a54, C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65, h21, h22, h23,
+# h24, h25, h31, h32, h33, h34, h35); stage 6 reuses row 5 of a (stiffly accurate), and the
+# continuous extension is y(theta) = (1-theta) y0 + theta (y1 + (1-theta)(q3 + theta q4)) with
+# q3 = sum h2j k_j, q4 = sum h3j k_j.
+
+# Hairer & Wanner's RODAS4 [HW96, IV.7].
+RODAS4 = (
+    0.25, 0.386, 0.21, 0.63, 0.25, -0.1043, 0.1035, -0.3620000000000023e-01,
+    1.544, 0.9466785280815826, 0.2557011698983284, 3.314825187068521, 2.896124015972201,
+    0.9986419139977817, 1.221224509226641, 6.019134481288629, 12.53708332932087,
+    -0.6878860361058950,
+    -5.6688, -2.430093356833875, -0.2063599157091915, -0.1073529058151375, -9.594562251023355,
+    -20.47028614809616, 7.496443313967647, -10.24680431464352, -33.99990352819905,
+    11.70890893206160, 8.083246795921522, -7.981132988064893, -31.52159432874371,
+    16.31930543123136, -6.058818238834054,
+    10.12623508344586, -7.487995877610167, -34.80091861555747, -7.992771707568823,
+    1.025137723295662, -0.6762803392801253, 6.087714651680015, 16.43084320892478,
+    24.76722511418386, -6.594389125716872,
+)
+# Steinebach's RODASP ("Rodas4P"): order 4 also on Prothero-Robinson-type problems, where
+# RODAS4 loses order for intermediate h*|lambda| (our stage 1 at small eta) [St95].
+RODAS4P = (
+    0.25, 0.75, 0.21, 0.63, 0.25, -0.5, -0.023504, -0.0362,
+    3.0, 1.831036793486759, 0.4955183967433795, 2.304376582692669, -0.05249275245743001,
+    -1.176798761832782, -7.170454962423024, -4.741636671481785, -16.31002631330971,
+    -1.062004044111401,
+    -12.0, -8.791795173947035, -2.207865586973518, 10.81793056857153, 6.780270611428266,
+    19.53485944642410, 34.19095006749676, 15.49671153725963, 54.74760875964130,
+    14.16005392148534, 34.62605830930532, 15.30084976114473, 56.99955578662667,
+    18.40807009793095, -5.714285714285717,
+    25.09876703708589, 11.62013104361867, 28.49148307714626, -5.664021568594133, 0.0,
+    1.638054557396973, -0.7373619806678748, 8.477918219238990, 15.99253148779520,
+    -1.882352941176471,
+)
+# Steinebach's Rodas4P2 [St20]: as RODAS4P, with a dense output that is stiffly accurate too.
+RODAS4P2 = (
+    0.25, 0.75, 0.321448134013046, 0.519745732277726, 0.25, -0.5, -0.189532918363016,
+    0.085612108792769,
+    3.0, 0.906377755268814, -0.189707390391685, 3.758617027739064, 1.161741776019525,
+    -0.849258085312803, 7.089566927282776, 4.573591406461604, -8.423496976860259,
+    -0.959280113459775,
+    -12.0, -6.354581592719008, 0.338972550544623, -8.575016317114033, -7.606483992117508,
+    12.224997650124820, -5.888975457523102, -8.157396617841821, 24.805546872612922,
+    12.790401512796979, -4.408651676063871, -6.692003137674639, 24.625568527593117,
+    16.627521966636085, -5.714285714285718,
+    -5.323528268423303, -10.042123754867493, 17.175254928256965, -5.079931171878093,
+    -0.016185991706112, 6.984505741529879, 6.914061169603662, -0.849178943070653,
+    18.104410789349338, -3.516963011559032,
+)
+TABLEAU = RODAS4P2
+
+# Gustafsson controller, as in rodas.f: the error estimate is O(h^4).
+SAFETY = 0.9
+MAX_GROWTH = 6.0
+MAX_SHRINK = 5.0
+NONFINITE_MAX_TRIES = 20
+
+_JIT_INLINE = dict(nogil=True, cache=True, error_model="numpy", inline="always")
+
+
+@njit(**_JIT_INLINE)
+def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats, tab=TABLEAU):
+    """Integrate a scalar ODE ``y' = f(t, y)`` with RODAS4; same contract as :func:`.rk45.dopri5`.
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(t, y, args, out)`` writes ``f`` into ``out[0]``.
+    jac : callable
+        ``jac(t, y, args)`` returns ``(df/dy, df/dt)`` at ``(t, y[0])``, exact.
+    event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats
+        As for :func:`.rk45.dopri5` (``y0`` and ``atol`` of length 1). ``stats[STAT_FEV]`` counts
+        right-hand-side evaluations (6 per trial step, plus one per Jacobian for ``f`` there).
+
+    Returns
+    -------
+    (status, nsteps, t_stop)
+        As for :func:`.rk45.dopri5`; the dense output in ``T``/``Q`` is read by
+        :func:`.rk45.dense_eval`.
+    """
+    (GAMMA, C2, C3, C4, D1, D2, D3, D4, A21, A31, A32, A41, A42, A43, A51, A52, A53, A54,
+     C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65,
+     H21, H22, H23, H24, H25, H31, H32, H33, H34, H35) = tab
+    for i in range(stats.shape[0]):
+        stats[i] = 0
+    M = Q.shape[0]
+    T[0] = t0
+    if t_end == t0:
+        return SUCCESS, 0, t0
+    direction = 1.0 if t_end > t0 else -1.0
+    span = abs(t_end - t0)
+    hmax = span if (h_max <= 0.0 or not math.isfinite(h_max)) else min(h_max, span)
+    f0 = y0.copy()
+    ys = y0.copy()
+    ytmp = y0.copy()
+    t = t0
+    y = y0[0]
+    fun(t, y0, args, f0)
+    stats[rk45.STAT_FEV] += 1
+    sc = atol[0] + rtol * abs(y)
+    if h0 > 0.0:
+        h = min(h0, hmax)
+    else:
+        d0 = abs(y) / sc
+        d1 = abs(f0[0]) / sc
+        h = 0.01 * d0 / d1 if (d0 > 1e-5 and d1 > 1e-5) else 1e-6
+        h = min(max(h, 1e-10 * span), hmax)
+    g_prev = event(t, y0, args)
+    h_old = 0.0
+    err_old = 1.0
+    rejected = False
+    first = True
+    bad = 0
+    nsteps = 0
+    while True:
+        if nsteps >= M:
+            return MAX_STEPS, nsteps, t
+        if (t_end - t) * direction <= 0.0:
+            return SUCCESS, nsteps, t
+        if h < 10.0 * EPS * max(abs(t), 1.0):
+            return STEP_TOO_SMALL, nsteps, t
+        last = False
+        if h >= abs(t_end - t):
+            h = abs(t_end - t)
+            last = True
+        hs = direction * h
+        # The Jacobian and f_t at the step start, reused by every stage (Rosenbrock).
+        ys[0] = y
+        fun(t, ys, args, f0)
+        J, ft = jac(t, ys, args)
+        stats[rk45.STAT_FEV] += 1
+        den = 1.0 / (GAMMA * hs) - J
+        k1 = (f0[0] + hs * D1 * ft) / den
+        ys[0] = y + A21 * k1
+        fun(t + C2 * hs, ys, args, ytmp)
+        k2 = (ytmp[0] + hs * D2 * ft + C21 * k1 / hs) / den
+        ys[0] = y + A31 * k1 + A32 * k2
+        fun(t + C3 * hs, ys, args, ytmp)
+        k3 = (ytmp[0] + hs * D3 * ft + (C31 * k1 + C32 * k2) / hs) / den
+        ys[0] = y + A41 * k1 + A42 * k2 + A43 * k3
+        fun(t + C4 * hs, ys, args, ytmp)
+        k4 = (ytmp[0] + hs * D4 * ft + (C41 * k1 + C42 * k2 + C43 * k3) / hs) / den
+        y5 = y + A51 * k1 + A52 * k2 + A53 * k3 + A54 * k4
+        ys[0] = y5
+        fun(t + hs, ys, args, ytmp)
+        k5 = (ytmp[0] + (C51 * k1 + C52 * k2 + C53 * k3 + C54 * k4) / hs) / den
+        y6 = y5 + k5
+        ys[0] = y6
+        fun(t + hs, ys, args, ytmp)
+        e = (ytmp[0] + (C61 * k1 + C62 * k2 + C63 * k3 + C64 * k4 + C65 * k5) / hs) / den
+        y_new = y6 + e
+        stats[rk45.STAT_FEV] += 5
+        err = abs(e) / (atol[0] + rtol * max(abs(y), abs(y_new)))
+        if not (math.isfinite(err) and math.isfinite(y_new)):
+            stats[rk45.STAT_REJECTED] += 1
+            bad += 1
+            if bad > NONFINITE_MAX_TRIES:
+                return NONFINITE, nsteps, t
+            h *= 0.25
+            rejected = True
+            continue
+        bad = 0
+        fac = max(1.0 / MAX_GROWTH, min(MAX_SHRINK, err ** 0.25 / SAFETY))
+        h_new = h / fac
+        if err <= 1.0:
+            if not first:
+                fac_pred = (h_old / h) * (err * err / err_old) ** 0.25 / SAFETY
+                fac_pred = max(1.0 / MAX_GROWTH, min(MAX_SHRINK, fac_pred))
+                fac = max(fac, fac_pred)
+                h_new = h / fac
+            first = False
+            h_old = h
+            err_old = max(0.01, err)
+            if rejected:
+                h_new = min(h_new, h)
+            rejected = False
+            # Accept: store the dense output in rk45's layout (q4 = 0).
+            t_new = t + hs
+            Q[nsteps, 0, 0] = y
+            Q[nsteps, 1, 0] = y_new - y
+            Q[nsteps, 2, 0] = H21 * k1 + H22 * k2 + H23 * k3 + H24 * k4 + H25 * k5
+            Q[nsteps, 3, 0] = H31 * k1 + H32 * k2 + H33 * k3 + H34 * k4 + H35 * k5
+            Q[nsteps, 4, 0] = 0.0
+            T[nsteps + 1] = t_new
+            stats[rk45.STAT_ACCEPTED] += 1
+            nsteps += 1
+            ys[0] = y_new
+            g_new = event(t_new, ys, args)
+            if g_new == 0.0:
+                return EVENT, nsteps, t_new
+            if (g_new > 0.0) != (g_prev > 0.0):
+                t_ev = rk45._locate_event(event, args, T, Q, nsteps - 1, g_prev, g_new, ytmp)
+                return EVENT, nsteps, t_ev
+            g_prev = g_new
+            t = t_new
+            y = y_new
+            if last:
+                return SUCCESS, nsteps, t
+            h = min(h_new, hmax)
+        else:
+            stats[rk45.STAT_REJECTED] += 1
+            rejected = True
+            h = h_new

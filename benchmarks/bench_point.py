@@ -49,6 +49,36 @@ def ours(eps, L, K=0.5, A=1 / 3, N=1.0):
     return one_minus / eps, res, stats
 
 
+def ours_stage1(eps, L, A=1 / 3, N=1.0):
+    n = eps.size
+    mu = np.empty(n)
+    stats = np.zeros((n, rk45.N_STATS), np.int64)
+    solve.stage1_batch(eps * L, np.full(n, A), np.full(n, N), RTOL, ATOL, solve.METHOD_AUTO,
+                       solve.MAX_STEPS_STAGE1, mu, stats)
+    return mu
+
+
+def scipy_stage1(eps, L, A, N, method):
+    """Stage 1 alone with solve_ivp (same formulation); returns m(1)/(nu L) or NaN."""
+    eta = eps * L
+    if model.classify(eta, A, N) != 0:
+        return math.nan
+    ax = np.empty(model.N_AX)
+    model.axis_constants(eta, A, N, ax)
+    xi1 = solve.start_xi(ax)
+
+    def f1(xi, w):
+        return [model.dw_dxi(xi, w[0], eta, A, N, ax)]
+
+    def hit(xi, w):
+        return model.yield_D(xi, xi * xi * w[0], A, N, ax)
+
+    hit.terminal = True
+    w0 = model.delta_axis_series(xi1, ax) / xi1**2
+    s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=RTOL, atol=ATOL, events=hit)
+    return s1.y[0, -1] - N if s1.status == 0 else math.nan
+
+
 def scipy_point(eps, L, K, A, N, method):
     """Both stages with solve_ivp, the same formulation as ours; returns Delta (NaN if no solution)."""
     eta = eps * L
@@ -110,15 +140,29 @@ def main():
         Delta, res, stats = ours(eps, L)
         t_ours.append(time.perf_counter() - t0)
     us_ours = min(t_ours) / n * 1e6
+    ours_stage1(eps[:3], L[:3])
+    t_s1 = []
+    for _ in range(args.repeat):
+        t0 = time.perf_counter()
+        mu = ours_stage1(eps, L)
+        t_s1.append(time.perf_counter() - t0)
+    us_s1 = min(t_s1) / n * 1e6
     pick = np.linspace(0, n - 1, args.scipy_points).round().astype(int)
-    rows = [("ours: Numba DP5, both stages", n, us_ours, math.nan)]
+    rows = [("ours, both stages (DP5 / RODAS4P2 + DP5)", n, us_ours, math.nan, us_ours),
+            ("ours, stage 1 alone", n, us_s1, math.nan, us_s1)]
     for method in ("RK45", "LSODA"):
         t0 = time.perf_counter()
         d = np.array([scipy_point(eps[i], L[i], 0.5, 1 / 3, 1.0, method) for i in pick])
         us = (time.perf_counter() - t0) / pick.size * 1e6
         ok = np.isfinite(d) & np.isfinite(Delta[pick]) & (Delta[pick] > 0)
         err = np.max(np.abs(d[ok] / Delta[pick][ok] - 1)) if ok.any() else math.nan
-        rows.append((f"scipy solve_ivp {method} loop, both stages", pick.size, us, err))
+        rows.append((f"scipy solve_ivp {method} loop, both stages", pick.size, us, err, us_ours))
+        t0 = time.perf_counter()
+        m = np.array([scipy_stage1(eps[i], L[i], 1 / 3, 1.0, method) for i in pick])
+        us = (time.perf_counter() - t0) / pick.size * 1e6
+        ok = np.isfinite(m) & np.isfinite(mu[pick])
+        err = np.max(np.abs(m[ok] / mu[pick][ok] - 1)) if ok.any() else math.nan
+        rows.append((f"scipy solve_ivp {method} loop, stage 1", pick.size, us, err, us_s1))
 
     print(f"# bench_point: {n} points, eps in [1/600, 0.2] x L in [2, 20], A = 1/3, N = 1, "
           f"rtol = {RTOL:g}, one core")
@@ -130,12 +174,12 @@ def main():
     print(f"# mean accepted steps per point: stage 1 {stats[:, 0, rk45.STAT_ACCEPTED].mean():.1f}, "
           f"stage 2 {stats[:, 1, rk45.STAT_ACCEPTED].mean():.1f}")
     print()
-    print(f"| {'method':<40} | {'points':>6} | {'us/point':>9} | {'x ours':>8} | {'max rel. diff of Delta vs ours':>30} |")
-    print(f"|{'-' * 42}|{'-' * 8}|{'-' * 11}|{'-' * 10}|{'-' * 32}|")
-    for name, npts, us, err in rows:
-        ratio = us / us_ours
+    print(f"| {'method':<42} | {'points':>6} | {'us/point':>9} | {'x ours (same stages)':>20} | {'max rel. diff vs ours':>21} |")
+    print(f"|{'-' * 44}|{'-' * 8}|{'-' * 11}|{'-' * 22}|{'-' * 23}|")
+    for name, npts, us, err, base in rows:
         err_s = "-" if math.isnan(err) else f"{err:.1e}"
-        print(f"| {name:<40} | {npts:>6} | {us:>9.1f} | {ratio:>8.1f} | {err_s:>30} |")
+        print(f"| {name:<42} | {npts:>6} | {us:>9.1f} | {us / base:>20.1f} | {err_s:>21} |")
+    print("\n(max rel. diff: Delta for both stages, m(1)/L for stage 1)")
     target = 30.0
     verdict = "met" if us_ours <= target else f"NOT met ({us_ours / target:.2f}x the target)"
     print(f"\ntarget <= {target:g} us/point for both stages: {verdict}")

@@ -327,6 +327,31 @@ def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
 
 
 @njit(nogil=True, cache=True)
+def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
+    """Stage 1 alone for many triples (benchmarks): ``m(1)/(nu L)`` into ``mu_wall`` (NaN when the
+    path fails or the regime has no solution) and the counters into ``stats[i]``."""
+    ax = np.empty(N_AX)
+    T1 = np.empty(max_steps + 1)
+    Q1 = np.empty((max_steps, 5, 1))
+    y0 = np.empty(1)
+    atol1 = np.empty(1)
+    atol1[0] = atol
+    buf = np.empty(1)
+    for i in range(eta.size):
+        mu_wall[i] = math.nan
+        if model.classify(eta[i], A[i], N[i]) != st.OK or A[i] == -1.0:
+            continue
+        model.axis_constants(eta[i], A[i], N[i], ax)
+        xi1 = start_xi(ax)
+        y0[0] = model.delta_axis_series(xi1, ax) / (xi1 * xi1)
+        stiff = use_stiff_path(eta[i], ax) if method == METHOD_AUTO else method == METHOD_STIFF
+        s1, n1, t1 = _march_stage1(stiff, xi1, y0, 0.0, (eta[i], A[i], N[i], ax), rtol, atol1,
+                                   T1, Q1, stats[i])
+        if s1 == rk45.SUCCESS:
+            mu_wall[i] = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf) - N[i]
+
+
+@njit(nogil=True, cache=True)
 def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_steps_stage2,
                 res, stats, one_minus, xi_profile, profiles):
     """Many ``(eta, A, N)`` triples, each with its own run of ``eps K`` values, on one core.

@@ -1,0 +1,51 @@
+"""Stage-1 path choice: explicit DP5 vs RODAS4P2 against eta = eps L, side by side in one run.
+
+For A = 1/3, N = 1, rtol = 1e-8: accepted stage-1 steps, microseconds for both stages (best of
+5 x 20 runs) and the relative error of Delta against scipy Radau at rtol 1e-12. The crossover
+justifies ``solve.STIFF_LAMBDA`` (RODAS4P2 when 2/eta > 20).
+
+Run:  .venv/bin/python benchmarks/bench_paths.py
+"""
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cosserat_channel import solve
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from reference import reference  # noqa: E402  (the tests' independent scipy reference)
+
+
+def timed(ws, eta, method, reps=20):
+    ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, method)
+    best = np.inf
+    for _ in range(5):
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, method)
+        best = min(best, (time.perf_counter() - t0) / reps)
+    return best * 1e6
+
+
+def main():
+    ws = solve.Workspace()
+    print("| eta | DP5 steps | DP5 us | DP5 err(Delta) | RODAS4P2 steps | RODAS4P2 us | RODAS4P2 err(Delta) | auto picks |")
+    print("|---|---|---|---|---|---|---|---|")
+    for eta in (3.0, 1.0, 0.3, 0.1, 0.03, 0.01, 1e-3, 1e-4):
+        eps, L = eta / 10, 10.0
+        ref = reference(eps, L, 0.5, 1 / 3, 1.0, method="Radau")
+        cells = [f"{eta:g}"]
+        for method in (solve.METHOD_EXPLICIT, solve.METHOD_STIFF):
+            us = timed(ws, eta, method, reps=2 if (method == solve.METHOD_EXPLICIT and eta < 1e-3) else 20)
+            om = solve.one_minus_xi_p(1 / 3, 1.0, eta, eps * 0.5, ws.res, ws.T2, ws.Q2)
+            cells += [str(ws.stats1[0]), f"{us:.0f}", f"{abs(om / eps / ref['Delta'] - 1):.1e}"]
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, solve.METHOD_AUTO)
+        cells.append("RODAS4P2" if ws.res[solve.R_PATH] else "DP5")
+        print("| " + " | ".join(cells) + " |")
+
+
+if __name__ == "__main__":
+    main()

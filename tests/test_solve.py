@@ -302,3 +302,61 @@ def test_bad_input_raises_naming_the_parameter(kwargs, name):
     assert name in str(info.value)
     if name in ("eps", "L", "K", "N", "rtol"):
         assert "(" in str(info.value) or "[" in str(info.value)  # the allowed range is stated
+
+
+def test_axis_edge_exactly_is_infeasible_not_a_crash():
+    """On the axis edge itself ((A-1) eta + 2(A+1) N = 0) the point is eps_too_large_axis, no exception."""
+    r = solve_point(0.2, 10.0, 0.5, 0.0, 1.0)  # eta = 2: margin = -2 + 2 = 0
+    assert r.status == st.Status.eps_too_large_axis
+
+
+@pytest.mark.parametrize("rel_margin", [1e-2, 1e-3, 1e-4])
+def test_next_to_the_axis_edge(rel_margin):
+    """Just inside the axis edge (c0 -> 0, beta huge) status and xi_stop match the reference, with bounded work."""
+    A, N, L = 0.0, 1.0, 10.0
+    eps = 2 * (A + 1) * N / (1 - A) / L * (1 - rel_margin)
+    r = solve_point(eps, L, 0.5, A, N)
+    # The reference evaluates D in the printed form, which loses digits like 1/c0^2 here (its
+    # own DOP853 and Radau runs differ by 2 % at rel_margin 1e-3); Radau is the stable one.
+    ref = reference(eps, L, 0.5, A, N, method="Radau")
+    assert r.status.name == ref["status"]
+    if ref["status"] == "ok":
+        for name in OUTPUTS:
+            assert getattr(r, name) == pytest.approx(ref[name], rel=1e-6), name
+    else:
+        assert r.xi_stop == pytest.approx(ref["xi_stop"], rel=2e-4)
+    assert r.counters["stage1_accepted"] < 5000
+
+
+def test_within_resolution_of_the_axis_edge():
+    """Closer than ~1e-5 to the axis edge: eps_too_large_path without a location (NaN), never a wrong one."""
+    A, N, L = 0.0, 1.0, 10.0
+    for rel_margin in (1e-7, 1e-10):
+        r = solve_point(2 * (A + 1) * N / (1 - A) / L * (1 - rel_margin), L, 0.5, A, N)
+        assert r.status == st.Status.eps_too_large_path
+        assert math.isnan(r.xi_stop)
+
+
+def test_batch_profiles_match_solve_point_including_A_minus_one():
+    """solve_batch's per-triple profiles give solve_point's profiles, also for the A = -1 closed form."""
+    from cosserat_channel import rk45, solve
+
+    xi = np.linspace(0.0, 1.0, 21)
+    pts = [(1 / 30, 10.0, 0.5, 1 / 3, 1.0), (0.01, 2.0, 5.0, -1.0, 3.0)]
+    n = len(pts)
+    eta = np.array([p[0] * p[1] for p in pts])
+    res = np.empty((n, solve.N_R))
+    stats = np.zeros((n, 2, rk45.N_STATS), np.int64)
+    one_minus = np.empty(n)
+    prof = np.empty((n, solve.N_PROF, xi.size))
+    solve.solve_batch(eta, np.array([p[3] for p in pts]), np.array([p[4] for p in pts]),
+                      np.array([p[0] * p[2] for p in pts]), np.arange(n + 1), 1e-8, 1e-12,
+                      solve.MAX_STEPS_STAGE1, solve.MAX_STEPS_STAGE2, res, stats, one_minus, xi, prof)
+    for i, (eps, L, K, A, N) in enumerate(pts):
+        want = solve_point(eps, L, K, A, N, profile=xi).profile
+        J_axis = res[i, solve.R_J_AXIS]
+        u = (eps * K + prof[i, solve.P_J]) / (eps * K + J_axis)
+        np.testing.assert_allclose(u, want["u_over_u0"], rtol=1e-12)
+        np.testing.assert_allclose(prof[i, solve.P_OMEGA_HAT], want["omega_hat"], rtol=1e-12)
+        np.testing.assert_allclose(L * (prof[i, solve.P_DELTA] - N), want["m"], rtol=1e-12)
+        np.testing.assert_allclose(prof[i, solve.P_SIGMA_YX], want["sigma_yx"], rtol=1e-12)

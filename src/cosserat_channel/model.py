@@ -78,7 +78,10 @@ def classify(eta, A, N):
         return st.AXIS_SPIN_UNBOUNDED
     if A == -1.0:
         return st.OK
-    if axis_margin(eta, A, N) < 0.0:
+    # On the edge itself (margin exactly 0) the root of eq:20 is admissible but c0 = 0: sqrt(D)
+    # vanishes to first order at the axis and the spin exponent beta is infinite, so no regular
+    # solution leaves the axis; the edge belongs to the infeasible side.
+    if axis_margin(eta, A, N) <= 0.0:
         return st.EPS_TOO_LARGE_AXIS
     return st.OK
 

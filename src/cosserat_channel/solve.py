@@ -28,8 +28,10 @@ from .model import AX_BETA, AX_C0, N_AX
 # integration_failed, never left running).
 MAX_STEPS_STAGE1 = 200_000
 MAX_STEPS_STAGE2 = 20_000
-# Passes that re-march the step where stage 1 met D = 0 (see solve_eta).
+# Passes that re-march the step where stage 1 met D = 0 (see solve_eta), each within a budget.
 EVENT_REFINEMENTS = 4
+REFINE_MAX_STEPS = 400
+STAGE1_RTOL_FLOOR = 1e-13
 # Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
 TAIL_FRACTION = 1e-3
 # Stage 2 never marches below this xi: J's remaining tail there is < XI_FLOOR * max h.
@@ -51,8 +53,8 @@ N_R = 10
 METHOD_AUTO = 0
 METHOD_EXPLICIT = 1
 METHOD_STIFF = 2
-# Stage 1 switches to RODAS4 when the stiffness 2/eta of the interior exceeds this (see
-# use_stiff_path and docs/performance.md for the measurement behind it).
+# Stage 1 switches to RODAS4P2 when its stiffness exceeds this (see use_stiff_path and
+# docs/performance.md for the measurement behind it).
 STIFF_LAMBDA = 20.0
 
 # Rows of a triple's profile array (see profile_kernel).
@@ -136,19 +138,32 @@ def use_stiff_path(eta, ax):
     """Whether stage 1 should take the stiff path: the Jacobian is known in closed form.
 
     It is ``-B - 2/xi`` in ``w``: about ``-2/eta`` in the interior. An explicit method needs
-    O(1/eta) steps there (stability, and accuracy along the slow manifold), RODAS4 a number set
-    by the smoothness of the solution alone.
+    O(1/eta) steps there (stability, and accuracy along the slow manifold) and O(beta) steps per
+    decade of xi near the axis, where the Jacobian is ``-(beta + 2)/xi``; RODAS4P2 a number set by
+    the smoothness of the solution alone. beta is large for small eta and also next to the axis
+    edge, where c0 -> 0.
     """
-    return 2.0 / eta > STIFF_LAMBDA
+    return max(2.0 / eta, ax[AX_BETA]) > STIFF_LAMBDA
 
 
 @njit(nogil=True, cache=True)
-def _march_stage1(stiff, xi0, y0, h_max, args1, rtol, atol1, T1, Q1, stats1):
+def stage1_rtol(rtol, ax):
+    """Stage 1's relative tolerance: the user's, tightened to c0^2/1000 next to the axis edge.
+
+    Floored at 1e-13 (double precision); within ~1e-10 relative of the axis edge the location
+    xi_stop where such a path fails is therefore only approximate (the status is not).
+    """
+    c0 = ax[AX_C0]
+    return min(rtol, max(STAGE1_RTOL_FLOOR, 1e-3 * c0 * c0))
+
+
+@njit(nogil=True, cache=True)
+def _march_stage1(stiff, xi0, y0, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
     # The only place that picks stage 1's integrator; both write the same dense-output layout.
     if stiff:
         return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, 1.0, args1,
-                                 rtol, atol1, 0.0, h_max, T1, Q1, stats1)
-    return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, 1.0, args1, rtol, atol1, 0.0, h_max,
+                                 rtol, atol1, h0, h_max, T1, Q1, stats1)
+    return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, 1.0, args1, rtol, atol1, h0, h_max,
                        T1, Q1, stats1)
 
 
@@ -190,6 +205,14 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
         return code
 
     model.axis_constants(eta, A, N, ax)
+    if 1e-3 * ax[AX_C0] * ax[AX_C0] < STAGE1_RTOL_FLOOR:
+        # Within ~1e-5 (relative) of the axis edge. The series gives
+        # D = c0^2 xi^2 + 2(A+1)(2Nk - y^2/4) xi^4 + ..., with 2Nk - y^2/4 < 0 for every c0 > 0,
+        # so the path meets D = 0 at xi ~ sqrt(c0): the status is certain, but where exactly is
+        # below double-precision resolution (the margin c0^2 is < 1e-10 of the terms of D), so
+        # xi_stop stays NaN rather than a number we cannot stand behind.
+        res[R_STATUS] = st.EPS_TOO_LARGE_PATH
+        return st.EPS_TOO_LARGE_PATH
     xi1 = start_xi(ax)
     res[R_XI1] = xi1
     buf = np.empty(1)
@@ -200,9 +223,14 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     atol1 = np.empty(1)
     atol1[0] = atol
     args1 = (eta, A, N, ax)
+    # Next to the axis edge D/xi^2 ~ c0^2 is the small difference that decides where the path
+    # meets D = 0; an error in w of rtol would swamp it, so stage 1 runs at rtol ~ c0^2/1000 there.
+    rtol1 = stage1_rtol(rtol, ax)
     stiff = use_stiff_path(eta, ax) if method == METHOD_AUTO else method == METHOD_STIFF
     res[R_PATH] = 1.0 if stiff else 0.0
-    s1, n1, t1 = _march_stage1(stiff, xi1, y0, 0.0, args1, rtol, atol1, T1, Q1, stats1)
+    # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
+    # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
+    s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, args1, rtol1, atol1, T1, Q1, stats1)
     # Where the path meets D = 0, sqrt(D) ~ sqrt(xi_stop - xi): the RHS has a kink that the last
     # (wide, error-controlled) step glides over, so the dense output locates xi_stop only to ~1e-4.
     # March that last step again with steps 1/16 as wide, until the location settles.
@@ -215,12 +243,22 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
         if not span > 0.0:
             break
         y0[0] = Q1[k, 0, 0]
-        s1, nb, t_new = _march_stage1(stiff, T1[k], y0, span / 16.0, args1, rtol, atol1,
-                                      T1[k:], Q1[k:], stats_r)
+        stop = min(Q1.shape[0], k + REFINE_MAX_STEPS)
+        s_new, nb, t_new = _march_stage1(stiff, T1[k], y0, span / 16.0, span / 16.0, args1, rtol1,
+                                         atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
         for i in range(rk45.STAT_STIFF):
             stats1[i] += stats_r[i]
         n1 = k + nb
-        settled = abs(t_new - t1) <= rtol * t1
+        if s_new == rk45.SUCCESS:
+            # With finer steps the path reaches the wall: the crossing was the interpolant's.
+            s1 = s_new
+            t1 = t_new
+            break
+        if s_new != rk45.EVENT:
+            # Budget spent crawling into the sqrt kink (D ~ 0 over a long stretch, next to the
+            # axis edge): keep the previous location, good to the last pass's step width.
+            break
+        settled = abs(t_new - t1) <= rtol1 * t1
         t1 = t_new
         if settled:
             break
@@ -345,7 +383,8 @@ def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
         xi1 = start_xi(ax)
         y0[0] = model.delta_axis_series(xi1, ax) / (xi1 * xi1)
         stiff = use_stiff_path(eta[i], ax) if method == METHOD_AUTO else method == METHOD_STIFF
-        s1, n1, t1 = _march_stage1(stiff, xi1, y0, 0.0, (eta[i], A[i], N[i], ax), rtol, atol1,
+        s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, (eta[i], A[i], N[i], ax),
+                                   stage1_rtol(rtol, ax), atol1,
                                    T1, Q1, stats[i])
         if s1 == rk45.SUCCESS:
             mu_wall[i] = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf) - N[i]
@@ -692,7 +731,17 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     """Profiles of one solved triple at ``xis``: rows ``P_J``, ``P_OMEGA_HAT``, ``P_DELTA``, ``P_SIGMA_YX``.
 
     ``u/u(0) = (eps K + J) / (eps K + J(0))`` for any K, so ``J`` is stored, not ``u``.
+    A = -1 takes Appendix A's closed form (no stage-1 output exists there).
     """
+    if A == -1.0:
+        c = 2.0 * N / eta
+        for i in range(xis.size):
+            xi = xis[i]
+            out[P_J, i] = model.a_minus_one_J(xi, c)
+            out[P_OMEGA_HAT, i] = math.exp(c * math.log(xi)) if xi > 0.0 else 0.0
+            out[P_DELTA, i] = 0.0  # m = -N L
+            out[P_SIGMA_YX, i] = -xi
+        return
     buf = np.empty(1)
     yb = np.empty(2)
     xi1 = res[R_XI1]
@@ -724,23 +773,9 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
 def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
     eta = eps * L
     eps_K = eps * K
-    if A == -1.0:
-        c = 2.0 * N / eta
-        J = np.array([model.a_minus_one_J(x, c) for x in xi])
-        J_axis = model.a_minus_one_J(0.0, c)
-        with np.errstate(divide="ignore"):
-            omega_hat = np.exp(c * np.log(xi))
-        return {
-            "xi": xi.copy(),
-            "u_over_u0": (eps_K + J) / (eps_K + J_axis),
-            "omega_hat": omega_hat,
-            "m": np.full_like(xi, -N * L),
-            "sigma_xy": -xi,
-            "sigma_yx": -xi.copy(),
-        }
     out = np.empty((N_PROF, xi.size))
     profile_kernel(xi, eta, A, N, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, out)
-    J_axis = ws.res[R_J_AXIS]
+    J_axis = ws.res[R_J_AXIS]  # the A = -1 branch of solve_eta sets it too
     return {
         "xi": xi.copy(),
         "u_over_u0": (eps_K + out[P_J]) / (eps_K + J_axis),

@@ -47,7 +47,8 @@ MESSAGES = {
     ),
     Status.eps_too_large_path: (
         "eps too large along the path: the stress path left the yield-admissible region "
-        "(D = 0) before the wall, at xi_stop"
+        "(D = 0) before the wall, at xi_stop (NaN within ~1e-5 of the axis edge, where the "
+        "location is below double-precision resolution)"
     ),
     Status.axis_spin_unbounded: (
         "1 - 2N^2 < A < -1: only the root m(0) = +NL reaches the wall, and on it the spin "

@@ -1,0 +1,510 @@
+"""Safe selection and filtering of result files (the ``query`` and ``info`` commands).
+
+A selection is three kinds of clause, each parsed with a regular expression and ``float()`` only
+(never ``eval``): ``--sel NAME=VALUE`` (nearest coordinate value), ``--range NAME=LO:HI``
+(inclusive, either bound may be empty) and ``--where "NAME OP VALUE"`` with ``OP`` one of
+``== != < <= > >=`` on a variable or a coordinate. A flag variable (``status``) is compared by
+its flag name: ``status == ok``. Several ``--where`` clauses are ANDed. Comparisons follow IEEE:
+a NaN value fails every comparison except ``!=``.
+
+Choices worth knowing:
+
+* ``--sel`` and ``--range`` index by position (nearest value / inclusive mask on the coordinate),
+  so they work on coordinates in any order, not only sorted ones. A ``--sel`` keeps its dimension
+  with length one: the rows carry the selected value as a column, and a NetCDF subset stays a
+  result file of the same five-dimensional layout.
+* ``--range`` bounds have a relative slack of ``RANGE_SLACK`` so that a bound typed from a
+  printed coordinate value (10 significant digits) includes that value.
+* A NetCDF subset with ``--where`` is the smallest sub-grid holding every matching point; where
+  the match is not a whole sub-grid, float variables are NaN at the points that failed and an
+  int8 flag variable ``selected`` marks the matches (``status`` keeps its values: it still says
+  why a point has or has no solution).
+
+The file is opened lazily (dask-backed through ``xr.open_dataset(chunks={})``); a selection reads
+only what it needs, and rows are extracted in blocks of ``ROW_BLOCK`` points.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import re
+import secrets
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+
+from .solve import ParameterError
+
+DIMS = ("eps", "L", "K", "A", "N")
+RANGE_SLACK = 1e-9
+ROW_BLOCK = 1_000_000
+TABLE_ROWS = 200
+SWEEP_TEXT_LINES = 12
+PROVENANCE = ("cosserat_channel_version", "created", "rtol", "atol", "sweep_sha256", "Conventions")
+
+_NAME = r"[A-Za-z_][A-Za-z0-9_]*"
+_SEL_RE = re.compile(rf"^\s*({_NAME})\s*=\s*(\S+)\s*$")
+_RANGE_RE = re.compile(rf"^\s*({_NAME})\s*=\s*([^:\s]*)\s*:\s*([^:\s]*)\s*$")
+_WHERE_RE = re.compile(rf"^\s*({_NAME})\s*(==|!=|<=|>=|<|>)\s*(\S+)\s*$")
+_OPS = {
+    "==": np.equal, "!=": np.not_equal, "<": np.less,
+    "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
+}
+
+
+class QueryError(ParameterError):
+    """A query the file cannot answer (unknown name, malformed clause, unreadable file)."""
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(str(message).split()))
+
+
+# ---------------------------------------------------------------------------------------------
+# Opening
+# ---------------------------------------------------------------------------------------------
+def open_results(path) -> xr.Dataset:
+    """Open a result file lazily (dask-backed); QueryError unless it is one of our result files."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise QueryError(f"{path}: no such file")
+    if os.path.isdir(path):
+        raise QueryError(f"{path}: is a directory, not a result file")
+    try:
+        ds = xr.open_dataset(path, chunks={})
+    # Any file can arrive here; the backends raise several types for "not NetCDF".
+    except (OSError, ValueError, RuntimeError, TypeError, KeyError) as exc:
+        reason = (isinstance(exc, OSError) and exc.strerror) or "not NetCDF"
+        raise QueryError(f"{path}: cannot open as a NetCDF result file ({reason})") from None
+    if "status" not in ds.data_vars or not _is_flag(ds["status"]):
+        ds.close()
+        raise QueryError(
+            f"{path}: not a cosserat-channel result file (no 'status' variable with "
+            "flag_values/flag_meanings)"
+        )
+    return ds
+
+
+def _is_flag(da: xr.DataArray) -> bool:
+    return "flag_values" in da.attrs and "flag_meanings" in da.attrs
+
+
+def flag_names(da: xr.DataArray) -> dict[str, int]:
+    """``{flag name: value}`` of a CF flag variable."""
+    values = np.atleast_1d(np.asarray(da.attrs["flag_values"])).tolist()
+    names = str(da.attrs["flag_meanings"]).split()
+    return dict(zip(names, (int(v) for v in values)))
+
+
+# ---------------------------------------------------------------------------------------------
+# Parsing the clauses
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Condition:
+    """One ``--where`` clause: ``name op value`` (value a float, or a flag code)."""
+
+    name: str
+    op: str
+    value: float
+    text: str
+
+    def evaluate(self, ds: xr.Dataset) -> xr.DataArray:
+        return _OPS[self.op](ds[self.name], self.value)
+
+
+def _coordinate_names(ds: xr.Dataset) -> list[str]:
+    return [d for d in ds.dims if d in ds.coords]
+
+
+def _check_coordinate(name: str, ds: xr.Dataset, option: str) -> None:
+    coords = _coordinate_names(ds)
+    if name not in coords:
+        raise QueryError(f"{option}: unknown coordinate {name!r}; valid: {', '.join(coords)}")
+
+
+def _float(text: str, what: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise QueryError(f"{what}: {text!r} is not a number") from None
+    if math.isnan(x):
+        raise QueryError(f"{what}: nan is not a usable value")
+    return x
+
+
+def parse_sel(text: str, ds: xr.Dataset) -> tuple[str, float]:
+    """``NAME=VALUE`` -> ``(name, value)``, NAME a dimension coordinate of ``ds``."""
+    m = _SEL_RE.match(text)
+    if not m:
+        raise QueryError(f"--sel {text!r}: expected NAME=VALUE, e.g. L=10")
+    name, value = m.groups()
+    _check_coordinate(name, ds, "--sel")
+    x = _float(value, f"--sel {name}")
+    if not math.isfinite(x):
+        raise QueryError(f"--sel {name}: the value must be finite; got {value!r}")
+    return name, x
+
+
+def parse_range(text: str, ds: xr.Dataset) -> tuple[str, float | None, float | None]:
+    """``NAME=LO:HI`` (LO or HI may be empty) -> ``(name, lo, hi)``, None for an open end."""
+    m = _RANGE_RE.match(text)
+    if not m:
+        raise QueryError(f"--range {text!r}: expected NAME=LO:HI, e.g. eps=0.001:0.01 or eps=:0.01")
+    name, lo, hi = m.groups()
+    _check_coordinate(name, ds, "--range")
+    lo_x = _float(lo, f"--range {name} LO") if lo else None
+    hi_x = _float(hi, f"--range {name} HI") if hi else None
+    if lo_x is None and hi_x is None:
+        raise QueryError(f"--range {name}: give at least one of LO and HI")
+    if lo_x is not None and hi_x is not None and lo_x > hi_x:
+        raise QueryError(f"--range {name}: LO = {lo_x:g} is above HI = {hi_x:g}")
+    return name, lo_x, hi_x
+
+
+def parse_where(text: str, ds: xr.Dataset) -> Condition:
+    """``NAME OP VALUE`` -> :class:`Condition`; flag variables take a flag name as VALUE."""
+    m = _WHERE_RE.match(text)
+    if not m:
+        raise QueryError(
+            f"--where {text!r}: expected NAME OP VALUE with OP one of == != < <= > >= "
+            "and VALUE a number (or a status name), e.g. \"Delta > 2\" or \"status == ok\""
+        )
+    name, op, value = m.groups()
+    names = [*_coordinate_names(ds), *ds.data_vars]
+    if name not in names:
+        raise QueryError(f"--where: unknown name {name!r}; valid: {', '.join(names)}")
+    da = ds[name]
+    if _is_flag(da):
+        flags = flag_names(da)
+        if op not in ("==", "!="):
+            raise QueryError(f"--where {name}: a flag variable supports only == and !=; got {op}")
+        if value not in flags:
+            raise QueryError(
+                f"--where {name}: unknown {name} name {value!r}; valid: {', '.join(flags)}"
+            )
+        return Condition(name, op, flags[value], text.strip())
+    return Condition(name, op, _float(value, f"--where {name}"), text.strip())
+
+
+def parse_vars(text: str | None, ds: xr.Dataset) -> tuple[str, ...] | None:
+    """``a,b`` -> the data variables to report (None: the default set)."""
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise QueryError("--vars: give at least one variable name")
+    valid = list(ds.data_vars)
+    unknown = [n for n in names if n not in valid]
+    if unknown:
+        raise QueryError(
+            f"--vars: unknown variable(s) {', '.join(map(repr, unknown))}; "
+            f"valid: {', '.join(valid)}"
+        )
+    return tuple(dict.fromkeys(names))
+
+
+# ---------------------------------------------------------------------------------------------
+# Selecting
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class Selection:
+    """The selected part of a result file, still lazy.
+
+    ``ds`` is the file reduced by ``--sel``/``--range`` (every dimension kept), ``columns`` the
+    reported variables (``status`` first), ``conditions`` the ``--where`` clauses and ``row_dims``
+    the dimensions one row runs over.
+    """
+
+    ds: xr.Dataset
+    columns: tuple[str, ...]
+    conditions: tuple[Condition, ...]
+    row_dims: tuple[str, ...]
+    description: str = ""
+    _mask: np.ndarray | None = field(default=None, repr=False)
+
+    def mask(self) -> np.ndarray | None:
+        """Boolean array over ``row_dims`` (None when there is no ``--where``); computed once."""
+        if not self.conditions:
+            return None
+        if self._mask is None:
+            m = self.conditions[0].evaluate(self.ds)
+            for c in self.conditions[1:]:
+                m = m & c.evaluate(self.ds)
+            m = m.compute()
+            missing = {d: self.ds.sizes[d] for d in self.row_dims if d not in m.dims}
+            if missing:
+                m = m.expand_dims(missing)
+            self._mask = np.asarray(m.transpose(*self.row_dims).values, dtype=bool)
+        return self._mask
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(self.ds.sizes[d] for d in self.row_dims)
+
+    def count(self) -> int:
+        """Number of selected rows."""
+        m = self.mask()
+        return int(m.sum()) if m is not None else math.prod(self.shape)
+
+
+def select(ds: xr.Dataset, sel=(), ranges=(), where=(), variables=None,
+           description: str = "") -> Selection:
+    """Apply parsed clauses (see :func:`parse_sel`, :func:`parse_range`, :func:`parse_where`)."""
+    index: dict[str, np.ndarray] = {}
+    for name, value in sel:
+        if name in index:
+            raise QueryError(f"--sel {name}: {name} is selected twice")
+        c = np.asarray(ds[name].values, dtype=float)
+        index[name] = np.array([int(np.argmin(np.abs(c - value)))])
+    for name, lo, hi in ranges:
+        if name in index:
+            raise QueryError(f"--range {name}: {name} is already selected by another --sel/--range")
+        c = np.asarray(ds[name].values, dtype=float)
+        keep = np.ones(c.shape, bool)
+        if lo is not None:
+            keep &= c >= lo - RANGE_SLACK * abs(lo)
+        if hi is not None:
+            keep &= c <= hi + RANGE_SLACK * abs(hi)
+        index[name] = np.flatnonzero(keep)
+    sub = ds.isel(index) if index else ds
+
+    if variables is None:
+        scalar_dims = set(ds["status"].dims)
+        variables = tuple(v for v in ds.data_vars if set(ds[v].dims) <= scalar_dims)
+    columns = ("status", *(v for v in variables if v != "status"))
+    conditions = tuple(where)
+    used = set()
+    for name in (*columns, *(c.name for c in conditions)):
+        used.update(ds[name].dims)
+    row_dims = tuple(d for d in ds.dims if d in used)
+    return Selection(sub, columns, conditions, row_dims, description)
+
+
+# ---------------------------------------------------------------------------------------------
+# Rows
+# ---------------------------------------------------------------------------------------------
+def header(selection: Selection) -> list[str]:
+    return [*selection.row_dims, *selection.columns]
+
+
+def iter_rows(selection: Selection, limit: int | None = None):
+    """Yield rows (lists of Python values: floats, ints, flag names) in C order of ``row_dims``."""
+    mask = selection.mask()
+    shape = selection.shape
+    total = selection.count()
+    n = total if limit is None else min(limit, total)
+    if n == 0:
+        return
+    flat = np.flatnonzero(mask)[:n] if mask is not None else None
+    sub = selection.ds[list(selection.columns)]
+    flags = {v: {c: k for k, c in flag_names(sub[v]).items()}
+             for v in selection.columns if _is_flag(sub[v])}
+    for start in range(0, n, ROW_BLOCK):
+        stop = min(n, start + ROW_BLOCK)
+        block = flat[start:stop] if flat is not None else np.arange(start, stop)
+        idx = np.unravel_index(block, shape)
+        indexers = {d: xr.DataArray(i, dims="row") for d, i in zip(selection.row_dims, idx)}
+        pts = sub.isel(indexers).compute()
+        cols = [np.asarray(pts[d].values) for d in selection.row_dims]
+        for v in selection.columns:
+            values = pts[v].values
+            if v in flags:
+                values = np.array([flags[v].get(int(c), str(int(c))) for c in values], dtype=object)
+            cols.append(values)
+        for k in range(stop - start):
+            yield [_python(c[k]) for c in cols]
+
+
+def _python(x):
+    if isinstance(x, (np.floating, float)):
+        return float(x)
+    if isinstance(x, (np.integer, int)):
+        return int(x)
+    return x
+
+
+def _text(x) -> str:
+    return f"{x:.10g}" if isinstance(x, float) else str(x)
+
+
+def format_table(selection: Selection, max_rows: int | None = None) -> str:
+    """Aligned columns, at most ``max_rows`` rows (default ``TABLE_ROWS``), then a count."""
+    max_rows = TABLE_ROWS if max_rows is None else max_rows
+    head = header(selection)
+    rows = [[_text(x) for x in r] for r in iter_rows(selection, limit=max_rows)]
+    widths = [max([len(h), *(len(r[i]) for r in rows)]) for i, h in enumerate(head)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(head, widths))]
+    lines += ["  ".join(x.rjust(w) for x, w in zip(r, widths)) for r in rows]
+    rest = selection.count() - len(rows)
+    if rest > 0:
+        lines.append(f"… {rest} more rows (use --format csv -o FILE)")
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(selection: Selection, f) -> None:
+    """CSV with a header row; floats in full precision (``repr``), NaN as ``nan``."""
+    w = csv.writer(f, lineterminator="\n")
+    w.writerow(header(selection))
+    for r in iter_rows(selection):
+        w.writerow([repr(x) if isinstance(x, float) else x for x in r])
+
+
+def write_json(selection: Selection, f) -> None:
+    """A JSON array of objects, one per row; NaN as null (strict JSON)."""
+    head = header(selection)
+    f.write("[")
+    first = True
+    for r in iter_rows(selection):
+        obj = {k: (None if isinstance(x, float) and not math.isfinite(x) else x)
+               for k, x in zip(head, r)}
+        f.write(("\n" if first else ",\n") + json.dumps(obj, allow_nan=False))
+        first = False
+    f.write("\n]\n" if not first else "]\n")
+
+
+# ---------------------------------------------------------------------------------------------
+# NetCDF subset
+# ---------------------------------------------------------------------------------------------
+def subset_dataset(selection: Selection) -> xr.Dataset:
+    """The selection as a result Dataset of the same layout (see the module docstring)."""
+    keep = list(selection.columns)
+    ds = selection.ds[keep]
+    mask = selection.mask()
+    if mask is not None:
+        # Smallest sub-grid holding every match.
+        index = {}
+        for k, d in enumerate(selection.row_dims):
+            other = tuple(j for j in range(mask.ndim) if j != k)
+            index[d] = np.flatnonzero(mask.any(axis=other))
+        ds = ds.isel(index)
+        mask = mask[np.ix_(*index.values())]
+        if not mask.all():
+            m = xr.DataArray(mask, dims=selection.row_dims)
+            for v in ds.data_vars:
+                if ds[v].dtype.kind == "f":
+                    extra = [d for d in m.dims if d not in ds[v].dims]
+                    mv = m.any(dim=extra) if extra else m
+                    ds[v] = ds[v].where(mv)
+            ds["selected"] = m.astype(np.int8).assign_attrs(
+                flag_values=np.array([0, 1], dtype=np.int8),
+                flag_meanings="no yes",
+                long_name="point matches the query's --where clauses",
+            )
+    ds.attrs = dict(selection.ds.attrs)
+    if selection.description:
+        ds.attrs["query"] = selection.description
+    return ds
+
+
+def _encoding(ds: xr.Dataset) -> dict:
+    enc = {}
+    for name, v in ds.variables.items():
+        if v.dtype.kind == "f":
+            e = {"_FillValue": np.nan} if name in ds.data_vars else {"_FillValue": None}
+        else:
+            e = {"_FillValue": None}  # status and counters: every value is a real code/count
+        if name in ds.data_vars and v.ndim > 0:
+            e.update(zlib=True, complevel=1)
+        enc[name] = e
+    return enc
+
+
+def write_netcdf(selection: Selection, path: str) -> None:
+    """Write :func:`subset_dataset` atomically (temporary file + ``os.replace``)."""
+    ds = subset_dataset(selection)
+    for v in ds.variables.values():
+        v.encoding = {}
+    _atomic(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
+
+
+def write_text(path: str, writer) -> None:
+    """Run ``writer(file)`` into a temporary file next to ``path``, then rename it over ``path``."""
+
+    def run(tmp):
+        with open(tmp, "w", encoding="utf-8", newline="") as f:
+            writer(f)
+
+    _atomic(path, run)
+
+
+def _atomic(path: str, write) -> None:
+    # A fresh name next to the target (same file system, so os.replace is atomic); created by the
+    # writer itself, so the file gets the usual umask permissions (mkstemp would give 0600).
+    head, tail = os.path.split(os.path.abspath(path))
+    tmp = os.path.join(head, f".{tail}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def render(selection: Selection, fmt: str) -> str:
+    """table/csv/json as one string (for stdout)."""
+    if fmt == "table":
+        return format_table(selection)
+    buf = io.StringIO()
+    (write_csv if fmt == "csv" else write_json)(selection, buf)
+    return buf.getvalue()
+
+
+# ---------------------------------------------------------------------------------------------
+# info
+# ---------------------------------------------------------------------------------------------
+def status_counts(ds: xr.Dataset) -> dict[str, int]:
+    """Points per status name (lazy reduction; codes outside the flags count as 'other')."""
+    flags = flag_names(ds["status"])
+    sums = xr.Dataset({n: (ds["status"] == v).sum() for n, v in flags.items()}).compute()
+    counts = {n: int(sums[n]) for n in flags}
+    other = int(ds["status"].size) - sum(counts.values())
+    if other:
+        counts["other"] = other
+    return counts
+
+
+def describe(ds: xr.Dataset, path: str = "") -> str:
+    """The ``info`` report: dimensions, variables, status counts, provenance."""
+    lines = [f"file  {path}"] if path else []
+    lines.append("dimensions")
+    for d in ds.dims:
+        n = ds.sizes[d]
+        if d in ds.coords and n:
+            c = np.asarray(ds[d].values)
+            unit = ds[d].attrs.get("units", "")
+            rng = f"{np.min(c):.10g} .. {np.max(c):.10g}"
+            text = ds[d].attrs.get("long_name", "")
+            lines.append(f"  {d:<8} {n:>8}  {rng:<30} {unit:<10} {text}".rstrip())
+        else:
+            lines.append(f"  {d:<8} {n:>8}")
+    lines.append("variables")
+    for v in ds.data_vars:
+        da = ds[v]
+        unit = da.attrs.get("units", "")
+        text = da.attrs.get("long_name", "")
+        dims = "(" + ", ".join(da.dims) + ")"
+        lines.append(f"  {v:<18} {str(da.dtype):<8} {unit:<18} {text}  {dims}".rstrip())
+    counts = status_counts(ds)
+    total = max(1, int(ds["status"].size))
+    lines.append(f"status ({int(ds['status'].size)} points)")
+    for name, n in counts.items():
+        lines.append(f"  {name:<22} {n:>12}  {100.0 * n / total:6.2f} %")
+    lines.append("provenance")
+    a = ds.attrs
+    for key in PROVENANCE:
+        if key in a:
+            lines.append(f"  {key:<24} {_text(_python(a[key]))}")
+    if "query" in a:
+        lines.append(f"  {'query':<24} {a['query']}")
+    text = str(a.get("sweep_toml", ""))
+    if text:
+        sweep_lines = text.splitlines()
+        shown = min(SWEEP_TEXT_LINES, len(sweep_lines))
+        lines.append(f"  sweep (first {shown} of {len(sweep_lines)} lines)")
+        lines += ["    " + s for s in sweep_lines[:SWEEP_TEXT_LINES]]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,273 @@
+"""Run a sweep: spec -> plan -> blocks solved in parallel -> working store -> NetCDF.
+
+:func:`run_sweep` is the whole pipeline; ``cosserat-channel run`` is a thin wrapper around it.
+
+Parallelism: each block is one :func:`solve.solve_batch` call, which holds no GIL, so dask's
+threaded scheduler keeps every core busy without pickling anything; ``scheduler=ADDRESS`` sends
+the same blocks to a ``dask.distributed`` cluster instead, and the results come back to this
+process, which alone writes the store and the file (workers need no shared file system). Every
+finished block is saved at once (see :mod:`.store`), so a killed run resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+
+import numpy as np
+
+from .. import __version__, rk45
+from .. import solve
+from .. import status as st
+from .dataset import NEED_ONE_MINUS, build_dataset, encoding
+from .plan import BlockInputs, Plan
+from .spec import SweepError, SweepSpec, load_sweep
+from .store import FORMAT, WorkStore, check_writable
+
+log = logging.getLogger("cosserat_channel.sweep")
+
+
+def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, reduce=True,
+              block_size=None, progress=None, compress=True):
+    """Solve every point of a sweep and return the labelled result (and write it to NetCDF).
+
+    Parameters
+    ----------
+    path_or_mapping : str, path, mapping or SweepSpec
+        A sweep file (see :mod:`.spec`), its parsed mapping, or a loaded spec.
+    output : str, optional
+        NetCDF file to write; default the sweep's ``[output] path`` (relative to the current
+        directory). With neither, nothing is written and the Dataset is only returned.
+    workers : int, optional
+        Threads for the local scheduler (default ``os.cpu_count()``).
+    scheduler : str or distributed.Client, optional
+        Address of a ``dask.distributed`` scheduler (or a client) to run the blocks on.
+    reduce : bool
+        One integration per distinct ``(eps L, A, N)`` (default) or one per grid point; both give
+        identical values, the second only serves to check and to measure the first.
+    block_size : int, optional
+        Integrations per block (default: about max(128, 16 x workers) blocks; a resumed run
+        keeps the block size it started with).
+    progress : bool, optional
+        Progress bar on stderr; default when stderr is a terminal.
+    compress : bool
+        zlib level 1 on the NetCDF variables.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``(eps, L, K, A, N)`` (plus ``xi`` with profiles), the requested variables, ``status``.
+
+    Raises
+    ------
+    SweepError
+        (a ``ValueError``) for an invalid sweep, an unwritable output, or a working store of a
+        different sweep in the way; nothing has been computed then.
+    """
+    t_start = time.perf_counter()
+    spec = path_or_mapping
+    if not isinstance(spec, SweepSpec):
+        spec = load_sweep(path_or_mapping)
+    if output is None:
+        output = spec.output_path
+    if output is not None:
+        output = os.fspath(output)
+        check_writable(output)
+    if workers is not None and (int(workers) != workers or workers < 1):
+        raise SweepError(f"workers must be a positive integer; got {workers!r}")
+    n_workers = int(workers or os.cpu_count() or 1)
+    try:
+        plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers)
+    except ValueError as exc:
+        raise SweepError(str(exc)) from None
+    store = WorkStore.open(output, _manifest(spec, plan), given_block_size=block_size is not None)
+    try:
+        if store.manifest["block_size"] != plan.block_size:
+            plan = Plan(spec.coords(), reduce=reduce, block_size=store.manifest["block_size"])
+        if store.manifest["plan_sha256"] != plan.digest():
+            raise SweepError(
+                f"{store.directory} was planned differently (another cosserat-channel build?); "
+                f"delete {store.directory} to start over, or choose another -o"
+            )
+        done = store.done(plan.blocks)
+        todo = [k for k in range(len(plan.blocks)) if k not in done]
+        log.info(
+            "%s points, %s integrations (%s) in %d blocks of <= %d; "
+            "%d done before, %d to compute%s",
+            f"{plan.size:,}", f"{plan.n_triples:,}", "reduced" if plan.reduce else "unreduced",
+            len(plan.blocks), plan.block_size, len(done), len(todo),
+            f" (resuming {store.directory})" if done else "",
+        )
+        xi = _profile_xi(spec)
+        if progress is None:
+            progress = sys.stderr.isatty()
+        t0 = time.perf_counter()
+        if todo:
+            args = (spec.rtol, spec.atol, xi)
+            if scheduler is None:
+                _run_threads(plan, todo, store, args, n_workers, progress)
+            else:
+                _run_distributed(plan, todo, store, args, scheduler, progress)
+        t1 = time.perf_counter()
+        ds = assemble(spec, plan, store, xi)
+        t2 = time.perf_counter()
+        if output is not None:
+            enc = encoding(ds, compress)
+            store.publish(output, lambda path: ds.to_netcdf(path, engine="netcdf4", encoding=enc))
+            store.remove()
+        t3 = time.perf_counter()
+    finally:
+        store.close()
+    log.info(
+        "%s: solve %.2f s (%d blocks computed), assemble %.2f s, write %.2f s, total %.2f s",
+        output or "(not written)", t1 - t0, len(todo), t2 - t1, t3 - t2, t3 - t_start,
+    )
+    return ds
+
+
+def _manifest(spec: SweepSpec, plan: Plan) -> dict:
+    return {
+        "format": FORMAT,
+        "sweep_sha256": spec.sha256,
+        "shape": list(plan.shape),
+        "reduced": plan.reduce,
+        "block_size": plan.block_size,
+        "n_blocks": len(plan.blocks),
+        "plan_sha256": plan.digest(),
+        "cosserat_channel_version": __version__,
+    }
+
+
+def _profile_xi(spec):
+    return None if not spec.profile_points else np.linspace(0.0, 1.0, spec.profile_points)
+
+
+# ---------------------------------------------------------------------------------------------
+# One block
+# ---------------------------------------------------------------------------------------------
+def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None) -> dict:
+    """Run :func:`solve.solve_batch` on one block; returns the arrays the store keeps."""
+    n = inp.eta.size
+    res = np.empty((n, solve.N_R))
+    stats = np.zeros((n, 2, rk45.N_STATS), dtype=np.int64)
+    one_minus = np.empty(inp.eps_K.size)
+    xi_k = np.empty(0) if xi is None else xi
+    prof = np.empty((n, solve.N_PROF, xi_k.size))
+    try:
+        _batch(inp, slice(0, n), rtol, atol, xi_k, res, stats, one_minus, prof)
+    except ArithmeticError:
+        # The kernel raised on some triple (a bug at a boundary of the domain, e.g. an axis
+        # margin of exactly 0): redo the block triple by triple so that only that triple is lost,
+        # reported as integration_failed, instead of the whole run.
+        for i in range(n):
+            try:
+                _batch(inp, slice(i, i + 1), rtol, atol, xi_k, res, stats, one_minus, prof)
+            except ArithmeticError as exc:
+                log.warning("kernel raised %s at eta=%r, A=%r, N=%r; reported as "
+                            "integration_failed", type(exc).__name__, float(inp.eta[i]),
+                            float(inp.A[i]), float(inp.N[i]))
+                res[i] = np.nan
+                res[i, solve.R_STATUS] = st.INTEGRATION_FAILED
+                stats[i] = 0
+                one_minus[inp.offsets[i]:inp.offsets[i + 1]] = np.nan
+                prof[i] = np.nan
+    out = {
+        "res": res,
+        "steps": stats[:, :, rk45.STAT_ACCEPTED].copy(),
+        "one_minus": one_minus,
+    }
+    if xi is not None:
+        out["profiles"] = prof
+    return out
+
+
+def _batch(inp: BlockInputs, sl: slice, rtol, atol, xi_k, res, stats, one_minus, prof) -> None:
+    """solve_batch on triples ``sl`` of the block (views: results land in the block's arrays)."""
+    lo, hi = inp.offsets[sl.start], inp.offsets[sl.stop]
+    offsets = inp.offsets[sl.start:sl.stop + 1] - lo
+    solve.solve_batch(inp.eta[sl], inp.A[sl], inp.N[sl], inp.eps_K[lo:hi], offsets, rtol, atol,
+                      solve.MAX_STEPS_STAGE1, solve.MAX_STEPS_STAGE2, res[sl], stats[sl],
+                      one_minus[lo:hi], xi_k, prof[sl])
+
+
+def _block_task(plan: Plan, k: int, args) -> dict:
+    # Build the inputs inside the task: a block's eps K arrays exist only while it runs.
+    out = solve_block(plan.inputs(k), *args)
+    out["triples"] = plan.blocks[k]
+    return out
+
+
+def warm_up() -> None:
+    """Load (or compile) the kernels once, here, before threads or workers race to do it."""
+    inp = BlockInputs(np.array([0.3]), np.array([1 / 3]), np.array([1.0]), np.array([0.05]),
+                      np.array([0, 1]), np.array([0]))
+    solve_block(inp, 1e-6, 1e-10, np.array([0.0, 1.0]))
+    solve_block(inp, 1e-6, 1e-10, None)
+
+
+# ---------------------------------------------------------------------------------------------
+# Schedulers
+# ---------------------------------------------------------------------------------------------
+def _run_threads(plan, todo, store, args, workers, progress) -> None:
+    import dask
+    from dask.diagnostics import ProgressBar
+
+    warm_up()
+
+    def task(k):
+        store.put(k, _block_task(plan, k, args))
+
+    tasks = [dask.delayed(task, pure=False)(k, dask_key_name=f"block-{k}") for k in todo]
+    if progress:
+        with ProgressBar(out=sys.stderr, dt=0.5):
+            dask.compute(*tasks, scheduler="threads", num_workers=workers)
+    else:
+        dask.compute(*tasks, scheduler="threads", num_workers=workers)
+
+
+def _run_distributed(plan, todo, store, args, scheduler, progress) -> None:
+    from dask.distributed import Client, as_completed
+
+    client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
+    try:
+        client.run(warm_up)
+        remote_plan = client.scatter(plan, broadcast=True)
+        tag = plan.digest()[:12]  # keys unique per plan: a shared cluster may hold older runs
+        futures = [client.submit(_block_task, remote_plan, k, args, key=f"cc-block-{tag}-{k}")
+                   for k in todo]
+        key_to_block = {f.key: k for f, k in zip(futures, todo)}
+        for i, fut in enumerate(as_completed(futures), 1):
+            store.put(key_to_block[fut.key], fut.result())
+            fut.release()
+            if progress:
+                print(f"\r[{i}/{len(todo)} blocks]", end="", file=sys.stderr, flush=True)
+        if progress:
+            print(file=sys.stderr)
+    finally:
+        if client is not scheduler:
+            client.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# Blocks -> grid
+# ---------------------------------------------------------------------------------------------
+def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None):
+    """Gather every block from the store onto the grid and build the Dataset."""
+    n = plan.n_triples
+    per_triple = {"res": np.empty((n, solve.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
+    need_one_minus = bool(NEED_ONE_MINUS & set(spec.variables))
+    one_minus = np.empty(plan.size) if need_one_minus else None
+    profiles = np.empty((n, solve.N_PROF, xi.size)) if xi is not None else None
+    for k, triples in enumerate(plan.blocks):
+        b = store.get(k)
+        per_triple["res"][triples] = b["res"]
+        per_triple["steps"][triples] = b["steps"]
+        if profiles is not None:
+            profiles[triples] = b["profiles"]
+        if need_one_minus:
+            one_minus[plan.inputs(k).flat] = b["one_minus"]
+    if one_minus is not None:
+        one_minus = one_minus.reshape(plan.shape)
+    return build_dataset(spec, plan, per_triple, one_minus, xi, profiles)

@@ -1,0 +1,213 @@
+"""The solve set of a sweep: which integrations, which ``eps K`` values each, in which blocks.
+
+model.md's similarity: both stages depend on ``(eta = eps L, A, N)`` only, and ``eps``, ``K``
+enter afterwards. A grid over ``(eps, L, K, A, N)`` therefore needs one integration per distinct
+*triple* ``(eta, A, N)``; that triple's run of ``eps K`` values (one per grid point it serves)
+goes into :func:`solve.solve_batch`'s ``offsets``. Without the reduction every grid point is its
+own triple with one ``eps K``. Both use the same ``eta = eps * L`` product, so the integrations,
+and with them every value, are bit-identical.
+
+Triples are numbered so that per-triple arrays reshape onto the grid:
+
+* reduced: ``t = (u * nA + a) * nN + n`` with ``u`` the index of ``eta`` among the sorted distinct
+  products ``eps[i] * L[j]``; its entries are the ``(eps, L)`` pairs with that product (in pair
+  order) times every ``K``;
+* unreduced: ``t`` is the C-order flat index of the grid point.
+
+Blocks are dealt so that every block costs about the same (see :func:`block_plan`). The blocks
+are a function of the grid, the reduction and the block size alone; only the *default* block
+size looks at the number of workers, and a resumed run takes its block size from its store, so
+it finds the same blocks whatever ``--workers`` it is given.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .. import model
+from .. import status as st
+
+# Default plan: at least this many blocks, BLOCKS_PER_WORKER per worker on more than 8 workers
+# (fewer when there are fewer triples), each at most MAX_BLOCK_TRIPLES integrations and about
+# MAX_BLOCK_ENTRIES eps K values (bounded memory per task). Enough blocks for balance and a live
+# progress bar, few enough that the per-block overhead (a task, an .npz file) stays below 1 %.
+DEFAULT_BLOCKS = 128
+BLOCKS_PER_WORKER = 16
+MAX_BLOCK_TRIPLES = 20_000
+MAX_BLOCK_ENTRIES = 2_000_000
+
+# Expected cost of a triple in microseconds (measured with solve_batch at rtol = 1e-8): a fixed
+# part plus stage-1 steps that grow like 1/eta for small eta, a near-free classify rejection, and
+# the root search of eq:13 per eps K value. Only the ordering matters: blocks are dealt from it.
+COST_FIXED = 30.0
+COST_PER_INV_ETA = 1.2
+COST_REJECTED = 0.5
+COST_PER_ENTRY = 0.75
+
+
+@njit(nogil=True, cache=True)
+def _classify_many(eta, A, N, out):
+    # model.classify on arrays: the cost model needs to know which triples are rejected up front.
+    for i in range(eta.size):
+        out[i] = model.classify(eta[i], A[i], N[i])
+
+
+@dataclass(frozen=True, eq=False)
+class BlockInputs:
+    """Arguments of one :func:`solve.solve_batch` call and where its ``eps K`` entries land.
+
+    ``flat[j]`` is the C-order grid index of entry ``j``; ``owner[j]`` the position (within the
+    block) of the triple that entry belongs to.
+    """
+
+    eta: np.ndarray
+    A: np.ndarray
+    N: np.ndarray
+    eps_K: np.ndarray
+    offsets: np.ndarray
+    flat: np.ndarray
+
+
+class Plan:
+    """The reduced (or unreduced) solve set of a grid and its division into blocks.
+
+    Parameters
+    ----------
+    axes : dict
+        ``{"eps": ..., "L": ..., "K": ..., "A": ..., "N": ...}``, 1-D float64 arrays.
+    reduce : bool
+        One integration per distinct ``(eps L, A, N)`` (True) or per grid point (False).
+    block_size : int, optional
+        Integrations per block; default from :data:`DEFAULT_BLOCKS` and the size bounds.
+    workers : int
+        Only sets the default block size (a resumed run takes the block size from its store).
+    """
+
+    def __init__(self, axes: dict, reduce: bool = True, block_size: int | None = None,
+                 workers: int = 1):
+        self.eps, self.L, self.K, self.A, self.N = (
+            np.ascontiguousarray(axes[d], dtype=np.float64) for d in ("eps", "L", "K", "A", "N")
+        )
+        self.shape = (self.eps.size, self.L.size, self.K.size, self.A.size, self.N.size)
+        self.size = math.prod(self.shape)
+        self.reduce = bool(reduce)
+        nE, nL, nK, nA, nN = self.shape
+        if self.reduce:
+            pair_eta = (self.eps[:, None] * self.L[None, :]).ravel()
+            # Exact float equality: a shared product is the very same float in solve_point too.
+            self.eta_u, self.inv = np.unique(pair_eta, return_inverse=True)
+            self.inv = self.inv.ravel()
+            self.pair_order = np.argsort(self.inv, kind="stable")
+            counts = np.bincount(self.inv, minlength=self.eta_u.size)
+            self.pair_start = np.concatenate(([0], np.cumsum(counts)))
+            self.n_triples = self.eta_u.size * nA * nN
+        else:
+            self.n_triples = self.size
+        if block_size is not None and (int(block_size) != block_size or block_size < 1):
+            raise ValueError(f"block_size must be a positive integer; got {block_size!r}")
+        if block_size is None:
+            block_size = self._default_block_size(max(DEFAULT_BLOCKS, BLOCKS_PER_WORKER * workers))
+        self.block_size = int(block_size)
+        self.blocks = block_plan(self.costs(), self.block_size)
+
+    # -- triples ------------------------------------------------------------------------------
+    def triple_params(self, t: np.ndarray):
+        """``(eta, A, N)`` of triples ``t`` (int64 array)."""
+        nE, nL, nK, nA, nN = self.shape
+        if self.reduce:
+            u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
+            return self.eta_u[u], self.A[a], self.N[n]
+        e, l, _, a, n = np.unravel_index(t, self.shape)
+        return self.eps[e] * self.L[l], self.A[a], self.N[n]
+
+    def entries_per_triple(self, t: np.ndarray) -> np.ndarray:
+        """How many grid points (``eps K`` values) each triple serves."""
+        if not self.reduce:
+            return np.ones(t.size, dtype=np.int64)
+        u = t // (self.shape[3] * self.shape[4])
+        return (self.pair_start[u + 1] - self.pair_start[u]) * self.shape[2]
+
+    def costs(self) -> np.ndarray:
+        """Expected cost of every triple (arbitrary units; see the ``COST_*`` constants)."""
+        t = np.arange(self.n_triples, dtype=np.int64)
+        eta, A, N = self.triple_params(t)
+        code = np.empty(t.size, dtype=np.int64)
+        _classify_many(eta, A, N, code)
+        cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
+        return cost + COST_PER_ENTRY * self.entries_per_triple(t)
+
+    def _default_block_size(self, n_blocks: int) -> int:
+        n = self.n_triples
+        entries_per = max(1.0, self.size / n)
+        size = math.ceil(n / n_blocks)
+        return max(1, min(size, MAX_BLOCK_TRIPLES, int(MAX_BLOCK_ENTRIES // entries_per)))
+
+    def digest(self) -> str:
+        """sha256 of the block plan: the same digest means the same blocks in the same order."""
+        h = hashlib.sha256()
+        h.update(np.asarray(self.shape, dtype=np.int64).tobytes())
+        h.update(b"reduced" if self.reduce else b"unreduced")
+        for b in self.blocks:
+            h.update(np.int64(b.size).tobytes())
+            h.update(b.tobytes())
+        return h.hexdigest()
+
+    # -- blocks -------------------------------------------------------------------------------
+    def inputs(self, k: int) -> BlockInputs:
+        """Kernel inputs of block ``k``."""
+        t = self.blocks[k]
+        eta, A, N = self.triple_params(t)
+        nE, nL, nK, nA, nN = self.shape
+        if not self.reduce:
+            e, _, kk, _, _ = np.unravel_index(t, self.shape)
+            eps_K = self.eps[e] * self.K[kk]
+            offsets = np.arange(t.size + 1, dtype=np.int64)
+            return BlockInputs(eta, A, N, eps_K, offsets, t.copy())
+        counts = self.entries_per_triple(t)
+        offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+        owner = np.repeat(np.arange(t.size), counts)
+        local = np.arange(offsets[-1], dtype=np.int64) - offsets[owner]
+        u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
+        pair = self.pair_order[self.pair_start[u[owner]] + local // nK]
+        kk = local % nK
+        eps_K = self.eps[pair // nL] * self.K[kk]
+        flat = ((pair * nK + kk) * nA + a[owner]) * nN + n[owner]
+        return BlockInputs(eta, A, N, eps_K, offsets, flat)
+
+    def to_grid(self, per_triple: np.ndarray) -> np.ndarray:
+        """Spread per-triple values (leading axis ``n_triples``) onto the grid (a new array)."""
+        trailing = per_triple.shape[1:]
+        if not self.reduce:
+            return per_triple.reshape(self.shape + trailing)
+        nE, nL, nK, nA, nN = self.shape
+        by_u = per_triple.reshape((self.eta_u.size, nA, nN) + trailing)
+        by_pair = by_u[self.inv.reshape(nE, nL)]  # (nE, nL, nA, nN, ...)
+        out = np.empty(self.shape + trailing, dtype=per_triple.dtype)
+        out[...] = by_pair[:, :, None]
+        return out
+
+
+def block_plan(cost: np.ndarray, block_size: int) -> list[np.ndarray]:
+    """Deal triples into ``ceil(n / block_size)`` blocks of near-equal expected cost.
+
+    Triples sorted by falling cost are dealt like cards in a snake (0, 1, ..., B-1, B-1, ..., 0,
+    0, 1, ...): every block gets one triple from each band of the ranking, so blocks cost about
+    the same even where cost varies by orders of magnitude (small eta), and no worker is left
+    with the expensive corner of the grid. Each block's triples come back sorted by index.
+    """
+    n = cost.size
+    n_blocks = max(1, math.ceil(n / block_size))
+    rank = np.argsort(-cost, kind="stable")
+    i = np.arange(n)
+    pos = i % n_blocks
+    snake = np.where((i // n_blocks) % 2 == 0, pos, n_blocks - 1 - pos)
+    which = np.empty(n, dtype=np.int64)
+    which[rank] = snake
+    order = np.argsort(which, kind="stable")  # stable: triple indices ascending within a block
+    bounds = np.searchsorted(which[order], np.arange(n_blocks + 1))
+    return [order[bounds[k]:bounds[k + 1]].astype(np.int64) for k in range(n_blocks)]

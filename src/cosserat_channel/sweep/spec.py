@@ -1,0 +1,389 @@
+"""Sweep files: a TOML file (or a mapping of the same shape) -> a validated :class:`SweepSpec`.
+
+A sweep file has four tables; only ``[grid]`` is required::
+
+    [grid]                      # all five, in any form below
+    eps = {logspace = [-3, -1, 12]}     # 10**linspace(-3, -1, 12)
+    L = [2, 5, 10, 20]                  # a list, kept in file order
+    K = {linspace = [0, 300, 301]}      # numpy.linspace(0, 300, 301)
+    A = 0.3333333333333333              # one number
+    N = 1.0
+
+    [material]                  # optional: adds nu and the wall stresses in Pa
+    d_p = 0.002                 # m
+    rho_p = 2940                # kg/m^3
+    phi = 25                    # degrees
+                                # optional: g, Lambda, nu_min, nu_max, p, q
+
+    [solver]                    # optional
+    rtol = 1e-8
+    atol = 1e-12
+
+    [output]                    # optional
+    path = "demo/quickstart.nc"
+    variables = ["Delta", "slip"]
+    profile_points = 201        # xi = linspace(0, 1, profile_points)
+
+Everything is checked here, before any solve, and every rejection is a :class:`SweepError` with a
+one-line message that names the key (``grid.eps: ...``). The ranges are the solver's own
+(:func:`solve.check_point`, :func:`solve.check_material`, :func:`solve.check_tolerances`), so the
+sweep file, the API and the ``point`` command accept exactly the same values.
+
+Pure Python plus numpy; no dask here (the engine is the only importer of dask).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import numbers
+import os
+import tomllib
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from ..solve import (
+    DEFAULT_ATOL,
+    DEFAULT_RTOL,
+    MATERIAL_KEYS,
+    OUTPUTS,
+    ParameterError,
+    check_material,
+    check_point,
+    check_tolerances,
+)
+
+DIMS = ("eps", "L", "K", "A", "N")
+
+# Outputs that need a [material] (see solve._add_material).
+MATERIAL_VARIABLES = (
+    "nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m",
+)
+# Dimensionless outputs: the default variables of a sweep without a material.
+DIMENSIONLESS_VARIABLES = tuple(k for k in OUTPUTS if k not in MATERIAL_VARIABLES)
+# Accepted-step counters of the two stages, stored only on request.
+COUNTER_VARIABLES = ("stage1_steps", "stage2_steps")
+VARIABLES = tuple(OUTPUTS) + COUNTER_VARIABLES
+
+# Memory guard: a float64 output over this many points is already 1.6 GB.
+MAX_POINTS = 200_000_000
+PROFILE_POINTS_RANGE = (2, 10001)
+
+TABLES = ("grid", "material", "solver", "output")
+SOLVER_KEYS = ("rtol", "atol")
+OUTPUT_KEYS = ("path", "variables", "profile_points")
+GRID_FORMS = ("linspace", "logspace")
+
+# A value inside the domain for each dimension, so check_point can test one dimension at a time.
+_INSIDE = {"eps": 0.5, "L": 1.0, "K": 1.0, "A": 0.0, "N": 1.0}
+
+assert set(MATERIAL_VARIABLES) <= set(OUTPUTS)
+
+
+class SweepError(ParameterError):
+    """A sweep file (or mapping) that cannot be run; the one-line message names the key."""
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(str(message).split()))
+
+
+@dataclass(frozen=True, eq=False)
+class SweepSpec:
+    """A validated sweep: five axes, material, tolerances and what to store.
+
+    The axis arrays are 1-D float64, read-only, in file order, without duplicates. ``text`` is
+    the sweep file's text (a canonical JSON dump for a mapping) and ``sha256`` its hash, for the
+    result file's provenance attributes.
+    """
+
+    eps: np.ndarray
+    L: np.ndarray
+    K: np.ndarray
+    A: np.ndarray
+    N: np.ndarray
+    material: dict | None
+    rtol: float
+    atol: float
+    output_path: str | None
+    variables: tuple[str, ...]
+    profile_points: int | None
+    text: str
+    sha256: str
+    source: str | None
+
+    def coords(self) -> dict[str, np.ndarray]:
+        """``{dim: values}`` in :data:`DIMS` order."""
+        return {d: getattr(self, d) for d in DIMS}
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(getattr(self, d).size for d in DIMS)
+
+    @property
+    def size(self) -> int:
+        return math.prod(self.shape)
+
+
+def load_sweep(path_or_mapping) -> SweepSpec:
+    """Read and validate a sweep file (path) or an already parsed mapping of the same shape.
+
+    Raises
+    ------
+    SweepError
+        (a :class:`solve.ParameterError`, so a ``ValueError``) with a one-line message naming the
+        offending key, for anything :func:`solve.solve_point` would reject and for malformed files.
+    """
+    if isinstance(path_or_mapping, Mapping):
+        data = path_or_mapping
+        try:
+            text = json.dumps(data, sort_keys=True, default=_json_default)
+        except (TypeError, ValueError) as exc:
+            raise SweepError(f"sweep mapping cannot be serialised: {exc}") from None
+        source = None
+    elif isinstance(path_or_mapping, (str, os.PathLike)):
+        source = os.fspath(path_or_mapping)
+        text = _read_text(source)
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise SweepError(f"{source}: invalid TOML: {exc}") from None
+    else:
+        raise SweepError(
+            f"load_sweep needs a path or a mapping; got {type(path_or_mapping).__name__}"
+        )
+    sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    prefix = f"{source}: " if source is not None else ""
+    try:
+        fields = _validate(data)
+    except SweepError as exc:
+        raise SweepError(prefix + str(exc)) from None
+    return SweepSpec(**fields, text=text, sha256=sha, source=source)
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation, table by table
+# ---------------------------------------------------------------------------------------------
+def _validate(data: Mapping) -> dict:
+    _check_keys(data, TABLES, "sweep", required=("grid",))
+    for table in TABLES:
+        if table in data and not isinstance(data[table], Mapping):
+            raise SweepError(f"{table}: must be a table; got {_show(data[table])}")
+    axes = _grid(data["grid"])
+    material = _material(data.get("material"))
+    rtol, atol = _solver(data.get("solver", {}))
+    path, variables, profile_points = _output(data.get("output", {}), material is not None)
+    return dict(
+        **axes, material=material, rtol=rtol, atol=atol, output_path=path,
+        variables=variables, profile_points=profile_points,
+    )
+
+
+def _grid(grid: Mapping) -> dict[str, np.ndarray]:
+    _check_keys(grid, DIMS, "grid", required=DIMS)
+    # Count first, build afterwards: a huge `num` fails the size guard without allocating.
+    counts = {d: _axis_count(grid[d], f"grid.{d}") for d in DIMS}
+    size = math.prod(counts.values())
+    if size > MAX_POINTS:
+        shape = " x ".join(str(counts[d]) for d in DIMS)
+        raise SweepError(
+            f"grid: {size:,} points ({shape}) exceeds the limit of {MAX_POINTS:,}; split the sweep"
+        )
+    axes = {}
+    for d in DIMS:
+        key = f"grid.{d}"
+        values = _axis_values(grid[d], key)
+        for v in values.tolist():
+            point = dict(_INSIDE, **{d: v})
+            try:
+                check_point(*(point[k] for k in DIMS))
+            except ParameterError as exc:
+                raise SweepError(f"{key}: {exc}") from None
+        uniq, counts_ = np.unique(values, return_counts=True)
+        if np.any(counts_ > 1):
+            dup = ", ".join(f"{v!r}" for v in uniq[counts_ > 1][:5].tolist())
+            raise SweepError(f"{key}: duplicate value(s) {dup}; coordinate values must be unique")
+        values.setflags(write=False)
+        axes[d] = values
+    return axes
+
+
+def _axis_count(value, key: str) -> int:
+    """How many values the axis form ``value`` gives (its shape is checked here too)."""
+    if _is_number(value):
+        return 1
+    if isinstance(value, (list, tuple, np.ndarray)):
+        if len(value) == 0:
+            raise SweepError(f"{key}: an empty list gives no values; need at least one number")
+        for i, v in enumerate(value):
+            if not _is_number(v):
+                raise SweepError(f"{key}[{i}]: must be a number; got {_show(v)}")
+        return len(value)
+    if isinstance(value, Mapping):
+        if len(value) != 1 or next(iter(value)) not in GRID_FORMS:
+            raise SweepError(
+                f"{key}: a table must have exactly one key, linspace or logspace; got "
+                f"{', '.join(map(repr, value)) or 'no key'}"
+            )
+        form, args = next(iter(value.items()))
+        what = {"linspace": "[start, stop, num]",
+                "logspace": "[start_exponent, stop_exponent, num]"}[form]
+        ok = (
+            isinstance(args, (list, tuple))
+            and len(args) == 3
+            and _is_number(args[0])
+            and _is_number(args[1])
+            and isinstance(args[2], numbers.Integral)
+            and not isinstance(args[2], (bool, np.bool_))
+            and int(args[2]) >= 1
+        )
+        if not ok:
+            raise SweepError(
+                f"{key}: {form} needs {what} with num an integer >= 1; got {_show(args)}"
+            )
+        return int(args[2])
+    raise SweepError(
+        f"{key}: must be a number, a list of numbers, {{linspace = [start, stop, num]}} or "
+        f"{{logspace = [start_exponent, stop_exponent, num]}}; got {_show(value)}"
+    )
+
+
+def _axis_values(value, key: str) -> np.ndarray:
+    """The axis as float64 in file order (shape already checked by :func:`_axis_count`)."""
+    if _is_number(value):
+        out = np.array([float(value)])
+    elif isinstance(value, Mapping):
+        form, (start, stop, num) = next(iter(value.items()))
+        for name, x in (("start", start), ("stop", stop)):
+            if not math.isfinite(float(x)):
+                raise SweepError(f"{key}: {form} {name} must be finite; got {_show(x)}")
+        fn = np.linspace if form == "linspace" else np.logspace
+        with np.errstate(over="ignore"):
+            out = fn(float(start), float(stop), int(num))
+    else:
+        out = np.array([float(v) for v in value], dtype=np.float64)
+    return np.ascontiguousarray(out, dtype=np.float64)
+
+
+def _material(material: Mapping | None) -> dict | None:
+    if material is None:
+        return None
+    _check_keys(material, tuple(MATERIAL_KEYS), "material")
+    for k, v in material.items():
+        if not _is_number(v):
+            raise SweepError(f"material.{k}: must be a number; got {_show(v)}")
+    try:
+        return check_material(dict(material))
+    except ParameterError as exc:
+        msg = str(exc)
+        raise SweepError(msg if msg.startswith("material") else f"material: {msg}") from None
+
+
+def _solver(solver: Mapping) -> tuple[float, float]:
+    _check_keys(solver, SOLVER_KEYS, "solver")
+    for k, v in solver.items():
+        if not _is_number(v):
+            raise SweepError(f"solver.{k}: must be a number; got {_show(v)}")
+    rtol = solver.get("rtol", DEFAULT_RTOL)
+    atol = solver.get("atol", DEFAULT_ATOL)
+    try:
+        return check_tolerances(rtol, atol)
+    except ParameterError as exc:
+        name = str(exc).split()[0]
+        raise SweepError(f"solver.{name}: {exc}") from None
+
+
+def _output(output: Mapping, has_material: bool):
+    _check_keys(output, OUTPUT_KEYS, "output")
+    path = output.get("path")
+    if path is not None and (not isinstance(path, str) or not path.strip()):
+        raise SweepError(f"output.path: must be a non-empty string; got {_show(path)}")
+
+    allowed = tuple(v for v in VARIABLES if has_material or v not in MATERIAL_VARIABLES)
+    if "variables" in output:
+        names = output["variables"]
+        if not isinstance(names, (list, tuple)) or not names:
+            raise SweepError(
+                f"output.variables: must be a non-empty list of names; got {_show(names)}"
+            )
+        for i, name in enumerate(names):
+            if not isinstance(name, str):
+                raise SweepError(f"output.variables[{i}]: must be a string; got {_show(name)}")
+            if name in MATERIAL_VARIABLES and not has_material:
+                raise SweepError(
+                    f"output.variables: {name!r} needs a [material] table (d_p, rho_p, phi)"
+                )
+            if name not in allowed:
+                raise SweepError(
+                    f"output.variables: unknown variable {name!r}; valid: {', '.join(allowed)}"
+                )
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise SweepError(f"output.variables: listed twice: {', '.join(dup)}")
+        variables = tuple(names)
+    else:
+        variables = DIMENSIONLESS_VARIABLES + (MATERIAL_VARIABLES if has_material else ())
+
+    profile_points = output.get("profile_points")
+    if profile_points is not None:
+        lo, hi = PROFILE_POINTS_RANGE
+        if (
+            not isinstance(profile_points, numbers.Integral)
+            or isinstance(profile_points, (bool, np.bool_))
+            or not lo <= int(profile_points) <= hi
+        ):
+            raise SweepError(
+                f"output.profile_points: must be an integer in [{lo}, {hi}]; "
+                f"got {_show(profile_points)}"
+            )
+        profile_points = int(profile_points)
+    return path, variables, profile_points
+
+
+# ---------------------------------------------------------------------------------------------
+# Small helpers
+# ---------------------------------------------------------------------------------------------
+def _check_keys(table: Mapping, allowed: tuple, where: str, required: tuple = ()) -> None:
+    unknown = [k for k in table if k not in allowed]
+    if unknown:
+        raise SweepError(
+            f"{where}: unknown key(s) {', '.join(map(repr, unknown))}; "
+            f"allowed: {', '.join(allowed)}"
+        )
+    missing = [k for k in required if k not in table]
+    if missing:
+        raise SweepError(f"{where}: missing required key(s) {', '.join(missing)}")
+
+
+def _is_number(x) -> bool:
+    """A finite or non-finite real number, never a bool or a string (ranges are checked later)."""
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
+
+
+def _show(x, limit: int = 60) -> str:
+    s = " ".join(repr(x).split())
+    return s if len(s) <= limit else s[: limit - 1] + "…"
+
+
+def _read_text(path: str) -> str:
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except FileNotFoundError:
+        raise SweepError(f"{path}: no such sweep file") from None
+    except IsADirectoryError:
+        raise SweepError(f"{path}: is a directory, not a sweep file") from None
+    except OSError as exc:
+        raise SweepError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SweepError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+
+
+def _json_default(x):
+    if isinstance(x, (np.ndarray, np.generic)):
+        return x.tolist()
+    raise TypeError(f"{type(x).__name__} is not JSON serialisable")

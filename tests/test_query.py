@@ -1,0 +1,349 @@
+"""Result-file query and info: selection, filters, formats, every rejection (synthetic files)."""
+
+import csv
+import io
+import json
+
+import netCDF4
+import numpy as np
+import pytest
+import xarray as xr
+
+from cosserat_channel import cli, query
+from cosserat_channel import status as st
+from cosserat_channel.solve import OUTPUTS, ParameterError
+
+COORDS = {
+    "eps": np.array([0.001, 0.01, 0.1]),
+    "L": np.array([1.0, 10.0]),
+    "K": np.array([0.0, 0.5, 5.0]),
+    "A": np.array([1 / 3]),
+    "N": np.array([1.0, 2.0]),
+}
+DIMS = tuple(COORDS)
+XI = np.linspace(0.0, 1.0, 5)
+
+
+def _status(shape):
+    """ok everywhere but eps = 0.1 (eps_too_large_path) and eps = 0.001, N = 2 (failed)."""
+    s = np.full(shape, st.OK, dtype=np.int8)
+    s[2] = st.EPS_TOO_LARGE_PATH
+    s[0, ..., 1] = st.INTEGRATION_FAILED
+    return s
+
+
+def make_results() -> xr.Dataset:
+    """A small result Dataset in the engine's layout: Delta = 1000 eps + L + K where ok."""
+    shape = tuple(v.size for v in COORDS.values())
+    eps, L, K, A, N = np.meshgrid(*COORDS.values(), indexing="ij")
+    status = _status(shape)
+    delta = np.where(status == st.OK, 1000 * eps + L + K, np.nan)
+
+    def out(name, data):
+        unit, text = OUTPUTS[name]
+        return DIMS, data, {"units": unit, "long_name": text}
+
+    profile = np.broadcast_to(1.0 - XI**2, shape + XI.shape).copy()
+    ds = xr.Dataset(
+        {
+            "Delta": out("Delta", delta),
+            "slip": out("slip", np.where(status == st.OK, K / (K + 1), np.nan)),
+            "status": (DIMS, status, st.cf_flag_attrs()),
+            "stage1_steps": (DIMS, np.arange(status.size, dtype=np.int32).reshape(shape),
+                             {"long_name": "accepted steps of stage 1"}),
+            "u_over_u0": (DIMS + ("xi",), profile, {"units": "1", "long_name": "u/u(0)"}),
+        },
+        coords={
+            **{d: (d, v, {"units": "1", "long_name": f"parameter {d}"}) for d, v in COORDS.items()},
+            "xi": ("xi", XI, {"units": "1", "long_name": "y/W"}),
+        },
+        attrs={
+            "cosserat_channel_version": "0.1.0",
+            "rtol": 1e-8,
+            "atol": 1e-12,
+            "sweep_toml": "# test sweep\n[grid]\neps = [0.001, 0.01, 0.1]\n",
+            "sweep_sha256": "0" * 64,
+            "created": "2026-01-01T00:00:00+00:00",
+            "Conventions": "CF-1.8",
+        },
+    )
+    return ds
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    """The synthetic result file on disk (status int8 without _FillValue)."""
+    path = tmp_path_factory.mktemp("results") / "out.nc"
+    make_results().to_netcdf(path, encoding={"status": {"_FillValue": None}})
+    return str(path)
+
+
+def run(capsys, *argv):
+    """``cli.main(argv)`` -> (exit code, stdout, stderr)."""
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def csv_rows(text):
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+# ---------------------------------------------------------------------------------------------
+# open_results
+# ---------------------------------------------------------------------------------------------
+def test_open_results_is_lazy(results):
+    """open_results gives a dask-backed Dataset with the flag attributes intact."""
+    ds = query.open_results(results)
+    try:
+        assert ds["Delta"].chunks is not None
+        assert ds["status"].dtype == np.int8
+        assert query.flag_names(ds["status"])["eps_too_large_path"] == st.EPS_TOO_LARGE_PATH
+    finally:
+        ds.close()
+
+
+def test_open_results_rejects(tmp_path):
+    """Missing, non-NetCDF and foreign NetCDF files raise a one-line ParameterError."""
+    text = tmp_path / "x.nc"
+    text.write_text("not netcdf\n")
+    foreign = tmp_path / "f.nc"
+    xr.Dataset({"a": ("x", [1.0])}).to_netcdf(foreign)
+    for path, fragment in [(tmp_path / "none.nc", "no such file"), (text, "cannot open"),
+                           (foreign, "not a cosserat-channel result file")]:
+        with pytest.raises(ParameterError, match=fragment) as info:
+            query.open_results(path)
+        assert "\n" not in str(info.value)
+
+
+# ---------------------------------------------------------------------------------------------
+# Selection
+# ---------------------------------------------------------------------------------------------
+def test_sel_nearest_reports_selected_value(capsys, results):
+    """--sel picks the nearest coordinate value and reports it, not the value typed."""
+    code, out, err = run(capsys, "query", results, "--sel", "L=7", "--sel", "eps=0.009",
+                         "--format", "csv")
+    assert code == 0 and err == ""
+    rows = csv_rows(out)
+    assert len(rows) == 3 * 1 * 2  # K x A x N
+    assert {r["L"] for r in rows} == {"10.0"}
+    assert {r["eps"] for r in rows} == {"0.01"}
+
+
+def test_range_inclusive_and_open(capsys, results):
+    """--range keeps both bounds; an empty bound leaves that side open."""
+    _, out, _ = run(capsys, "query", results, "--range", "eps=:0.01", "--format", "csv")
+    assert sorted({float(r["eps"]) for r in csv_rows(out)}) == [0.001, 0.01]
+    _, out, _ = run(capsys, "query", results, "--range", "K=0.5:", "--range", "eps=0.01:0.01",
+                    "--format", "csv")
+    rows = csv_rows(out)
+    assert {float(r["K"]) for r in rows} == {0.5, 5.0} and {r["eps"] for r in rows} == {"0.01"}
+    assert len(rows) == 2 * 2 * 1 * 2
+
+
+def test_where_on_floats_and_coordinates(capsys, results):
+    """--where clauses on a variable and a coordinate are ANDed."""
+    _, out, _ = run(capsys, "query", results, "--where", "Delta > 15", "--where", "K<=0.5",
+                    "--format", "csv")
+    rows = csv_rows(out)
+    expected = {(e, l, k, n) for e in COORDS["eps"] for l in COORDS["L"] for k in COORDS["K"]
+                for n in COORDS["N"]
+                if 1000 * e + l + k > 15 and k <= 0.5 and e == 0.01}
+    got = {(float(r["eps"]), float(r["L"]), float(r["K"]), float(r["N"])) for r in rows}
+    assert got == expected and len(got) == 4
+    assert all(float(r["Delta"]) > 15 for r in rows)
+
+
+def test_where_on_status_names(capsys, results):
+    """status is compared by flag name; == and != split the points."""
+    shape = tuple(v.size for v in COORDS.values())
+    status = _status(shape)
+    _, out, _ = run(capsys, "query", results, "--where", "status == ok", "--format", "csv")
+    rows = csv_rows(out)
+    assert len(rows) == int((status == st.OK).sum()) and {r["status"] for r in rows} == {"ok"}
+    _, out, _ = run(capsys, "query", results, "--where", "status!=ok", "--format", "csv")
+    rows = csv_rows(out)
+    assert len(rows) == int((status != st.OK).sum())
+    assert {r["status"] for r in rows} == {"eps_too_large_path", "integration_failed"}
+
+
+def test_csv_rows_match_data(capsys, results):
+    """CSV: one column per coordinate and chosen variable, values round-trip exactly."""
+    _, out, _ = run(capsys, "query", results, "--sel", "N=1", "--sel", "L=1", "--vars",
+                    "Delta,stage1_steps", "--format", "csv")
+    rows = csv_rows(out)
+    assert list(rows[0]) == ["eps", "L", "K", "A", "N", "status", "Delta", "stage1_steps"]
+    ds = make_results().sel(N=1.0, L=1.0)
+    assert len(rows) == 9
+    for r in rows:
+        point = ds.sel(eps=float(r["eps"]), K=float(r["K"])).squeeze("A")
+        assert float(r["A"]) == 1 / 3
+        np.testing.assert_equal(float(r["Delta"]), float(point["Delta"]))
+        assert int(r["stage1_steps"]) == int(point["stage1_steps"])
+
+
+def test_json_rows_match_data(capsys, results):
+    """JSON: an array of objects, NaN as null, status by name, integers as integers."""
+    _, out, _ = run(capsys, "query", results, "--sel", "eps=0.1", "--format", "json")
+    rows = json.loads(out)
+    assert len(rows) == 2 * 3 * 1 * 2
+    assert all(r["status"] == "eps_too_large_path" and r["Delta"] is None for r in rows)
+    assert all(isinstance(r["stage1_steps"], int) for r in rows)
+    assert "u_over_u0" not in rows[0] and "xi" not in rows[0]  # profiles only on request
+
+
+def test_profile_variables_add_xi_rows(capsys, results):
+    """Asking for a profile variable makes one row per xi."""
+    _, out, _ = run(capsys, "query", results, "--sel", "eps=0.01", "--sel", "L=1", "--sel", "K=0",
+                    "--sel", "N=1", "--vars", "u_over_u0", "--format", "json")
+    rows = json.loads(out)
+    assert [r["xi"] for r in rows] == XI.tolist()
+    np.testing.assert_allclose([r["u_over_u0"] for r in rows], 1 - XI**2)
+
+
+def test_table_is_capped(capsys, results, monkeypatch):
+    """The table shows at most TABLE_ROWS rows and counts the rest."""
+    monkeypatch.setattr(query, "TABLE_ROWS", 5)
+    code, out, _ = run(capsys, "query", results)
+    lines = out.splitlines()
+    assert code == 0 and len(lines) == 1 + 5 + 1
+    assert lines[0].split()[:6] == ["eps", "L", "K", "A", "N", "status"]
+    assert lines[-1] == "… 31 more rows (use --format csv -o FILE)"
+
+
+def test_empty_selection_is_a_note(capsys, results):
+    """No matching point: exit 0, a note on stderr, only the header on stdout."""
+    code, out, err = run(capsys, "query", results, "--where", "Delta > 1e9", "--format", "csv")
+    assert code == 0 and "empty" in err and len(err.splitlines()) == 1
+    assert out.splitlines() == ["eps,L,K,A,N,status,Delta,slip,stage1_steps"]
+
+
+def test_output_file_written(capsys, results, tmp_path):
+    """-o writes the text to the file, nothing to stdout, and leaves no temporary file."""
+    target = tmp_path / "rows.csv"
+    code, out, err = run(capsys, "query", results, "--where", "status == ok", "--format", "csv",
+                         "-o", str(target))
+    assert code == 0 and out == "" and err == ""
+    assert len(csv_rows(target.read_text())) == 18
+    assert [p.name for p in tmp_path.iterdir()] == ["rows.csv"]
+
+
+def test_netcdf_subset(capsys, results, tmp_path):
+    """--format netcdf: a result file again, status int8 with flags and no _FillValue."""
+    target = tmp_path / "sub.nc"
+    code, _, err = run(capsys, "query", results, "--sel", "N=1", "--range", "eps=:0.01",
+                       "--format", "netcdf", "-o", str(target))
+    assert code == 0 and err == ""
+    with netCDF4.Dataset(target) as nc:
+        status = nc["status"]
+        assert status.dtype == np.int8
+        assert "_FillValue" not in status.ncattrs()
+        assert status.getncattr("flag_meanings") == st.cf_flag_attrs()["flag_meanings"]
+        assert nc.getncattr("sweep_sha256") == "0" * 64
+    ds = query.open_results(target)
+    try:
+        assert ds["status"].dims == DIMS
+        assert dict(ds.sizes) == {"eps": 2, "L": 2, "K": 3, "A": 1, "N": 1}
+        expected = make_results().isel(N=[0], eps=[0, 1])
+        np.testing.assert_array_equal(ds["Delta"].values, expected["Delta"].values)
+        assert "query" in ds.attrs and "selected" not in ds
+    finally:
+        ds.close()
+
+
+def test_netcdf_subset_with_where_masks(capsys, results, tmp_path):
+    """With --where the subset is the matching sub-grid; failed points are NaN and flagged."""
+    target = tmp_path / "w.nc"
+    code, _, _ = run(capsys, "query", results, "--where", "Delta > 15", "--format", "netcdf",
+                     "-o", str(target))
+    assert code == 0
+    with xr.open_dataset(target) as ds:
+        assert ds["eps"].values.tolist() == [0.001, 0.01]  # eps = 0.1 has no solution
+        selected = ds["selected"].values.astype(bool)
+        assert np.all(ds["Delta"].values[selected] > 15)
+        assert np.all(np.isnan(ds["Delta"].values[~selected]))
+        assert selected.sum() == 9
+
+
+# ---------------------------------------------------------------------------------------------
+# Rejections: exit code 2, one line on stderr
+# ---------------------------------------------------------------------------------------------
+REJECT = [
+    # (extra arguments, fragment of the message)
+    (["--sel", "Q=1"], "unknown coordinate 'Q'"),
+    (["--sel", "Delta=1"], "unknown coordinate"),  # a variable is not a coordinate
+    (["--sel", "L"], "expected NAME=VALUE"),
+    (["--sel", "L=ten"], "not a number"),
+    (["--sel", "L=nan"], "nan"),
+    (["--sel", "L=1", "--sel", "L=10"], "twice"),
+    (["--range", "eps=0.1"], "expected NAME=LO:HI"),
+    (["--range", "eps=:"], "at least one"),
+    (["--range", "eps=0.1:0.01"], "above HI"),
+    (["--range", "eps=a:b"], "not a number"),
+    (["--range", "Z=0:1"], "unknown coordinate"),
+    (["--where", "Delta = 1"], "expected NAME OP VALUE"),
+    (["--where", "Delta >"], "expected NAME OP VALUE"),
+    (["--where", "delta > 1"], "unknown name 'delta'"),
+    (["--where", "status == fine"], "unknown status name 'fine'; valid: ok,"),
+    (["--where", "status < ok"], "only == and !="),
+    (["--where", "Delta > __import__('os').system('x')"], "not a number"),
+    (["--where", "Delta > 1; rm -rf /"], "expected NAME OP VALUE"),
+    (["--where", "Delta > (1)"], "not a number"),
+    (["--where", "__class__ > 1"], "unknown name"),
+    (["--where", "Delta > 1 or 1"], "expected NAME OP VALUE"),
+    (["--vars", "Delta,foo"], "unknown variable(s) 'foo'"),
+    (["--vars", ","], "at least one"),
+    (["--format", "netcdf"], "-o FILE"),
+    (["--format", "xml"], "invalid choice"),
+]
+
+
+@pytest.mark.parametrize("extra, fragment", REJECT)
+def test_rejections(capsys, results, extra, fragment):
+    """Bad clauses exit 2 with one stderr line naming the problem; nothing on stdout."""
+    code, out, err = run(capsys, "query", results, *extra)
+    assert code == 2
+    assert out == ""
+    assert len(err.splitlines()) == 1 and err.startswith("cosserat-channel: error: ")
+    assert fragment in err
+
+
+@pytest.mark.parametrize("command", ["query", "info"])
+def test_bad_files_exit_2(capsys, tmp_path, command):
+    """Missing and foreign files exit 2 with one stderr line, for query and info."""
+    text = tmp_path / "notes.nc"
+    text.write_text("hello\n")
+    foreign = tmp_path / "f.nc"
+    xr.Dataset({"a": ("x", [1.0])}).to_netcdf(foreign)
+    for path, fragment in [(tmp_path / "absent.nc", "no such file"), (text, "cannot open"),
+                           (foreign, "not a cosserat-channel result file")]:
+        code, out, err = run(capsys, command, str(path))
+        assert code == 2 and out == "" and len(err.splitlines()) == 1 and fragment in err
+
+
+def test_output_into_missing_directory(capsys, results, tmp_path):
+    """-o into a directory that does not exist is rejected before any work."""
+    code, _, err = run(capsys, "query", results, "--format", "csv", "-o",
+                       str(tmp_path / "nope" / "x.csv"))
+    assert code == 2 and "does not exist" in err
+
+
+# ---------------------------------------------------------------------------------------------
+# info
+# ---------------------------------------------------------------------------------------------
+def test_info_counts_match_data(capsys, results):
+    """info lists dimensions, units, status counts with percentages and the provenance."""
+    code, out, err = run(capsys, "info", results)
+    assert code == 0 and err == ""
+    status = _status(tuple(v.size for v in COORDS.values()))
+    total = status.size
+    lines = out.splitlines()
+    for s in st.Status:
+        line = next(l for l in lines if l.split()[:1] == [s.name])
+        n = int((status == s.value).sum())
+        assert line.split()[1:3] == [str(n), f"{100 * n / total:.2f}"]
+    assert f"status ({total} points)" in out
+    eps_line = next(l for l in lines if l.split()[:1] == ["eps"])
+    assert eps_line.split()[1:4] == ["3", "0.001", ".."]
+    assert "particle diameters" in out and "shear-layer thickness" in out
+    assert "0" * 64 in out and "# test sweep" in out and "1e-08" in out

@@ -1,0 +1,210 @@
+"""The sweep engine: reduction, agreement with solve_point, the Dataset and the NetCDF file."""
+
+from __future__ import annotations
+
+import math
+
+import netCDF4
+import numpy as np
+import pytest
+
+from cosserat_channel import solve
+from cosserat_channel import status as st
+from cosserat_channel.sweep import run_sweep
+from cosserat_channel.sweep.plan import Plan, block_plan
+from cosserat_channel.sweep.spec import SweepError, load_sweep
+
+MATERIAL = {"d_p": 0.002, "rho_p": 2940, "phi": 25}
+# eps L = 1/3 three ways, as in model.md's similarity check, plus products of their own.
+SHARED = {"eps": [1 / 30, 1 / 15, 1 / 60, 0.1], "L": [5.0, 10.0, 20.0], "K": [0.0, 0.5, 3.0],
+          "A": [1 / 3, 1.0], "N": [1.0, 1.5]}
+# One point of every status: A = -1 closed form; A = -1.5 with N = 1 (wall_inadmissible) and
+# N = 1.5 (axis_spin_unbounded); eps L = 3.9 (path leaves D > 0) and 5 (axis) at A = 1/3, N = 1.
+STATUSES = {"eps": [1 / 30, 0.39, 0.5], "L": [10.0], "K": [0.0, 0.5, 300.0],
+            "A": [-1.5, -1.0, 1 / 3], "N": [1.0, 1.5]}
+POINT_FIELDS = ("Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall", "xi_stop")
+MATERIAL_FIELDS = ("nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
+
+
+def sweep(grid, **output):
+    m = {"grid": dict(grid)}
+    if output.pop("material", None):
+        m["material"] = MATERIAL
+    if output:
+        m["output"] = output
+    return m
+
+
+def same(a, b) -> bool:
+    return np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+
+
+def assert_same_values(ds1, ds2):
+    assert set(ds1.data_vars) == set(ds2.data_vars)
+    for v in ds1.data_vars:
+        assert ds1[v].dtype == ds2[v].dtype, v
+        assert same(ds1[v].values, ds2[v].values), v
+
+
+@pytest.fixture(scope="module")
+def status_ds():
+    return run_sweep(sweep(STATUSES, material=True, profile_points=6), workers=2)
+
+
+def test_reduced_equals_unreduced():
+    """One integration per eps L product gives exactly the per-point values."""
+    spec = load_sweep(sweep(SHARED))
+    plan = Plan(spec.coords())
+    assert plan.n_triples < spec.size // spec.K.size  # eps L products really are shared
+    reduced = run_sweep(spec, workers=2)
+    unreduced = run_sweep(spec, workers=2, reduce=False)
+    assert reduced.attrs["reduced"] == 1 and unreduced.attrs["reduced"] == 0
+    assert_same_values(reduced, unreduced)
+    assert np.isfinite(reduced.Delta.values).any()
+
+
+def test_matches_solve_point_at_every_status(status_ds):
+    """Every value, at every status, is solve_point's to the last bit (material included)."""
+    ds = status_ds
+    codes = set(np.unique(ds.status.values).tolist())
+    assert {st.OK, st.WALL_INADMISSIBLE, st.EPS_TOO_LARGE_AXIS, st.EPS_TOO_LARGE_PATH,
+            st.AXIS_SPIN_UNBOUNDED} <= codes
+    for idx in np.ndindex(ds.status.shape):
+        point = {d: float(ds[d].values[i]) for d, i in zip(("eps", "L", "K", "A", "N"), idx)}
+        ref = solve.solve_point(**point, material=MATERIAL)
+        assert int(ds.status.values[idx]) == int(ref.status), point
+        for name in POINT_FIELDS + MATERIAL_FIELDS:
+            got = float(ds[name].values[idx])
+            want = getattr(ref, name)
+            assert got == want or (math.isnan(got) and math.isnan(want)), (name, point, got, want)
+
+
+def test_profiles_match_solve_point(status_ds):
+    """Profiles on the xi dimension equal solve_point's, A = -1 closed form included."""
+    ds = status_ds
+    xi = ds.xi.values
+    assert same(xi, np.linspace(0, 1, 6))
+    assert ds.u_over_u0.dims == ("eps", "L", "K", "A", "N", "xi")
+    sel = dict(eps=1 / 30, L=10.0, K=0.5, N=1.0)
+    for A in (-1.0, 1 / 3):
+        ref = solve.solve_point(**sel, A=A, profile=xi)
+        for name in ("u_over_u0", "omega_hat", "m", "sigma_yx"):
+            assert same(ds[name].sel(**sel, A=A).values, ref.profile[name]), (A, name)
+    assert np.isnan(ds.u_over_u0.sel(eps=0.5, L=10.0, K=0.5, A=1 / 3, N=1.0).values).all()
+
+
+def test_only_requested_variables():
+    """Only the listed variables (plus status) are computed; no xi without profile_points."""
+    ds = run_sweep(sweep(SHARED, variables=["slip", "stage1_steps"]), workers=1)
+    assert set(ds.data_vars) == {"slip", "stage1_steps", "status"}
+    assert "xi" not in ds.dims
+    assert ds.stage1_steps.dtype == np.int32 and (ds.stage1_steps.values > 0).any()
+    full = run_sweep(sweep(SHARED), workers=1)
+    assert same(ds.slip.values, full.slip.values)
+    assert "nu" not in full and "xi_p" in full and "stage1_steps" not in full
+
+
+def test_workers_and_block_sizes_give_identical_values():
+    """1 or 2 workers, any block size: the same numbers."""
+    spec = load_sweep(sweep(SHARED))
+    a = run_sweep(spec, workers=1)
+    b = run_sweep(spec, workers=2, block_size=1)
+    c = run_sweep(spec, workers=2, block_size=7)
+    assert_same_values(a, b)
+    assert_same_values(a, c)
+
+
+def test_block_plan_balances_cost():
+    """Blocks dealt from a skewed cost ranking cost within a few percent of each other."""
+    rng = np.random.default_rng(1)
+    cost = np.concatenate([rng.uniform(1000, 2000, 50), rng.uniform(10, 20, 950)])
+    blocks = block_plan(cost, 100)
+    assert len(blocks) == 10
+    assert same(np.sort(np.concatenate(blocks)), np.arange(1000))
+    totals = np.array([cost[b].sum() for b in blocks])
+    assert totals.max() / totals.min() < 1.1
+    # a contiguous split of the same ranking would leave one block with all the expensive ones
+    assert cost[:100].sum() / totals.mean() > 3
+
+
+def test_netcdf_file_is_cf_and_plain_readable(tmp_path):
+    """The file carries the CF attributes; plain netCDF4 reads int8 status without _FillValue."""
+    out = tmp_path / "r.nc"
+    ds = run_sweep(sweep(STATUSES, material=True, profile_points=3), out, workers=2)
+    with netCDF4.Dataset(out) as nc:
+        assert nc.Conventions == "CF-1.8"
+        assert nc.source == "cosserat-channel run"
+        for key in ("cosserat_channel_version", "rtol", "atol", "sweep_toml", "sweep_sha256",
+                    "created", "title", "reduced"):
+            assert key in nc.ncattrs(), key
+        spec = load_sweep(sweep(STATUSES, material=True, profile_points=3))
+        assert nc.sweep_sha256 == spec.sha256 and nc.sweep_toml == spec.text
+        status = nc["status"]
+        assert status.dtype == np.int8
+        assert "_FillValue" not in status.ncattrs()
+        assert list(status.flag_values) == [s.value for s in st.Status]
+        assert status.flag_meanings.split() == [s.name for s in st.Status]
+        assert status.dimensions == ("eps", "L", "K", "A", "N")
+        for name, var in nc.variables.items():
+            assert "units" in var.ncattrs(), name
+            assert "long_name" in var.ncattrs(), name
+        assert nc["eps"].long_name == "particle diameter / channel half-width, d_p/W"
+        assert nc["Delta"].units == solve.OUTPUTS["Delta"][0]
+        assert same(nc["Delta"][:].filled(np.nan), ds.Delta.values)
+        assert same(nc["status"][:], ds.status.values)
+        assert nc["u_over_u0"].dimensions[-1] == "xi"
+
+
+def test_no_output_writes_nothing(tmp_path, monkeypatch):
+    """Without output (and no path in the sweep) only the Dataset is returned."""
+    monkeypatch.chdir(tmp_path)
+    ds = run_sweep(sweep({"eps": 0.05, "L": 10, "K": 1, "A": 1 / 3, "N": 1}))
+    assert ds.status.shape == (1, 1, 1, 1, 1)  # length-1 dimensions are kept
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_path_from_spec(tmp_path):
+    """The sweep's [output] path is used when no output is given; the store is removed after."""
+    out = tmp_path / "from_spec.nc"
+    run_sweep(sweep({"eps": 0.05, "L": 10, "K": 1, "A": 1 / 3, "N": 1}, path=str(out)))
+    assert out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["from_spec.nc"]
+
+
+def test_kernel_exception_costs_one_triple(monkeypatch):
+    """A kernel that raises on one triple loses that triple only, as integration_failed."""
+    real = solve.solve_batch
+    bad_eta = 0.5
+
+    def flaky(eta, *args):
+        if np.any(eta == bad_eta):
+            raise ZeroDivisionError("division by zero")
+        return real(eta, *args)
+
+    monkeypatch.setattr(solve, "solve_batch", flaky)
+    grid = {"eps": [0.05], "L": [5.0, 10.0, 20.0], "K": [0.5, 1.0], "A": [1 / 3], "N": [1.0]}
+    ds = run_sweep(sweep(grid), workers=1, block_size=3)
+    status = ds.status.sel(eps=0.05, A=1 / 3, N=1.0).values
+    assert (status[1] == st.INTEGRATION_FAILED).all()  # eps L = 0.5
+    assert (status[[0, 2]] == st.OK).all()
+    assert np.isnan(ds.Delta.sel(eps=0.05, L=10.0).values).all()
+
+
+def test_bad_arguments_raise_sweep_error():
+    """Invalid workers or block sizes are rejected before any work."""
+    with pytest.raises(SweepError):
+        run_sweep(sweep(SHARED), workers=0)
+    with pytest.raises(SweepError):
+        run_sweep(sweep(SHARED), block_size=0)
+
+
+def test_distributed_scheduler_gives_identical_values(tmp_path):
+    """Blocks run on a dask.distributed cluster come back to the client with the same values."""
+    distributed = pytest.importorskip("distributed")
+    spec = load_sweep(sweep(SHARED, profile_points=3))
+    out = tmp_path / "d.nc"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                  dashboard_address=None) as cluster:
+        ds = run_sweep(spec, out, scheduler=cluster.scheduler_address, block_size=4)
+    assert out.exists() and not (tmp_path / "d.nc.partial").exists()
+    assert_same_values(ds, run_sweep(spec, workers=2))

@@ -1,0 +1,287 @@
+"""Sweep files: grid forms, every rejection path, the shipped sweeps, provenance hash."""
+
+import copy
+import hashlib
+import pathlib
+
+import numpy as np
+import pytest
+
+from cosserat_channel import solve
+from cosserat_channel.solve import ParameterError
+from cosserat_channel.sweep.spec import (
+    DIMENSIONLESS_VARIABLES,
+    DIMS,
+    MATERIAL_VARIABLES,
+    SweepError,
+    SweepSpec,
+    load_sweep,
+)
+
+SWEEPS = sorted((pathlib.Path(__file__).parents[1] / "sweeps").glob("*.toml"))
+FIG2_MATERIAL = {"d_p": 0.002, "rho_p": 2940, "phi": 25}
+
+GOOD = """\
+# a comment
+[grid]
+eps = {logspace = [-3, -1, 5]}
+L = [2, 5, 10]
+K = {linspace = [0, 1, 3]}
+A = 0.3333333333333333
+N = 1
+
+[material]
+d_p = 0.002
+rho_p = 2940
+phi = 25
+
+[solver]
+rtol = 1e-6
+atol = 1e-10
+
+[output]
+path = "out/x.nc"
+variables = ["Delta", "nu", "stage1_steps"]
+profile_points = 11
+"""
+
+
+def _grid(**override):
+    """A valid mapping (one point) with grid entries replaced."""
+    grid = {"eps": 0.1, "L": 10, "K": 0.5, "A": 1 / 3, "N": 1.0}
+    grid.update(override)
+    return {"grid": grid}
+
+
+def _write(tmp_path, text, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_file_fields(tmp_path):
+    """A full sweep file gives every field: axes, material with defaults, tolerances, output."""
+    path = _write(tmp_path, GOOD)
+    spec = load_sweep(path)
+    assert isinstance(spec, SweepSpec)
+    assert spec.shape == (5, 3, 3, 1, 1) and spec.size == 45
+    assert list(spec.coords()) == list(DIMS)
+    assert spec.material == solve.check_material(FIG2_MATERIAL)
+    assert (spec.rtol, spec.atol) == (1e-6, 1e-10)
+    assert spec.output_path == "out/x.nc"
+    assert spec.variables == ("Delta", "nu", "stage1_steps")
+    assert spec.profile_points == 11
+    assert spec.text == GOOD
+    assert spec.source == str(path)
+
+
+@pytest.mark.parametrize(
+    "form, expected",
+    [
+        (0.25, np.array([0.25])),  # one number
+        (1, np.array([1.0])),  # an integer becomes float64
+        ([0.3, 0.1, 0.2], np.array([0.3, 0.1, 0.2])),  # a list keeps file order
+        ({"linspace": [0.1, 0.5, 5]}, np.linspace(0.1, 0.5, 5)),
+        ({"logspace": [-3, -1, 12]}, np.logspace(-3, -1, 12)),
+        ({"logspace": [-2, -2, 1]}, np.array([0.01])),  # num = 1
+    ],
+)
+def test_grid_forms_exact(form, expected):
+    """Each grid form gives exactly numpy's values, as float64, in order."""
+    spec = load_sweep(_grid(eps=form))
+    assert spec.eps.dtype == np.float64 and spec.eps.ndim == 1
+    np.testing.assert_array_equal(spec.eps, expected)
+
+
+def test_defaults():
+    """Without solver/output/material: default tolerances, dimensionless variables, no path."""
+    spec = load_sweep(_grid())
+    assert (spec.rtol, spec.atol) == (solve.DEFAULT_RTOL, solve.DEFAULT_ATOL)
+    assert spec.material is None and spec.output_path is None and spec.profile_points is None
+    assert spec.variables == DIMENSIONLESS_VARIABLES
+    with_material = load_sweep({**_grid(), "material": FIG2_MATERIAL})
+    assert with_material.variables == DIMENSIONLESS_VARIABLES + MATERIAL_VARIABLES
+    assert set(with_material.variables) == set(solve.OUTPUTS)
+
+
+def test_axes_are_read_only():
+    """The spec is frozen and its axes cannot be changed in place."""
+    spec = load_sweep(_grid(L=[1, 2]))
+    with pytest.raises(ValueError):
+        spec.L[0] = 5.0
+    with pytest.raises(AttributeError):
+        spec.rtol = 1.0
+
+
+BAD = [
+    # (mapping, key the message must name)
+    ({"grid": {"eps": 0.1, "L": 1, "K": 1, "A": 1}}, "grid"),  # N missing
+    (_grid(eps={"logspace": [1, 2]}), "grid.eps"),  # two numbers instead of three
+    (_grid(eps={"logspace": [-2, -1, 0]}), "grid.eps"),  # num = 0
+    (_grid(L={"linspace": [1, 2, 2.5]}), "grid.L"),  # num not an integer
+    (_grid(L={"linspace": [1, 2, True]}), "grid.L"),  # num a boolean
+    (_grid(L={"linspace": [1, 2, 3], "logspace": [0, 1, 2]}), "grid.L"),  # two forms
+    (_grid(L={"range": [1, 2, 3]}), "grid.L"),  # unknown form
+    (_grid(K=[]), "grid.K"),  # empty list
+    (_grid(K="0.5"), "grid.K"),  # a string
+    (_grid(K=["0.5"]), "grid.K[0]"),  # a string inside a list
+    (_grid(A=True), "grid.A"),  # a boolean
+    (_grid(A=[1.0, True]), "grid.A[1]"),
+    (_grid(eps=2.0), "grid.eps"),  # eps > 1
+    (_grid(eps=0.0), "grid.eps"),  # eps = 0
+    (_grid(L=[1, -1]), "grid.L"),  # L <= 0
+    (_grid(K=-0.1), "grid.K"),  # K < 0
+    (_grid(A=float("inf")), "grid.A"),  # A not finite
+    (_grid(N=float("nan")), "grid.N"),  # N not finite
+    (_grid(N=0), "grid.N"),  # N = 0
+    (_grid(L={"logspace": [0, 400, 2]}), "grid.L"),  # 1e400 overflows to inf
+    (_grid(eps={"linspace": [0.1, float("nan"), 3]}), "grid.eps"),
+    (_grid(L=[1, 2, 1]), "grid.L"),  # duplicate value
+    (_grid(K={"linspace": [1, 1, 3]}), "grid.K"),  # duplicates from linspace
+    (_grid(Q=1), "grid"),  # unknown grid key
+    ({**_grid(), "solve": {}}, "sweep"),  # unknown table
+    ({**_grid(), "material": {"d_p": 0.002, "rho_p": 2940}}, "material"),  # phi missing
+    ({**_grid(), "material": {**FIG2_MATERIAL, "phi": 95}}, "material.phi"),
+    ({**_grid(), "material": {**FIG2_MATERIAL, "colour": 1}}, "material"),
+    ({**_grid(), "material": {**FIG2_MATERIAL, "d_p": "0.002"}}, "material.d_p"),  # string
+    ({**_grid(), "material": {**FIG2_MATERIAL, "nu_min": 0.7}}, "material.nu_min"),
+    ({**_grid(), "solver": {"rtol": 0}}, "solver.rtol"),
+    ({**_grid(), "solver": {"atol": -1}}, "solver.atol"),
+    ({**_grid(), "solver": {"rtol": "1e-8"}}, "solver.rtol"),
+    ({**_grid(), "solver": {"method": "rk45"}}, "solver"),
+    ({**_grid(), "output": {"path": 3}}, "output.path"),
+    ({**_grid(), "output": {"variables": ["Delta", "delta"]}}, "output.variables"),
+    ({**_grid(), "output": {"variables": ["nu"]}}, "output.variables"),  # needs material
+    ({**_grid(), "output": {"variables": ["sigma_xx_wall_Pa"]}}, "output.variables"),
+    ({**_grid(), "output": {"variables": []}}, "output.variables"),
+    ({**_grid(), "output": {"variables": ["Delta", "Delta"]}}, "output.variables"),
+    ({**_grid(), "output": {"profile_points": 1}}, "output.profile_points"),
+    ({**_grid(), "output": {"profile_points": 10002}}, "output.profile_points"),
+    ({**_grid(), "output": {"profile_points": 11.0}}, "output.profile_points"),
+    ({**_grid(), "output": {"format": "nc"}}, "output"),
+    ({"grid": [1, 2]}, "grid"),  # not a table
+    (  # 300 * 1000 * 1000 points > 2e8
+        _grid(eps={"logspace": [-3, -1, 300]}, L={"linspace": [1, 2, 1000]},
+              K={"linspace": [0, 1, 1000]}),
+        "grid",
+    ),
+]
+
+
+@pytest.mark.parametrize("mapping, key", BAD)
+def test_rejections_name_the_key(mapping, key):
+    """Every malformed sweep raises SweepError (a ParameterError) on one line naming the key."""
+    with pytest.raises(SweepError) as info:
+        load_sweep(mapping)
+    msg = str(info.value)
+    assert isinstance(info.value, ParameterError) and isinstance(info.value, ValueError)
+    assert msg.startswith(key + ":") or msg.startswith(key + " ") or msg.startswith(key + ".")
+    assert "\n" not in msg
+
+
+def test_rejection_messages_are_specific():
+    """The messages carry the offending value, the allowed keys or the grid size."""
+    with pytest.raises(SweepError, match=r"grid\.eps: logspace needs .*got \[1, 2\]"):
+        load_sweep(_grid(eps={"logspace": [1, 2]}))
+    with pytest.raises(SweepError, match=r"grid\.L: L = -1\.0 is outside"):
+        load_sweep(_grid(L=[1, -1]))
+    with pytest.raises(SweepError, match=r"allowed: grid, material, solver, output"):
+        load_sweep({**_grid(), "solve": {}})
+    with pytest.raises(SweepError, match=r"duplicate value\(s\) 1\.0"):
+        load_sweep(_grid(L=[1, 2, 1]))
+    with pytest.raises(SweepError, match=r"300,000,000 points"):
+        load_sweep(_grid(eps={"logspace": [-3, -1, 300]}, L={"linspace": [1, 2, 1000]},
+                         K={"linspace": [0, 1, 1000]}))
+    with pytest.raises(SweepError, match=r"valid: Delta, xi_p"):
+        load_sweep({**_grid(), "output": {"variables": ["delta"]}})
+
+
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("[grid\neps = 1\n", "invalid TOML"),  # malformed table header
+        ("[grid]\neps = \n", "invalid TOML"),  # missing value
+        ("[grid]\neps = 0.1\neps = 0.2\n", "invalid TOML"),  # key defined twice
+        ("[grid]\neps = 0.1\nL = 1\nK = 1\nA = 1\nN = 1\n[output]\npath = 'a'\n"
+         "profile_points = true\n", "output.profile_points"),
+    ],
+)
+def test_bad_files(tmp_path, text, fragment):
+    """Malformed TOML is one line naming the file; file errors keep the file name in front."""
+    path = _write(tmp_path, text)
+    with pytest.raises(SweepError) as info:
+        load_sweep(path)
+    msg = str(info.value)
+    assert msg.startswith(str(path) + ": ") and fragment in msg and "\n" not in msg
+
+
+def test_missing_and_binary_files(tmp_path):
+    """A missing file, a directory and non-UTF-8 bytes are SweepErrors, not OSErrors."""
+    with pytest.raises(SweepError, match="no such sweep file"):
+        load_sweep(tmp_path / "absent.toml")
+    with pytest.raises(SweepError, match="directory"):
+        load_sweep(tmp_path)
+    p = tmp_path / "b.toml"
+    p.write_bytes(b"\xff\xfe[grid]")
+    with pytest.raises(SweepError, match="UTF-8"):
+        load_sweep(p)
+    with pytest.raises(SweepError, match="path or a mapping"):
+        load_sweep(42)
+
+
+@pytest.mark.parametrize("path", SWEEPS, ids=[p.name for p in SWEEPS])
+def test_shipped_sweeps_load(path):
+    """Every shipped sweep file loads, has a comment header and an output path."""
+    spec = load_sweep(path)
+    assert spec.size >= 1
+    assert spec.text.startswith("#")
+    assert spec.output_path and spec.output_path.endswith(".nc")
+
+
+def test_shipped_sweeps_content():
+    """The shipped sweeps ask what their headers say."""
+    names = {p.name for p in SWEEPS}
+    assert {"quickstart.toml", "paper_fig7.toml", "paper_fig8.toml", "paper_fig9.toml",
+            "regimes_A_N.toml", "large_5d.toml"} <= names
+    root = SWEEPS[0].parent
+    large = load_sweep(root / "large_5d.toml")
+    assert large.size >= 10_000_000 and large.material is None
+    assert large.variables == ("Delta", "slip", "m_wall", "sigma_yx_wall")
+    fig7 = load_sweep(root / "paper_fig7.toml")
+    np.testing.assert_allclose(1 / fig7.eps[[0, -1]], [600, 5], rtol=1e-12)
+    fig9 = load_sweep(root / "paper_fig9.toml")
+    assert fig9.K[0] == 0 and fig9.K[-1] == 300 and np.any(np.isclose(fig9.K, 201))
+    regimes = load_sweep(root / "regimes_A_N.toml")
+    assert regimes.shape == (1, 1, 1, 161, 109)
+    quick = load_sweep(root / "quickstart.toml")
+    assert quick.material["d_p"] == 0.002 and quick.output_path == "demo/quickstart.nc"
+    assert quick.profile_points is None
+
+
+def test_hash_is_stable_and_tracks_text(tmp_path):
+    """sha256 is the hash of the file text: equal for equal text, different after an edit."""
+    a = load_sweep(_write(tmp_path, GOOD, "a.toml"))
+    b = load_sweep(_write(tmp_path, GOOD, "b.toml"))
+    assert a.sha256 == b.sha256 == hashlib.sha256(GOOD.encode()).hexdigest()
+    c = load_sweep(_write(tmp_path, GOOD.replace("# a comment", "# another comment"), "c.toml"))
+    assert c.sha256 != a.sha256
+
+
+def test_mapping_input():
+    """A mapping gives the same spec as the file, a canonical JSON text and no source."""
+    mapping = {
+        "grid": {"eps": {"logspace": [-3, -1, 5]}, "L": [2, 5, 10], "K": {"linspace": [0, 1, 3]},
+                 "A": 1 / 3, "N": 1},
+        "output": {"variables": ["Delta", "slip"]},
+    }
+    spec = load_sweep(mapping)
+    assert spec.source is None
+    np.testing.assert_array_equal(spec.eps, np.logspace(-3, -1, 5))
+    assert spec.variables == ("Delta", "slip")
+    # Key order does not change the canonical text or the hash; values do.
+    reordered = {"output": mapping["output"], "grid": dict(reversed(mapping["grid"].items()))}
+    assert load_sweep(reordered).sha256 == spec.sha256
+    changed = copy.deepcopy(mapping)
+    changed["grid"]["N"] = 2
+    assert load_sweep(changed).sha256 != spec.sha256
+    assert '"grid"' in spec.text

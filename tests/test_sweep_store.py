@@ -1,0 +1,196 @@
+"""The working store: kill -9 and resume, refusal of a foreign store, atomic result files."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from cosserat_channel import cli
+from cosserat_channel.sweep import engine, run_sweep
+from cosserat_channel.sweep.spec import SweepError, load_sweep
+from cosserat_channel.sweep.store import WorkStore, partial_dir
+
+# About 3 s on one core: 9,600 integrations at rtol = 1e-10 in 240 blocks of 40.
+SLOW = """\
+[grid]
+eps = {logspace = [-3, -1.5, 60]}
+L = {logspace = [0, 1, 20]}
+K = [0.5, 5.0]
+A = [0.0, 0.3333333333333333, 1.0, 2.0]
+N = [1.0, 1.5]
+[solver]
+rtol = 1e-10
+"""
+SLOW_BLOCKS = 240
+SMALL = """\
+[grid]
+eps = [0.02, 0.05]
+L = [5.0, 10.0]
+K = [0.5, 5.0]
+A = 0.3333333333333333
+N = [1.0, 1.5]
+"""
+LOG = re.compile(r"(\d+) done before, (\d+) to compute")
+
+
+def run_cli(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "cosserat_channel.cli", "run", *map(str, args)],
+                          capture_output=True, text=True, timeout=300)
+
+
+def snapshot(directory) -> dict:
+    return {p.name: p.read_bytes() for p in sorted(Path(directory).iterdir())}
+
+
+def assert_identical(path, ds):
+    with xr.open_dataset(path) as f:
+        f.load()
+        assert set(f.data_vars) == set(ds.data_vars)
+        for v in ds.data_vars:
+            assert np.array_equal(f[v].values, ds[v].values, equal_nan=True), v
+
+
+def leave_partial(monkeypatch, toml, out):
+    """Run ``toml`` in-process until every block is stored, then fail before the file is written."""
+
+    def crash(*args, **kwargs):
+        raise RuntimeError("simulated crash after the solve")
+
+    with monkeypatch.context() as m:
+        m.setattr(engine, "assemble", crash)
+        with pytest.raises(RuntimeError, match="simulated crash"):
+            run_sweep(toml, out, workers=1)
+    assert os.path.isdir(partial_dir(out))
+
+
+def test_kill_9_then_rerun_resumes_to_identical_result(tmp_path):
+    """kill -9 mid-run leaves the old file intact; the rerun resumes and matches a clean run."""
+    toml = tmp_path / "slow.toml"
+    toml.write_text(SLOW)
+    out = tmp_path / "out.nc"
+    out.write_bytes(b"sentinel: an earlier result")
+    store = Path(partial_dir(out))
+    cmd = [sys.executable, "-m", "cosserat_channel.cli", "run", str(toml), "-o", str(out),
+           "--workers", "1", "--block-size", "40"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and time.monotonic() < deadline:
+        if store.is_dir() and len(list(store.glob("block_*.npz"))) >= 3:
+            break
+        time.sleep(0.005)
+    if proc.poll() is not None:
+        pytest.fail("the run finished before it could be killed; make SLOW slower")
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert out.read_bytes() == b"sentinel: an earlier result"
+    finished = len(list(store.glob("block_*.npz")))
+    assert 3 <= finished < SLOW_BLOCKS
+
+    again = run_cli(toml, "-o", out, "--workers", "1", "--block-size", "40")
+    assert again.returncode == 0, again.stderr
+    before, todo = map(int, LOG.search(again.stderr).groups())
+    assert before >= finished and before + todo == SLOW_BLOCKS
+    assert not store.exists()
+    assert_identical(out, run_sweep(load_sweep(toml), workers=2))
+
+
+def test_different_sweep_refused_with_store_untouched(tmp_path, monkeypatch, capsys):
+    """Another sweep file for the same -o, with a store present: exit 2, one line, nothing mixed."""
+    first = tmp_path / "first.toml"
+    first.write_text(SMALL)
+    out = tmp_path / "out.nc"
+    leave_partial(monkeypatch, str(first), str(out))
+    before = snapshot(partial_dir(out))
+    second = tmp_path / "second.toml"
+    second.write_text(SMALL.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
+    assert cli.main(["run", str(second), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "different sweep file" in err and partial_dir(out) in err and "delete" in err
+    assert snapshot(partial_dir(out)) == before
+    assert not out.exists()
+    # the original sweep resumes from the complete store and finishes
+    assert cli.main(["run", str(first), "-o", str(out)]) == 0
+    assert "0 to compute" in capsys.readouterr().err
+    assert_identical(out, run_sweep(str(first)))
+
+
+def test_other_block_size_refused_but_plain_rerun_adopts_it(tmp_path, monkeypatch, capsys):
+    """An explicit --block-size unlike the store's is refused; without it the store's is used."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    out = tmp_path / "out.nc"
+    with monkeypatch.context() as m:
+        m.setattr(engine, "assemble", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("crash")))
+        with pytest.raises(RuntimeError):
+            run_sweep(str(toml), str(out), block_size=3)
+    assert cli.main(["run", str(toml), "-o", str(out), "--block-size", "2"]) == 2
+    assert "--block-size 3" in capsys.readouterr().err
+    assert cli.main(["run", str(toml), "-o", str(out), "--no-reduce"]) == 2
+    capsys.readouterr()
+    assert cli.main(["run", str(toml), "-o", str(out)]) == 0
+    assert "0 to compute" in capsys.readouterr().err
+
+
+def test_unwritable_output_fails_before_any_work(tmp_path, monkeypatch, capsys):
+    """A missing output directory or a directory as output: exit 2, one line, nothing planned."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("planned work despite an unwritable output")
+
+    monkeypatch.setattr(engine, "Plan", no_work)
+    for out in (tmp_path / "missing" / "out.nc", tmp_path):
+        assert cli.main(["run", str(toml), "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "error:" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_success_replaces_result_and_removes_store(tmp_path, capsys):
+    """A finished run replaces an existing file whole and leaves no store or temporary file."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    out = tmp_path / "out.nc"
+    out.write_bytes(b"old")
+    assert cli.main(["run", str(toml), "-o", str(out), "--workers", "2"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.nc", "s.toml"]
+    assert_identical(out, run_sweep(str(toml)))
+    assert oct(out.stat().st_mode & 0o777) != oct(0o600)
+
+
+def test_default_output_is_sweep_name_in_cwd(tmp_path, monkeypatch):
+    """Without -o and without [output] path the CLI writes SWEEP.nc in the current directory."""
+    (tmp_path / "sub").mkdir()
+    toml = tmp_path / "sub" / "mine.toml"
+    toml.write_text(SMALL)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["run", str(toml)]) == 0
+    assert (tmp_path / "mine.nc").exists()
+
+
+def test_concurrent_run_on_same_output_refused(tmp_path):
+    """While one run holds the store's lock, a second run on the same output is refused."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    out = str(tmp_path / "out.nc")
+    spec = load_sweep(str(toml))
+    plan = engine.Plan(spec.coords())
+    holder = WorkStore.open(out, engine._manifest(spec, plan), given_block_size=False)
+    try:
+        with pytest.raises(SweepError, match="another run"):
+            run_sweep(spec, out)
+    finally:
+        holder.close()
+    run_sweep(spec, out)
+    assert os.path.exists(out)

@@ -7,16 +7,12 @@ justifies ``solve.STIFF_LAMBDA`` (RODAS4P2 when 2/eta > 20).
 Run:  .venv/bin/python benchmarks/bench_paths.py
 """
 
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
 from cosserat_channel import solve
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from reference import reference  # noqa: E402  (the tests' independent scipy reference)
+from cosserat_channel.reference import reference
 
 
 def timed(ws, eta, method, reps=20):

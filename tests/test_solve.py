@@ -9,8 +9,8 @@ from cosserat_channel import asymptotics
 from cosserat_channel import status as st
 from cosserat_channel.solve import ParameterError, solve_point
 
-from reference import profile as ref_profile
-from reference import reference
+from cosserat_channel.reference import profile as ref_profile
+from cosserat_channel.reference import reference
 
 FIG2 = dict(eps=1 / 30, L=10.0, K=0.5, A=1 / 3, N=1.0)  # paper figure 2 (L = 10 curve)
 OUTPUTS = ("Delta", "m_wall", "sigma_yx_wall", "slip")

@@ -1,4 +1,5 @@
-"""An independent reference solution with scipy ``solve_ivp`` at tight tolerance.
+"""An independent reference solution with scipy ``solve_ivp`` at tight tolerance (for tests,
+reports and benchmarks; the solver never uses it).
 
 Written from model.md directly and deliberately *differently* from the package: it keeps ``eps``
 and ``L`` separate (no similarity), carries the unscaled ``delta = m + N L``, evaluates ``D`` in the

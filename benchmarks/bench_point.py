@@ -58,32 +58,11 @@ def ours_stage1(eps, L, A=1 / 3, N=1.0):
     return mu
 
 
-def scipy_stage1(eps, L, A, N, method):
-    """Stage 1 alone with solve_ivp (same formulation); returns m(1)/(nu L) or NaN."""
+def _scipy_stage1_run(eps, L, A, N, method, dense):
+    """Stage 1 with solve_ivp in our formulation: (solution, ax, xi1), or None where classify says no."""
     eta = eps * L
     if model.classify(eta, A, N) != 0:
-        return math.nan
-    ax = np.empty(model.N_AX)
-    model.axis_constants(eta, A, N, ax)
-    xi1 = solve.start_xi(ax)
-
-    def f1(xi, w):
-        return [model.dw_dxi(xi, w[0], eta, A, N, ax)]
-
-    def hit(xi, w):
-        return model.yield_D(xi, xi * xi * w[0], A, N, ax)
-
-    hit.terminal = True
-    w0 = model.delta_axis_series(xi1, ax) / xi1**2
-    s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=RTOL, atol=ATOL, events=hit)
-    return s1.y[0, -1] - N if s1.status == 0 else math.nan
-
-
-def scipy_point(eps, L, K, A, N, method):
-    """Both stages with solve_ivp, the same formulation as ours; returns Delta (NaN if no solution)."""
-    eta = eps * L
-    if model.classify(eta, A, N) != 0:
-        return math.nan
+        return None
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
     xi1 = solve.start_xi(ax)
@@ -97,9 +76,25 @@ def scipy_point(eps, L, K, A, N, method):
     hit.terminal = True
     w0 = model.delta_axis_series(xi1, ax) / xi1**2
     s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=RTOL, atol=ATOL, events=hit,
-                   dense_output=True)
-    if s1.status != 0:
+                   dense_output=dense)
+    return s1, ax, xi1
+
+
+def scipy_stage1(eps, L, A, N, method):
+    """Stage 1 alone with solve_ivp (same formulation); returns m(1)/(nu L) or NaN."""
+    run = _scipy_stage1_run(eps, L, A, N, method, dense=False)
+    if run is None or run[0].status != 0:
         return math.nan
+    return run[0].y[0, -1] - N
+
+
+def scipy_point(eps, L, K, A, N, method):
+    """Both stages with solve_ivp, the same formulation as ours; returns Delta (NaN if no solution)."""
+    eta = eps * L
+    run = _scipy_stage1_run(eps, L, A, N, method, dense=True)
+    if run is None or run[0].status != 0:
+        return math.nan
+    s1, ax, xi1 = run
 
     def delta_at(xi):
         return model.delta_axis_series(xi, ax) if xi <= xi1 else xi * xi * s1.sol(xi)[0]

@@ -120,8 +120,9 @@ def test_failed_save_leaves_old_file_intact(fig, tmp_path, monkeypatch):
     target = tmp_path / "keep.png"
     target.write_bytes(b"old")
 
-    def broken_savefig(fh, **kwargs):
-        fh.write(b"partial")
+    def broken_savefig(tmp, **kwargs):
+        with open(tmp, "wb") as fh:  # a partial file exists when the failure comes
+            fh.write(b"partial")
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(fig, "savefig", broken_savefig)

@@ -32,12 +32,12 @@ import json
 import math
 import os
 import re
-import secrets
 from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
 
+from .files import atomic_output
 from .solve import ParameterError
 
 DIMS = ("eps", "L", "K", "A", "N")
@@ -418,7 +418,7 @@ def write_netcdf(selection: Selection, path: str) -> None:
     ds = subset_dataset(selection)
     for v in ds.variables.values():
         v.encoding = {}
-    _atomic(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
+    atomic_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
 
 
 def write_text(path: str, writer) -> None:
@@ -428,21 +428,9 @@ def write_text(path: str, writer) -> None:
         with open(tmp, "w", encoding="utf-8", newline="") as f:
             writer(f)
 
-    _atomic(path, run)
+    atomic_output(path, run)
 
 
-def _atomic(path: str, write) -> None:
-    # A fresh name next to the target (same file system, so os.replace is atomic); created by the
-    # writer itself, so the file gets the usual umask permissions (mkstemp would give 0600).
-    head, tail = os.path.split(os.path.abspath(path))
-    tmp = os.path.join(head, f".{tail}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def render(selection: Selection, fmt: str) -> str:

@@ -9,10 +9,11 @@ picked up from the environment, and nothing to close afterwards. Files are writt
 from __future__ import annotations
 
 import os
-import secrets
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+
+from ..files import atomic_output
 
 DPI = 120
 FIGSIZE = (10.0, 7.0)
@@ -70,27 +71,11 @@ def figure_format(path) -> str:
 
 
 def save_figure(fig: Figure, path, *, dpi: int = DPI) -> None:
-    """Write ``fig`` to ``path`` atomically: a temporary file in the same directory, then rename.
-
-    The temporary file is created with mode 0o666 so the umask applies as for any new file, and
-    it is removed if drawing or writing fails; an existing file at ``path`` is replaced only by a
-    complete one.
-    """
+    """Write ``fig`` to ``path`` atomically (:func:`cosserat_channel.files.atomic_output`): an
+    existing file at ``path`` is replaced only by a complete one."""
     path = os.fspath(path)
     fmt = figure_format(path)
-    directory, name = os.path.split(os.path.abspath(path))
-    tmp = os.path.join(directory, f".{name}.{secrets.token_hex(4)}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format=fmt, dpi=dpi)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    atomic_output(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -31,6 +31,7 @@ import zipfile
 
 import numpy as np
 
+from ..files import atomic_output, output_problem
 from .spec import SweepError
 
 MANIFEST = "manifest.json"
@@ -46,28 +47,20 @@ def partial_dir(output: str) -> str:
 
 def check_writable(output: str) -> None:
     """Raise :class:`SweepError` unless ``output`` (and its store beside it) can be created."""
-    directory = os.path.dirname(os.path.abspath(output))
-    if os.path.isdir(output):
-        raise SweepError(f"output {output!r} is a directory; give a file name (-o OUT.nc)")
-    if not os.path.isdir(directory):
-        raise SweepError(f"cannot write {output!r}: directory {directory!r} does not exist")
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise SweepError(f"cannot write {output!r}: directory {directory!r} is not writable")
+    problem = output_problem(output)
+    if problem:
+        raise SweepError(problem)
 
 
-def _atomic_write(path: str, write) -> None:
-    """``write(fileobj)`` to a temporary name beside ``path``, then rename it onto ``path``."""
-    tmp = f"{path}.tmp-{os.getpid()}"
-    try:
-        with open(tmp, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+def _write_bytes(tmp: str, data: bytes) -> None:
+    with open(tmp, "wb") as f:
+        f.write(data)
+
+
+def _save_block(tmp: str, result: dict) -> None:
+    # Through a file object: np.savez would append ".npz" to a path without it.
+    with open(tmp, "wb") as f:
+        np.savez(f, **result)
 
 
 class WorkStore:
@@ -103,9 +96,9 @@ class WorkStore:
             path = os.path.join(d, MANIFEST)
             if not os.path.exists(path):
                 text = json.dumps(manifest, indent=1, sort_keys=True).encode()
-                _atomic_write(path, lambda f: f.write(text))
+                atomic_output(path, lambda tmp: _write_bytes(tmp, text))
             for name in os.listdir(d):
-                if ".tmp-" in name:  # left by a killed run; never a finished block
+                if name.endswith(".tmp"):  # left by a killed run; never a finished block
                     os.unlink(os.path.join(d, name))
         except OSError as exc:
             store.close()
@@ -161,7 +154,7 @@ class WorkStore:
         if self.directory is None:
             self._memory[k] = result
             return
-        _atomic_write(self._block_path(k), lambda f: np.savez(f, **result))
+        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, result))
 
     def get(self, k: int) -> dict:
         """Block ``k``'s result."""
@@ -173,20 +166,9 @@ class WorkStore:
     # -- the result ---------------------------------------------------------------------------
     def publish(self, output: str, write) -> None:
         """``write(path)`` the result inside the store, then rename it onto ``output``."""
-        tmp = os.path.join(self.directory, "result.nc.tmp-" + str(os.getpid()))
-        try:
-            write(tmp)
-            # mkstemp-like names get 0600; give the result the permissions a plain open would.
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-            os.replace(tmp, output)
-        except BaseException:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
-            raise
+        # The temporary file lives inside the store, so a killed write leaves nothing beside
+        # the output and the next run sweeps it away with the store's other leftovers.
+        atomic_output(output, write, tmp_dir=self.directory)
 
     def remove(self) -> None:
         """Delete the store (after the result is in place)."""

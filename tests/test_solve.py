@@ -225,16 +225,21 @@ def test_K_costs_no_integration():
 
 @pytest.mark.parametrize("eps, L, K, N", [(1 / 30, 10, 0.5, 1.0), (1e-3, 10, 0.0, 1.0), (0.01, 2, 5, 3.0)])
 def test_A_minus_one_closed_form(eps, L, K, N):
-    """A = -1 follows Appendix A's closed form (independent implementation in asymptotics)."""
+    """A = -1 follows Appendix A's closed form (independent implementation in asymptotics).
+
+    Since issue 4, A = -1 runs through the stage-2 integrator (B = c/xi, h = 2) like every other
+    A instead of short-cutting to the closed form, so agreement is to the integration tolerance
+    (measured <= 1.3e-7 at rtol 1e-8), not to 1e-12; tests/test_domain.py takes c up to 1e7.
+    """
     r = solve_point(eps, L, K, -1.0, N, profile=np.linspace(0, 1, 11))
     cf = asymptotics.a_minus_one_outputs(eps, L, K, N)
     assert r.status == st.Status.ok
-    assert r.Delta == pytest.approx(cf.Delta, rel=1e-12)
-    assert r.slip == pytest.approx(cf.slip, rel=1e-12)
+    assert r.Delta == pytest.approx(cf.Delta, rel=3e-7)
+    assert r.slip == pytest.approx(cf.slip, rel=3e-8)
     assert r.m_wall == pytest.approx(-N * L) and r.sigma_yx_wall == -1.0
     prof = asymptotics.a_minus_one(r.profile["xi"], eps, L, K, N)
-    np.testing.assert_allclose(r.profile["u_over_u0"], prof.u_over_u0, rtol=1e-12)
-    np.testing.assert_allclose(r.profile["omega_hat"], prof.omega_hat, rtol=1e-12)
+    np.testing.assert_allclose(r.profile["u_over_u0"], prof.u_over_u0, rtol=3e-7)
+    np.testing.assert_allclose(r.profile["omega_hat"], prof.omega_hat, rtol=1e-7)
 
 
 def test_regime_statuses_and_messages():
@@ -360,3 +365,16 @@ def test_batch_profiles_match_solve_point_including_A_minus_one():
         np.testing.assert_allclose(prof[i, solve.P_OMEGA_HAT], want["omega_hat"], rtol=1e-12)
         np.testing.assert_allclose(L * (prof[i, solve.P_DELTA] - N), want["m"], rtol=1e-12)
         np.testing.assert_allclose(prof[i, solve.P_SIGMA_YX], want["sigma_yx"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("rtol", [1e-8, 1e-10, 1e-12])
+def test_at_the_path_edge_any_tolerance_never_integration_failed(rtol):
+    """1e-6 inside the path edge (D(1) ~ 1e-11): ok or eps_too_large_path at the wall, never integration_failed."""
+    A, N, L = 0.0, 2.0, 10.0
+    eps = 3.7415412700 / L * (1 - 1e-6)  # edge eta_max traced at rtol 1e-12
+    r = solve_point(eps, L, 0.5, A, N, rtol=rtol, atol=1e-14)
+    assert r.status in (st.Status.ok, st.Status.eps_too_large_path)
+    if r.status == st.Status.eps_too_large_path:
+        assert r.xi_stop == 1.0  # D = 0 at the wall within the solver's resolution
+    else:
+        assert math.isfinite(r.Delta)

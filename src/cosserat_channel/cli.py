@@ -182,13 +182,11 @@ def tolerances_from_args(args: argparse.Namespace) -> dict:
 
 def check_output_path(path: str, option: str) -> None:
     """Raise CliError unless a file can be created at ``path`` (checked before any work)."""
-    directory = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise CliError(f"{option}: cannot write {path!r}: it is a directory")
-    if not os.path.isdir(directory):
-        raise CliError(f"{option}: cannot write {path!r}: directory {directory!r} does not exist")
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise CliError(f"{option}: cannot write {path!r}: directory {directory!r} is not writable")
+    from .files import output_problem
+
+    problem = output_problem(path)
+    if problem:
+        raise CliError(f"{option}: {problem}")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -424,6 +422,305 @@ def _run(args: argparse.Namespace) -> int:
         return 130
     finally:
         logger.removeHandler(handler)
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------------
+# stability (issue 4)
+# ---------------------------------------------------------------------------------------------
+def _stability_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--output-dir", dest="output_dir", default="stability_report",
+                   metavar="DIR", help="where stability.md and stability.png go "
+                   "(default: stability_report/, created if missing)")
+    p.add_argument("--quick", action="store_true",
+                   help="a small version (one (A, N) series, few points, one timing repeat)")
+    p.add_argument("--repeats", type=int, default=5, metavar="R",
+                   help="timing repeats per point, the best is reported (default 5)")
+
+
+@register("stability", "report steps, cost and error of one point from eps L = 1e-8 to the "
+          "edge of solvability, and which stage-1 path each point took", _stability_arguments)
+def _stability(args: argparse.Namespace) -> int:
+    if args.repeats < 1:
+        raise CliError(f"--repeats must be a positive integer; got {args.repeats}")
+    from .stability import directory_problem, write_report
+
+    problem = directory_problem(args.output_dir)
+    if problem:
+        raise CliError(f"-o/--output-dir: {problem}")
+
+    def progress(i, n, row):
+        _note(f"stability: {i}/{n} {row['case']} eta = {row['eta']:.3g}: {row['status']}, "
+              f"{row['path']} path")
+
+    repeats = 1 if args.quick else args.repeats
+    try:
+        rep = write_report(args.output_dir, quick=args.quick, repeats=repeats, progress=progress)
+    except OSError as exc:
+        raise CliError(f"cannot write the report into {args.output_dir!r}: {exc}",
+                       EXIT_FAILURE) from None
+    v = rep.verdict
+    print(f"wrote {os.path.join(args.output_dir, 'stability.md')} and "
+          f"{os.path.join(args.output_dir, 'stability.png')}; max error/rtol "
+          f"{v['max_err_over_rtol']:.2f}, max steps {v['max_steps']}")
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------------
+# phase-plane, boundary, plot (data in regimes.py, figures in plot/regimes.py and plot/lines.py)
+# ---------------------------------------------------------------------------------------------
+def _figure_output(path: str, option: str = "-o") -> None:
+    """Check a figure path before any work (writable directory, a format Agg can write)."""
+    check_output_path(path, option)
+    from . import plot
+
+    try:
+        plot.figure_format(path)
+    except ValueError as exc:
+        raise CliError(f"{option}: {exc}") from None
+
+
+def _phase_plane_arguments(p: argparse.ArgumentParser) -> None:
+    for flag, dest, text in _POINT_ARGS:
+        if dest != "K":
+            p.add_argument(flag, dest=dest, type=float, required=True, metavar=dest.upper(),
+                           help=text)
+    p.add_argument("--nu", type=float, help="solids fraction: plot m_bar = nu m as the paper "
+                   "(figure 12: 0.603) instead of m_bar/nu")
+    p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
+
+
+@register("phase-plane", "plot the phase plane of eq:a1/eq:a2 (paper figure 12) for any "
+          "(eps, L, A, N)", _phase_plane_arguments)
+def _phase_plane(args: argparse.Namespace) -> int:
+    if args.nu is not None and not (0.0 < args.nu < 1.0):
+        raise CliError(f"--nu must be in (0, 1); got {args.nu:g}")
+    _figure_output(args.output)
+    from . import regimes
+    from .plot import regimes as plot_regimes
+    from .solve import ParameterError
+
+    try:
+        pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
+    for tr in pp.trajectories:
+        print(f"E{tr.root} from m(0) = {tr.start:+.6g}: {tr.end}"
+              + (f" at xi = {tr.xi[-1]:.6g}" if tr.end == "D=0" else "")
+              + (f", m(1)/nu = {tr.m[-1]:.10g}" if tr.end == "wall" else ""))
+    try:
+        plot_regimes.phase_plane_figure(pp, nu=args.nu, path=args.output)
+    except OSError as exc:
+        raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
+    return EXIT_OK
+
+
+def parse_values(text: str, option: str) -> list:
+    """``"a,b,c"`` (a list) or ``"start:stop:num"`` (linspace) -> list of floats; CliError if bad."""
+    try:
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) != 3:
+                raise ValueError
+            start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
+            if num < 1:
+                raise ValueError
+            import numpy as np
+
+            values = [float(v) for v in np.linspace(start, stop, num)]
+        else:
+            values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise CliError(f"{option}: expected a list 'a,b,c' or 'start:stop:num'; got {text!r}") \
+            from None
+    if not all(math.isfinite(v) for v in values):
+        raise CliError(f"{option}: values must be finite; got {text!r}")
+    return values
+
+
+def _boundary_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--A", required=True, metavar="LIST|START:STOP:NUM",
+                   help="values of A, e.g. -0.9:0.9:19 or 0,0.3333333333333333")
+    p.add_argument("--N", required=True, metavar="LIST|START:STOP:NUM",
+                   help="values of N (> 0), e.g. 0.5,1,2")
+    p.add_argument("--eta-range", default="0.001:100", metavar="LO:HI",
+                   help="searched range of eta = eps L (default 0.001:100: eps <= 1, L <= 100)")
+    p.add_argument("--coarse", type=int, default=48, metavar="M",
+                   help="log-spaced samples before bisection (default 48)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
+    p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
+
+
+@register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
+          _boundary_arguments)
+def _boundary(args: argparse.Namespace) -> int:
+    A = parse_values(args.A, "--A")
+    N = parse_values(args.N, "--N")
+    if any(n <= 0.0 for n in N):
+        raise CliError(f"--N: values must be > 0; got {args.N!r}")
+    try:
+        lo, hi = (float(v) for v in args.eta_range.split(":"))
+    except ValueError:
+        raise CliError(f"--eta-range: expected LO:HI; got {args.eta_range!r}") from None
+    if not (0.0 < lo < hi < math.inf):
+        raise CliError(f"--eta-range: need 0 < LO < HI < inf; got {args.eta_range!r}")
+    if args.coarse < 2:
+        raise CliError(f"--coarse must be >= 2; got {args.coarse}")
+    check_output_path(args.output, "-o")
+    if args.plot is not None:
+        _figure_output(args.plot, "--plot")
+    from . import regimes
+    from .status import Status
+
+    ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse)
+    print(f"{'A':>12} {'N':>10} {'eta_max':>18} {'kind':<20} {'status above'}")
+    for i, a in enumerate(ds["A"].values):
+        for j, n in enumerate(ds["N"].values):
+            k = int(ds["edge_kind"].values[i, j])
+            above = int(ds["status_above"].values[i, j])
+            name = "-" if above < 0 else Status(above).name
+            print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
+                  f"{regimes.EDGE_KINDS[k]:<20} {name}")
+    try:
+        tmp = f"{args.output}.{os.getpid()}.tmp"
+        try:
+            ds.to_netcdf(tmp)
+            os.replace(tmp, args.output)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        if args.plot is not None:
+            from .plot import regimes as plot_regimes
+
+            plot_regimes.boundary_figure(ds, path=args.plot)
+    except OSError as exc:
+        raise CliError(f"cannot write: {exc}", EXIT_FAILURE) from None
+    return EXIT_OK
+
+
+def _plot_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
+    p.add_argument("--regime", action="store_true",
+                   help="map the status over the (--x, --y) slice with the analytic boundaries")
+    p.add_argument("--x", required=True, help="abscissa: eps, W_over_d_p, L, K, A, N or xi")
+    p.add_argument("--y", required=True,
+                   help="a variable (e.g. Delta; u_over_u0 with --x xi) or, with --regime, a "
+                   "dimension")
+    p.add_argument("--hue", help="one line per value of this dimension")
+    p.add_argument("--at", metavar="NAME=VALUE[,NAME=VALUE]",
+                   help="nearest values of the other dimensions that vary, e.g. eps=0.0333,L=10")
+    p.add_argument("--boundary", metavar="BOUNDARY.nc",
+                   help="with --regime: traced edge from 'boundary' (default: traced here on a "
+                   "coarse grid)")
+    p.add_argument("--no-asymptote", dest="asymptote", action="store_false",
+                   help="do not overlay the Appendix C asymptotics (N = 1)")
+    p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
+
+
+def parse_at(text: str | None) -> dict:
+    """``"eps=0.03,L=10"`` -> ``{"eps": 0.03, "L": 10.0}``; CliError if malformed."""
+    out = {}
+    for item in (text or "").split(","):
+        if not item.strip():
+            continue
+        name, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise CliError(f"--at: expected NAME=VALUE[,NAME=VALUE]; got {text!r}") from None
+    return out
+
+
+@register("plot", "plot a result file: regime map, Delta against a parameter, or profiles",
+          _plot_arguments)
+def _plot(args: argparse.Namespace) -> int:
+    at = parse_at(args.at)
+    if args.boundary is not None and not args.regime:
+        raise CliError("--boundary goes with --regime")
+    if args.regime and args.hue is not None:
+        raise CliError("--hue does not go with --regime")
+    _figure_output(args.output)
+    from . import query
+    from .plot import lines as plot_lines
+    from .plot import regimes as plot_regimes
+    from .solve import ParameterError
+
+    try:
+        ds = query.open_results(args.results)
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
+    try:
+        ds = ds.load()
+        boundary = None
+        if args.boundary is not None:
+            import xarray as xr
+
+            try:
+                boundary = xr.load_dataset(args.boundary)
+            except (OSError, ValueError) as exc:
+                raise CliError(f"--boundary: cannot read {args.boundary!r}: {exc}") from None
+            if "eta_max" not in boundary:
+                raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")
+        try:
+            if args.regime:
+                plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
+                                        path=args.output)
+            else:
+                plot_lines.line_plot(ds, args.x, args.y, args.hue, at, asymptote=args.asymptote,
+                                     path=args.output)
+        except (ValueError, KeyError) as exc:
+            raise CliError(str(exc).strip("'\"")) from None
+        except OSError as exc:
+            raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
+    finally:
+        ds.close()
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------------
+# bench (the report lives in workprecision/)
+# ---------------------------------------------------------------------------------------------
+_BENCH_OUTPUT = "bench-report"  # = workprecision.DEFAULT_OUTPUT (not imported: --help stays light)
+
+
+def _bench_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quick", action="store_true",
+                   help="a tiny set (12 points, 3 rtols, scipy RK45 and LSODA on 3 points), "
+                   "well under two minutes; for checks, not for numbers")
+    p.add_argument("-o", "--output", metavar="DIR",
+                   help=f"report directory, created if missing (default: {_BENCH_OUTPUT}); its "
+                   "reference_cache.npz is reused by later runs with the same set")
+    p.add_argument("--scipy-points", type=int, metavar="N",
+                   help="points in the subsample the scipy loops run on (default 60, quick 3)")
+
+
+@register("bench", "work-precision report: error against run time per point, ours side by side "
+          "with scipy solve_ivp and numbalsoda", _bench_arguments)
+def _bench(args: argparse.Namespace) -> int:
+    if args.scipy_points is not None and args.scipy_points < 2:
+        raise CliError(f"--scipy-points must be an integer >= 2; got {args.scipy_points}")
+    output = args.output or _BENCH_OUTPUT
+    if os.path.exists(output) and not os.path.isdir(output):
+        raise CliError(f"-o: {output!r} exists and is not a directory")
+    command = " ".join(
+        [PROG, "bench"] + (["--quick"] if args.quick else []) + ["-o", output]
+        + ([f"--scipy-points {args.scipy_points}"] if args.scipy_points is not None else [])
+    )
+    from . import workprecision
+
+    def log(message):
+        print(f"{PROG}: bench: {message}", file=sys.stderr, flush=True)
+
+    try:
+        rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
+                                command=command, log=log)
+    except OSError as exc:
+        raise CliError(f"cannot write the report into {output!r}: {exc}", EXIT_FAILURE) from None
+    for target in rep.targets:
+        print(target.line().replace("**", ""))
+    print("wrote " + ", ".join(str(p) for p in rep.paths.values()))
     return EXIT_OK
 
 

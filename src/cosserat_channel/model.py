@@ -106,6 +106,18 @@ def axis_constants(eta, A, N, out):
 
 
 @njit(nogil=True, cache=True)
+def axis_relative_margin(A, N, ax):
+    """``c0^2`` relative to the terms of ``D/xi^2`` at the axis that it is the difference of.
+
+    ``c0^2 = (A^2 - 1) + 2(A+1) N y``: the two terms are ``O(A+1)``, so the number of digits ``D``
+    keeps next to the axis is set by ``c0^2 / (2(A+1) N y)``, not by ``c0^2`` alone. The two differ
+    when ``A -> -1``, where ``c0 ~ A + 1`` far from the axis edge (found by the domain tests: the
+    bare ``c0^2`` treated every point with ``A + 1 < 1e-5`` as if it sat on the axis edge).
+    """
+    return ax[AX_C0] * ax[AX_C0] / (2.0 * (A + 1.0) * N * ax[AX_Y])
+
+
+@njit(nogil=True, cache=True)
 def delta_axis_series(xi, ax):
     """``delta`` near the axis: ``m = -N L + x xi^2 / 2`` (eq:54, eq:20) plus the quartic term."""
     x2 = xi * xi
@@ -209,6 +221,18 @@ def plug_target(J_axis, eps_K):
 # --------------------------------------------------------------------------------------------
 # A = -1 (Appendix A): closed form
 # --------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def a_minus_one_xi_B(eta, N):
+    """``xi B = c = 2N/eta`` for A = -1: the limit of e-60 on ``m = -N L``, where ``D = 0``."""
+    return 2.0 * N / eta
+
+
+@njit(nogil=True, cache=True)
+def a_minus_one_h():
+    """``h = 2`` for A = -1: Appendix A's ``du/dxi = -2 omega`` (e-59 with sigma_yx = -xi)."""
+    return 2.0
+
+
 @njit(nogil=True, cache=True)
 def a_minus_one_J(xi, c):
     """``J(xi) = 2 (1 - xi^(c+1)) / (c+1)`` for A = -1, with ``omega_hat = xi^c``, ``c = 2N/eta``."""

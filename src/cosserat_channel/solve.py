@@ -32,6 +32,10 @@ MAX_STEPS_STAGE2 = 20_000
 EVENT_REFINEMENTS = 4
 REFINE_MAX_STEPS = 400
 STAGE1_RTOL_FLOOR = 1e-13
+# D(1) below this many rtol-sized errors of D is zero within stage 1's resolution (solve_eta).
+WALL_D_RESOLUTION = 0.1
+# ... and when stage 2 fails with D(1) below this many, the dense output's error decides (see there).
+WALL_D_FALLBACK = 1e5
 # Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
 TAIL_FRACTION = 1e-3
 # Stage 2 never marches below this xi: J's remaining tail there is < XI_FLOOR * max h.
@@ -47,8 +51,12 @@ R_XI1 = 5  # where stage 1 left the axis series
 R_T_TAIL = 6  # ln(xi) where stage 2 stopped
 R_N1 = 7  # accepted steps kept in the stage-1 dense output
 R_N2 = 8
-R_PATH = 9  # stage 1 took the explicit (0) or the stiff (1) path
+R_PATH = 9  # stage 1 took the explicit (0) or the stiff (1) path; -1: not integrated
 N_R = 10
+PATH_EXPLICIT = 0.0
+PATH_STIFF = 1.0
+PATH_NONE = -1.0  # no stage-1 integration: a regime without solution, or A = -1 (exact)
+PATH_NAMES = {PATH_EXPLICIT: "explicit", PATH_STIFF: "stiff", PATH_NONE: "none"}
 
 METHOD_AUTO = 0
 METHOD_EXPLICIT = 1
@@ -98,20 +106,37 @@ def _delta_at(xi, xi1, ax, T1, Q1, n1, buf):
 
 
 @njit(nogil=True, cache=True)
+def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf):
+    """``(xi B, h)`` of e-60 / e-59 at ``xi``, on the stage-1 solution.
+
+    For A = -1 (Appendix A) ``D`` vanishes identically and the general formulas are 0/0; there
+    ``m = -N L`` and the limits ``B = c/xi`` (``c = 2N/eta``) and ``h = 2`` are used instead, so
+    that A = -1 runs through the same stage-2 march as every other A and the closed form
+    (model.a_minus_one_*) stays an independent check of it.
+    """
+    if A == -1.0:
+        return model.a_minus_one_xi_B(eta, N), model.a_minus_one_h()
+    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
+    D = model.yield_D(xi, delta, A, N, ax)
+    return xi * model.spin_rate_B(delta, D, eta, A, N), model.shear_rate_h(xi, D, A)
+
+
+@njit(nogil=True, cache=True)
 def _stage2_rhs(t, y, args, out):
     # Independent variable t = ln(xi): near the axis B ~ beta/xi, so d log(omega_hat)/dt -> beta
     # is smooth all the way down, where marching in xi would crawl in geometric steps.
     eta, A, N, ax, xi1, T1, Q1, n1, buf, tail_tol = args
     xi = math.exp(t)
-    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
-    D = model.yield_D(xi, delta, A, N, ax)
-    out[0] = xi * model.spin_rate_B(delta, D, eta, A, N)  # d log(omega_hat)/dt   (e-60)
-    out[1] = -xi * model.shear_rate_h(xi, D, A) * math.exp(y[0])  # dJ/dt   (e-59)
+    xiB, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf)
+    out[0] = xiB  # d log(omega_hat)/dt   (e-60)
+    out[1] = -xi * h * math.exp(y[0])  # dJ/dt   (e-59)
 
 
 @njit(nogil=True, cache=True)
 def _h_axis(A, ax):
-    # h at the axis, where sqrt(D) -> c0 xi.
+    # h at the axis, where sqrt(D) -> c0 xi (A = -1: h = 2 everywhere).
+    if A == -1.0:
+        return model.a_minus_one_h()
     return (A + 1.0) * (1.0 - (A - 1.0) / ax[AX_C0])
 
 
@@ -124,9 +149,8 @@ def _stage2_event(t, y, args):
     if J <= 0.0:
         return 1.0
     xi = math.exp(t)
-    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
-    D = model.yield_D(xi, delta, A, N, ax)
-    h_bound = 2.0 * max(model.shear_rate_h(xi, D, A), _h_axis(A, ax))
+    _, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf)
+    h_bound = 2.0 * max(h, _h_axis(A, ax))
     return y[0] + t + math.log(h_bound) - math.log(tail_tol * J)
 
 
@@ -147,14 +171,17 @@ def use_stiff_path(eta, ax):
 
 
 @njit(nogil=True, cache=True)
-def stage1_rtol(rtol, ax):
-    """Stage 1's relative tolerance: the user's, tightened to c0^2/1000 next to the axis edge.
+def stage1_rtol(rtol, A, N, ax):
+    """Stage 1's relative tolerance: the user's, tightened to ``rho/1000`` next to the axis edge.
 
-    Floored at 1e-13 (double precision); within ~1e-10 relative of the axis edge the location
-    xi_stop where such a path fails is therefore only approximate (the status is not).
+    ``rho = c0^2 / (2(A+1) N y)`` (:func:`model.axis_relative_margin`) is the relative size of the
+    difference ``D/xi^2 -> c0^2`` that decides where such a path meets D = 0; ``rho = c0^2`` up to
+    an O(1) factor unless ``A -> -1``. Floored at 1e-13 (double precision); within ~1e-10 relative
+    of the axis edge the location xi_stop where such a path fails is therefore only approximate
+    (the status is not).
     """
-    c0 = ax[AX_C0]
-    return min(rtol, max(STAGE1_RTOL_FLOOR, 1e-3 * c0 * c0))
+    rho = model.axis_relative_margin(A, N, ax)
+    return min(rtol, max(STAGE1_RTOL_FLOOR, 1e-3 * rho))
 
 
 @njit(nogil=True, cache=True)
@@ -165,6 +192,20 @@ def _march_stage1(stiff, xi0, y0, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
                                  rtol, atol1, h0, h_max, T1, Q1, stats1)
     return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, 1.0, args1, rtol, atol1, h0, h_max,
                        T1, Q1, stats1)
+
+
+@njit(nogil=True, cache=True)
+def axis_crossing_xi2(eta, A, N, ax):
+    """``xi^2`` where the two-term axis series ``D = c0^2 xi^2 + 2(A+1)(2Nk - y^2/4) xi^4`` vanishes.
+
+    With ``k`` of :func:`model.axis_constants`, ``2Nk - y^2/4 = -(y^2/4) 4 eta c0 / (4 eta c0 +
+    2(A+1)N)`` exactly, so this is ``c0 (4 eta c0 + 2(A+1)N) / (2(A+1) y^2 eta)``, free of
+    cancellation. Only meaningful when it is small (the series' own range).
+    """
+    a1 = A + 1.0
+    c0 = ax[AX_C0]
+    y = ax[model.AX_Y]
+    return c0 * (4.0 * eta * c0 + 2.0 * a1 * N) / (2.0 * a1 * y * y * eta)
 
 
 @njit(nogil=True, cache=True)
@@ -191,26 +232,35 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
         stats2[i] = 0
     res[R_N1] = 0.0
     res[R_N2] = 0.0
-    res[R_PATH] = 0.0
+    res[R_PATH] = PATH_NONE
     code = model.classify(eta, A, N)
     res[R_STATUS] = code
     if code != st.OK:
         return code
     if A == -1.0:
-        # Appendix A closed form: m = -NL, sigma_yx = -xi, omega_hat = xi^c.
-        c = 2.0 * N / eta
-        res[R_J_AXIS] = model.a_minus_one_J(0.0, c)
+        # Appendix A: stage 1 is exact (m = -NL, sigma_yx = -xi, delta = 0), no integration and
+        # no stage-1 path; stage 2 runs through the same march as every other A, with B = c/xi
+        # and h = 2 (see _stage2_rates); beta = c is the exact spin exponent for the profiles.
+        ax[model.AX_Y] = 0.0
+        ax[AX_C0] = 0.0
+        ax[model.AX_K] = 0.0
+        ax[AX_BETA] = model.a_minus_one_xi_B(eta, N)
+        res[R_XI1] = 0.0
+        res[R_PATH] = PATH_NONE
         res[R_MU_WALL] = -N
         res[R_SIGMA_YX_WALL] = -1.0
-        return code
+        return _march_stage2(eta, A, N, rtol, atol, ax, 0.0, T1, Q1, 0, T2, Q2, stats2, res)
 
     model.axis_constants(eta, A, N, ax)
-    if 1e-3 * ax[AX_C0] * ax[AX_C0] < STAGE1_RTOL_FLOOR:
+    if (1e-3 * model.axis_relative_margin(A, N, ax) < STAGE1_RTOL_FLOOR
+            and axis_crossing_xi2(eta, A, N, ax) < 1e-2):
         # Within ~1e-5 (relative) of the axis edge. The series gives
         # D = c0^2 xi^2 + 2(A+1)(2Nk - y^2/4) xi^4 + ..., with 2Nk - y^2/4 < 0 for every c0 > 0,
-        # so the path meets D = 0 at xi ~ sqrt(c0): the status is certain, but where exactly is
-        # below double-precision resolution (the margin c0^2 is < 1e-10 of the terms of D), so
-        # xi_stop stays NaN rather than a number we cannot stand behind.
+        # so the path meets D = 0 at xi ~ sqrt(c0) (axis_crossing_xi2): the status is certain, but
+        # where exactly is below double-precision resolution (the margin c0^2 is < 1e-10 of the
+        # terms of D), so xi_stop stays NaN rather than a number we cannot stand behind. When
+        # A -> -1 that crossing can lie beyond the wall even for a tiny c0; such points are
+        # integrated (at the floor tolerance) instead.
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
         return st.EPS_TOO_LARGE_PATH
     xi1 = start_xi(ax)
@@ -225,9 +275,9 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     args1 = (eta, A, N, ax)
     # Next to the axis edge D/xi^2 ~ c0^2 is the small difference that decides where the path
     # meets D = 0; an error in w of rtol would swamp it, so stage 1 runs at rtol ~ c0^2/1000 there.
-    rtol1 = stage1_rtol(rtol, ax)
+    rtol1 = stage1_rtol(rtol, A, N, ax)
     stiff = use_stiff_path(eta, ax) if method == METHOD_AUTO else method == METHOD_STIFF
-    res[R_PATH] = 1.0 if stiff else 0.0
+    res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
     # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
     # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
     s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, args1, rtol1, atol1, T1, Q1, stats1)
@@ -272,15 +322,41 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
         return st.INTEGRATION_FAILED
     delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
     D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
-    if not D_wall > 0.0:
-        # Reached the wall exactly on D = 0: no admissible sigma_yx there.
+    # An error e in delta moves D by |dD/d delta| e = 4(A+1)|N - delta| e, and stage 1 resolves
+    # delta to ~rtol1 |delta|: a D(1) well below that is zero within what stage 1 resolves. Stage 2
+    # there marches B ~ 1/sqrt(D) on noise (20,000 steps, no answer, seen at D(1) ~ 0.1 of it), so
+    # such a point is reported as reaching D = 0 at the wall, like D(1) <= 0 itself. The fallback
+    # below catches what this cheap cut lets through; together they move the edge < 1e-5 relative.
+    D_resolution = WALL_D_RESOLUTION * rtol1 * 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
+    if not D_wall > D_resolution:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
         res[R_XI_STOP] = 1.0
         return st.EPS_TOO_LARGE_PATH
     res[R_MU_WALL] = delta_wall - N
     res[R_SIGMA_YX_WALL] = model.sigma_yx(1.0, D_wall, A)
 
-    # Stage 2: wall -> axis in t = ln(xi), state (log omega_hat, J); omega_hat(1) = 1, J(1) = 0 (eq:7).
+    code = _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, res)
+    if code == st.INTEGRATION_FAILED and D_wall < WALL_D_FALLBACK * D_resolution:
+        # Stage 2 failed on B ~ 1/sqrt(D) with D(1) a few decades above stage 1's step error but
+        # not above its interpolation error (tight rtol): D(1) is zero within the dense output's
+        # resolution, the same verdict as the cut above.
+        res[R_STATUS] = st.EPS_TOO_LARGE_PATH
+        res[R_XI_STOP] = 1.0
+        res[R_J_AXIS] = math.nan
+        return st.EPS_TOO_LARGE_PATH
+    return code
+
+
+@njit(nogil=True, cache=True)
+def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, res):
+    """Stage 2: wall -> axis in ``t = ln(xi)``, state ``(log omega_hat, J)``; ``omega_hat(1) = 1``,
+    ``J(1) = 0`` (eq:7). Stops once the rest of ``J`` is below ``TAIL_FRACTION * rtol * J``.
+
+    ``d log(omega_hat)/dt = xi B`` does not depend on the state, and ``J`` grows like
+    ``exp((beta + 1) t)``: with ``beta = 1e5`` the march takes steps of ~1/beta in t and stops
+    after a few tens of them (the tail event), so its cost does not grow with beta.
+    """
+    buf = np.empty(1)
     y2 = np.zeros(2)
     atol2 = np.empty(2)
     atol2[0] = rtol  # an absolute error in log(omega_hat) is a relative error in omega_hat
@@ -298,6 +374,9 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     rk45.dense_eval(T2, Q2, n2, t2, yb)
     res[R_T_TAIL] = t2
     res[R_J_AXIS] = yb[1]
+    if not (math.isfinite(yb[1]) and yb[1] > 0.0):
+        res[R_STATUS] = st.INTEGRATION_FAILED
+        return st.INTEGRATION_FAILED
     return st.OK
 
 
@@ -318,8 +397,6 @@ def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
     target = model.plug_target(J_axis, eps_K)
     if target <= 0.0:
         return 0.0
-    if A == -1.0:
-        return model.a_minus_one_one_minus_xi_p(eps_K, 2.0 * N / eta)
     n2 = int(res[R_N2])
     yb = np.empty(2)
     # Bracket on step ends: T2 (= ln xi) runs from 0 down, J from 0 up.
@@ -384,7 +461,7 @@ def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
         y0[0] = model.delta_axis_series(xi1, ax) / (xi1 * xi1)
         stiff = use_stiff_path(eta[i], ax) if method == METHOD_AUTO else method == METHOD_STIFF
         s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, (eta[i], A[i], N[i], ax),
-                                   stage1_rtol(rtol, ax), atol1,
+                                   stage1_rtol(rtol, A[i], N[i], ax), atol1,
                                    T1, Q1, stats[i])
         if s1 == rk45.SUCCESS:
             mu_wall[i] = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf) - N[i]
@@ -703,6 +780,7 @@ def _counters(ws: Workspace) -> dict:
         "stage1_rejected": int(s1[rk45.STAT_REJECTED]),
         "stage1_fev": int(s1[rk45.STAT_FEV]),
         "stage1_stiff": bool(s1[rk45.STAT_STIFF]),
+        "stage1_path": PATH_NAMES.get(float(ws.res[R_PATH]), "none"),
         "stage2_accepted": int(s2[rk45.STAT_ACCEPTED]),
         "stage2_rejected": int(s2[rk45.STAT_REJECTED]),
         "stage2_fev": int(s2[rk45.STAT_FEV]),
@@ -731,17 +809,9 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     """Profiles of one solved triple at ``xis``: rows ``P_J``, ``P_OMEGA_HAT``, ``P_DELTA``, ``P_SIGMA_YX``.
 
     ``u/u(0) = (eps K + J) / (eps K + J(0))`` for any K, so ``J`` is stored, not ``u``.
-    A = -1 takes Appendix A's closed form (no stage-1 output exists there).
+    A = -1 has no stage-1 output: there ``delta = 0`` and ``sigma_yx = -xi`` exactly (Appendix A),
+    while ``J`` and ``omega_hat`` come from the stage-2 march as for every other A.
     """
-    if A == -1.0:
-        c = 2.0 * N / eta
-        for i in range(xis.size):
-            xi = xis[i]
-            out[P_J, i] = model.a_minus_one_J(xi, c)
-            out[P_OMEGA_HAT, i] = math.exp(c * math.log(xi)) if xi > 0.0 else 0.0
-            out[P_DELTA, i] = 0.0  # m = -N L
-            out[P_SIGMA_YX, i] = -xi
-        return
     buf = np.empty(1)
     yb = np.empty(2)
     xi1 = res[R_XI1]
@@ -754,8 +824,6 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     logw_tail = yb[0]
     for i in range(xis.size):
         xi = xis[i]
-        delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
-        D = model.yield_D(xi, delta, A, N, ax)
         t = math.log(xi) if xi > 0.0 else -math.inf
         if t >= t_tail:
             rk45.dense_eval(T2, Q2, n2, t, yb)
@@ -766,8 +834,14 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
             J = J_axis
         out[P_J, i] = J
         out[P_OMEGA_HAT, i] = math.exp(logw)
-        out[P_DELTA, i] = delta
-        out[P_SIGMA_YX, i] = model.sigma_yx(xi, D, A)
+        if A == -1.0:
+            out[P_DELTA, i] = 0.0  # m = -N L
+            out[P_SIGMA_YX, i] = -xi
+        else:
+            delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
+            D = model.yield_D(xi, delta, A, N, ax)
+            out[P_DELTA, i] = delta
+            out[P_SIGMA_YX, i] = model.sigma_yx(xi, D, A)
 
 
 def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
@@ -775,7 +849,7 @@ def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
     eps_K = eps * K
     out = np.empty((N_PROF, xi.size))
     profile_kernel(xi, eta, A, N, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, out)
-    J_axis = ws.res[R_J_AXIS]  # the A = -1 branch of solve_eta sets it too
+    J_axis = ws.res[R_J_AXIS]
     return {
         "xi": xi.copy(),
         "u_over_u0": (eps_K + out[P_J]) / (eps_K + J_axis),

@@ -1,0 +1,81 @@
+"""The figure of the stability report (issue 4): work and error of one point against eps L."""
+
+from __future__ import annotations
+
+import math
+
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from . import new_figure, parameter_title, save_figure
+
+PATH_COLOURS = {"explicit": "C0", "stiff": "C3", "none": "C2"}
+PATH_LABELS = {"explicit": "explicit path (Dormand-Prince 5(4))", "stiff": "stiff path (RODAS4P2)",
+               "none": "no stage-1 integration (A = -1)"}
+SERIES_STYLES = ("-", "--", ":", "-.")
+ETA_LABEL = r"$\eta = \varepsilon L$"
+
+
+def stability_figure(report, path=None) -> Figure:
+    """Three log-log panels against ``eta = eps L``: steps, time per point, relative error.
+
+    One line per ``(A, N)`` series (rows of case ``sweep``); every point, including those next to
+    the regime boundaries, is a marker coloured by the path stage 1 took. The error panel shows
+    ``rtol`` as a horizontal line.
+
+    Parameters
+    ----------
+    report : cosserat_channel.stability.Report
+    path : str or path-like, optional
+        Where to save the figure.
+    """
+    from ..stability import K_REPORT, L_REPORT
+
+    rows = report.rows
+    fig = new_figure((13.0, 4.8))
+    ax_s, ax_t, ax_e = fig.subplots(1, 3, sharex=True)
+    series = sorted({(r["A"], r["N"]) for r in rows if r["case"] == "sweep"})
+    handles = []
+    for k, (A, N) in enumerate(series):
+        pts = sorted((r for r in rows if r["case"] == "sweep" and r["A"] == A and r["N"] == N),
+                     key=lambda r: r["eta"])
+        eta = [r["eta"] for r in pts]
+        ls = SERIES_STYLES[k % len(SERIES_STYLES)]
+        name = f"$A$ = {A:.3g}, $N$ = {N:.3g}"
+        ax_s.plot(eta, [r["s1_acc"] for r in pts], color="0.3", ls=ls, lw=1.2,
+                  label=f"stage 1 steps, {name}")
+        ax_s.plot(eta, [r["s2_acc"] for r in pts], color="0.65", ls=ls, lw=1.2,
+                  label=f"stage 2 steps, {name}")
+        ax_t.plot(eta, [r["us"] for r in pts], color="0.3", ls=ls, lw=1.2, label=name)
+        err = [max(r["err_Delta"], r["err_m_wall"]) for r in pts]
+        ax_e.plot(eta, [e if math.isfinite(e) and e > 0 else math.nan for e in err], color="0.3",
+                  ls=ls, lw=1.2, label=name)
+    for r in rows:
+        colour = PATH_COLOURS.get(r["path"], "k")
+        marker = "o" if r["case"] == "sweep" else "D"
+        ax_s.scatter([r["eta"]], [max(r["s1_acc"], 0.8)], color=colour, marker=marker, s=22, zorder=3)
+        ax_t.scatter([r["eta"]], [r["us"]], color=colour, marker=marker, s=22, zorder=3)
+        e = max(r["err_Delta"], r["err_m_wall"])
+        if math.isfinite(e) and e > 0:
+            ax_e.scatter([r["eta"]], [e], color=colour, marker=marker, s=22, zorder=3)
+    ax_e.axhline(report.rtol, color="k", lw=0.8, ls="--", label=f"rtol = {report.rtol:g}")
+    for p in sorted({r["path"] for r in rows}):
+        handles.append(Line2D([], [], color=PATH_COLOURS.get(p, "k"), marker="o", ls="",
+                              label=PATH_LABELS.get(p, p)))
+    handles.append(Line2D([], [], color="0.5", marker="D", ls="", label="next to a regime boundary"))
+    ax_s.set_ylabel("accepted steps per point")
+    ax_t.set_ylabel(r"time per point ($\mu$s, best of repeats)")
+    ax_e.set_ylabel(r"relative error of $\Delta$, $\bar m_w$ vs reference")
+    for ax in (ax_s, ax_t, ax_e):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(ETA_LABEL)
+        ax.grid(alpha=0.3, which="both")
+    ax_s.legend(loc="upper right", fontsize=7)
+    ax_t.legend(handles=handles + ax_t.get_legend_handles_labels()[0], loc="upper right", fontsize=7)
+    ax_e.legend(loc="upper left", fontsize=7)
+    fig.suptitle("Stability of one point across " + ETA_LABEL + ": "
+                 + parameter_title(L=L_REPORT, K=K_REPORT) + f", rtol = {report.rtol:g}")
+    if path is not None:
+        save_figure(fig, path)
+    return fig

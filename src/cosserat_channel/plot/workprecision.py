@@ -1,0 +1,130 @@
+"""Figures of the work-precision report (:mod:`cosserat_channel.workprecision`).
+
+Both take :class:`cosserat_channel.workprecision.report.Curve` objects (method, stages, points,
+rtol, time_us, median/max per quantity) and return a Figure; saving is :func:`save_figure`'s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from . import new_figure, save_figure  # noqa: F401  (save_figure re-exported for the report)
+
+TIME_LABEL = r"time per point [$\mu$s] (one core)"
+ERROR_LABEL = "median relative error against the reference"
+RTOL_LABEL = "requested rtol"
+ACHIEVED_LABEL = "achieved relative error against the reference"
+
+# (colour, marker, line style) per method; ours solid, scipy dashed, numbalsoda dash-dot.
+STYLES = {
+    "ours": ("C0", "o", "-"),
+    "scipy-RK45": ("C1", "s", "--"),
+    "scipy-DOP853": ("C2", "^", "--"),
+    "scipy-LSODA": ("C3", "v", "--"),
+    "scipy-Radau": ("C4", "D", "--"),
+    "numbalsoda-LSODA": ("C5", "P", "-."),
+    "numbalsoda-DOP853": ("C6", "X", "-."),
+}
+QUANTITY_STYLES = {"Delta": ("C0", "o"), "m_wall": ("C1", "s"), "slip": ("C2", "^")}
+QUANTITY_LABELS = {"Delta": r"$\Delta$", "m_wall": r"$m_w$", "slip": "slip"}
+
+
+def _finite(x, y):
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    return x[ok], y[ok]
+
+
+def _unanswered(c) -> str:
+    k = max(c.failed, default=0)
+    return f" ({k} of {c.n_attempted} unanswered at some rtol)" if k else ""
+
+
+def _style_axes(ax, title):
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(TIME_LABEL)
+    ax.set_ylabel(ERROR_LABEL)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.grid(True, which="minor", alpha=0.1)
+    ax.legend(loc="best", fontsize="x-small")
+    ax.set_title(title, fontsize="medium")
+
+
+def work_precision_figure(ours_both, stage1_curves, comparisons=(), *, title: str = "") -> Figure:
+    """Median relative error against time per point, log-log, one curve per method.
+
+    Left panel: ``ours_both`` with the worst of its quantities' medians (thick black) and each
+    stage-1 curve with its ``m_wall`` median, every method on its own points (a peer's points it
+    gave up on count with the time spent up to its work cap). Right panel (when ``comparisons``
+    are given): each stage-1 peer on the points it solved at every rtol, dashed, next to ours
+    re-timed on exactly those points, solid in the same colour.
+    """
+    pairs = [c for c in comparisons if c.ours.stages == "stage1"]
+    fig = new_figure((16.0, 7.5) if pairs else (10.0, 7.0))
+    axes = fig.subplots(1, 2 if pairs else 1, squeeze=False)[0]
+    ax = axes[0]
+    x, y = _finite(ours_both.time_us, ours_both.worst_median())
+    ax.plot(x, y, color="k", marker="o", lw=2.2, ls="-",
+            label="ours, both stages (worst of $\\Delta$, $m_w$, slip)" + _unanswered(ours_both))
+    for c in stage1_curves:
+        colour, marker, ls = STYLES.get(c.method, ("0.5", ".", ":"))
+        label = f"{c.method}, stage 1 ($m_w$)"
+        if c.method == "ours" and c.points == "subsample":
+            label = f"ours, stage 1 ($m_w$), on the scipy subsample ({c.n_attempted} points)"
+            ls = ":"
+        elif c.method.startswith("scipy"):
+            label += f", Python loop, {c.n_attempted} points"
+        label += _unanswered(c)
+        x, y = _finite(c.time_us, c.median["m_wall"])
+        ax.plot(x, y, color=colour, marker=marker, ls=ls, lw=1.5, ms=5,
+                mfc="none" if c.points == "subsample" and c.method == "ours" else colour,
+                label=label)
+    _style_axes(ax, "each method on its own points (unanswered points: time up to the work cap)")
+    if pairs:
+        ax2 = axes[1]
+        for c in pairs:
+            colour, marker, _ = STYLES.get(c.peer.method, ("0.5", ".", ":"))
+            x, y = _finite(c.peer_solved.time_us, c.peer_solved.median["m_wall"])
+            ax2.plot(x, y, color=colour, marker=marker, ls="--", lw=1.5, ms=5,
+                     label=f"{c.peer.method} ({c.peer_solved.n_attempted} points it solved)")
+            x, y = _finite(c.ours_solved.time_us, c.ours_solved.median["m_wall"])
+            ax2.plot(x, y, color=colour, marker=marker, ls="-", lw=1.5, ms=5, mfc="none",
+                     label=f"ours on the same {c.ours_solved.n_attempted} points")
+        _style_axes(ax2, "stage 1 ($m_w$): each peer on the points it solved at every rtol, "
+                    "ours on the same points")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def tolerance_figure(ours_both, *, factor: float = 100.0, title: str = "") -> Figure:
+    """Achieved median (filled) and max (hollow) relative error against the requested rtol, with
+    the ideal ``y = x`` line and the band ``rtol / factor .. rtol * factor``."""
+    fig = new_figure((8.0, 7.0))
+    ax = fig.subplots()
+    rtol = np.asarray(ours_both.rtol, float)
+    lo, hi = rtol.min() / 3.0, rtol.max() * 3.0
+    xs = np.array([lo, hi])
+    ax.fill_between(xs, xs / factor, xs * factor, color="0.85", alpha=0.6,
+                    label=f"within a factor {factor:g} of rtol")
+    ax.plot(xs, xs, color="k", ls="--", lw=1.2, label="ideal: error = rtol")
+    for q in ours_both.median:
+        colour, marker = QUANTITY_STYLES.get(q, ("0.5", "."))
+        x, y = _finite(rtol, ours_both.median[q])
+        ax.plot(x, y, color=colour, marker=marker, ls="-", label=f"{QUANTITY_LABELS.get(q, q)}, median")
+        x, y = _finite(rtol, ours_both.max[q])
+        ax.plot(x, y, color=colour, marker=marker, ls=":", mfc="none",
+                label=f"{QUANTITY_LABELS.get(q, q)}, max")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlim(lo, hi)
+    ax.set_xlabel(RTOL_LABEL)
+    ax.set_ylabel(ACHIEVED_LABEL)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    if title:
+        ax.set_title(title)
+    return fig

@@ -1,0 +1,315 @@
+"""Figures of where the model has a solution: the phase plane (figure 12), regime maps over a
+2-D slice of a sweep, and the traced edge ``eta_max(A, N)``.
+
+The data come from :mod:`cosserat_channel.regimes` and from sweep Datasets; every figure has axis
+labels in the paper's symbols, a title naming the fixed parameters, and one legend entry per
+status, region or boundary drawn (contour lines get proxy handles so that they appear there).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.colors import BoundaryNorm, ListedColormap
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from .. import regimes
+from .. import status as st
+from . import new_figure, parameter_title, save_figure
+
+DIMS = ("eps", "L", "K", "A", "N")
+# Axis labels: symbol and unit ("-" for dimensionless).
+DIM_LABELS = {
+    "eps": r"$\varepsilon = d_p/W$ (-)",
+    "W_over_d_p": r"$W/d_p$ (-)",
+    "L": r"$L$ (particle diameters)",
+    "K": r"$K$ (-)",
+    "A": r"$A = a_2/a_1$ (-)",
+    "N": r"$N = \sin\phi/\tan\delta$ (-)",
+    "xi": r"$\xi = x/W$ (-)",
+}
+# One fixed colour per status, the same on every map.
+STATUS_COLORS = {
+    st.Status.ok: "#4daf4a",
+    st.Status.wall_inadmissible: "#999999",
+    st.Status.eps_too_large_axis: "#ff7f00",
+    st.Status.eps_too_large_path: "#e41a1c",
+    st.Status.axis_spin_unbounded: "#984ea3",
+    st.Status.integration_failed: "#000000",
+}
+BOUNDARY_STYLES = {
+    "wall": dict(color="k", ls="-", lw=2.0),
+    "axis": dict(color="#0033cc", ls="--", lw=2.0),
+    "A=-1": dict(color="#8b4513", ls=":", lw=2.5),
+    "traced": dict(color="#00bfff", ls="-.", lw=2.0),
+    "traced_min": dict(color="#00bfff", ls=(0, (1, 1)), lw=2.0),
+}
+BOUNDARY_LABELS = {
+    "wall": r"$A = 1 - 2N^2$ (wall inadmissible below)",
+    "axis": r"$(A-1)\,\varepsilon L + 2(A+1)N = 0$ (axis condition)",
+    "A=-1": r"$A = -1$",
+    "traced": r"traced edge $\varepsilon L = \eta_{\max}(A, N)$",
+    "traced_min": r"traced lower edge $\varepsilon L = \eta_{\min}(A, N)$",
+}
+REGION_COLORS = {
+    regimes.REGION_D_NEGATIVE: "#d9d9d9",
+    regimes.REGION_EP_POS_EM_NEG: "#fff2b3",
+    regimes.REGION_EM_POS: "#c6e2ff",
+    regimes.REGION_EP_NEG: "#f4c2c2",
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# Phase plane (figure 12)
+# ---------------------------------------------------------------------------------------------
+def phase_plane_figure(pp: "regimes.PhasePlane", nu=None, path=None):
+    """Figure 12 for any ``(eps, L, A, N)``: sign regions, ``D = 0``, nullcline, trajectories.
+
+    Parameters
+    ----------
+    pp : regimes.PhasePlane
+        From :func:`cosserat_channel.regimes.phase_plane`.
+    nu : float, optional
+        Solids fraction: plot the paper's ``m_bar = nu m`` (figure 12 uses nu = 0.603) instead
+        of ``m_bar / nu``.
+    path : path-like, optional
+        Where to save the figure.
+    """
+    scale = 1.0 if nu is None else float(nu)
+    fig = new_figure()
+    ax = fig.subplots()
+    codes = sorted(REGION_COLORS)
+    cmap = ListedColormap([REGION_COLORS[c] for c in codes])
+    norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, cmap.N)
+    ax.pcolormesh(pp.xi, scale * pp.m, pp.region, cmap=cmap, norm=norm, shading="nearest",
+                  rasterized=True)
+    handles = [Patch(facecolor=REGION_COLORS[c], edgecolor="0.5", label=regimes.REGION_LABELS[c])
+               for c in codes if np.any(pp.region == c)]
+    for sgn, lab in ((1, r"$D = 0$"), (-1, None)):
+        (ln,) = ax.plot(pp.xi, sgn * scale * pp.D_zero, color="k", lw=2.0, label=lab)
+    handles.append(ln)
+    ln.set_label(r"$D = 0$")
+    null_name = r"$E_{-} = 0$" if pp.A > -1.0 else r"$E_{+} = 0$"
+    for sgn in (1, -1):
+        (nl,) = ax.plot(pp.xi, sgn * scale * pp.nullcline, color="0.3", lw=1.2, ls="--")
+    nl.set_label(null_name + r" ($\xi^2 + \bar m^2/(\nu L)^2 = N^2$)")
+    handles.append(nl)
+    styles = {("+", -1): dict(color="C3", ls="-."), ("-", -1): dict(color="C0", ls=":"),
+              ("+", 1): dict(color="C1", ls="-."), ("-", 1): dict(color="C2", ls=":")}
+    for tr in pp.trajectories:
+        style = styles[(tr.root, -1 if tr.start < 0 else 1)]
+        if tr.xi.size > 1:
+            (h,) = ax.plot(tr.xi, scale * tr.m, lw=2.5, label=tr.label, **style)
+            if tr.end == "D=0":
+                ax.plot(tr.xi[-1], scale * tr.m[-1], "x", color=style["color"], ms=9, mew=2)
+        else:
+            (h,) = ax.plot(tr.xi, scale * tr.m, "o", mfc="none", ms=9, mew=2,
+                           color=style["color"], label=tr.label)
+        handles.append(h)
+    ax.set_xlim(0.0, 1.0)
+    ax.set_ylim(scale * pp.m[0], scale * pp.m[-1])
+    ax.set_xlabel(DIM_LABELS["xi"])
+    ax.set_ylabel(r"$\bar m$ ($\rho_p g W d_p$)" if nu is not None
+                  else r"$\bar m/\nu$ ($\rho_p g W d_p$)")
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    title = "Phase plane of (A1), (A2): " + parameter_title(pp.eps, pp.L, None, pp.A, pp.N)
+    if nu is not None:
+        title += rf", $\nu$ = {nu:.4g}"
+    ax.set_title(title)
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
+# Slices of a sweep
+# ---------------------------------------------------------------------------------------------
+def select_slice(ds, keep, at=None):
+    """``ds`` reduced to the dimensions ``keep``: size-1 dims squeezed, others picked by ``at``.
+
+    ``at`` maps a dimension to a value (nearest coordinate). Returns ``(slice, fixed)`` with
+    ``fixed`` the values of every dimension not kept. Raises ValueError naming the dimensions
+    that still vary.
+    """
+    at = dict(at or {})
+    for k in at:
+        if k not in ds.dims:
+            raise ValueError(f"--at {k}: not a dimension of the result (have {', '.join(ds.dims)})")
+        if k in keep:
+            raise ValueError(f"--at {k}: {k} is plotted, it cannot also be fixed")
+    sub = ds.sel({k: v for k, v in at.items()}, method="nearest") if at else ds
+    loose = [d for d in DIMS if d in sub.dims and d not in keep and sub.sizes[d] > 1]
+    if loose:
+        raise ValueError(
+            f"dimension(s) {', '.join(loose)} vary in the result: fix them with --at "
+            + ",".join(f"{d}=VALUE" for d in loose)
+        )
+    fixed = {d: float(sub[d].values.reshape(-1)[0]) for d in DIMS
+             if d in sub.coords and d not in keep}
+    sub = sub.squeeze([d for d in DIMS if d in sub.dims and d not in keep], drop=False)
+    return sub, fixed
+
+
+def _edges(v):
+    v = np.asarray(v, dtype=float)
+    if v.size == 1:
+        return np.array([v[0] - 0.5, v[0] + 0.5])
+    mid = 0.5 * (v[1:] + v[:-1])
+    return np.r_[v[0] - (mid[0] - v[0]), mid, v[-1] + (v[-1] - mid[-1])]
+
+
+def _boundary_fields(x, y, X, Y, fixed, traced):
+    """Implicit functions of the boundaries on the grid ``(X, Y)`` (zero on each line)."""
+    p = {d: fixed.get(d) for d in DIMS}
+    p[x], p[y] = X, Y
+    if any(p[d] is None for d in ("eps", "L", "A", "N")):
+        return {}
+    eps, L, A, N = (np.broadcast_to(np.asarray(p[d], float), X.shape) for d in ("eps", "L", "A", "N"))
+    eta = eps * L
+    out = {
+        "wall": A - (1.0 - 2.0 * N**2),
+        "axis": np.where(A > -1.0, (A - 1.0) * eta + 2.0 * (A + 1.0) * N, np.nan),
+        "A=-1": A + 1.0,
+    }
+    if traced is not None:
+        out["traced"] = traced["eta_max"] - eta
+        out["traced_min"] = traced["eta_min"] - eta
+    return out
+
+
+def _traced_on_grid(x, y, xv, yv, fixed, boundary, n_trace):
+    """``eta_max`` and ``eta_min`` (where bounded) on the plot grid, from ``boundary`` or traced."""
+    an = [d for d in (x, y) if d in ("A", "N")]
+    if not an:
+        return None
+    if boundary is None:
+        vals = {}
+        for d, v in ((x, xv), (y, yv)):
+            if d in ("A", "N"):
+                v = np.asarray(v, float)
+                vals[d] = np.linspace(v.min(), v.max(), min(v.size, n_trace))
+        A = vals["A"] if "A" in vals else np.array([fixed["A"]])
+        N = vals["N"] if "N" in vals else np.array([fixed["N"]])
+        boundary = regimes.trace_boundary(A, N)
+    kind = boundary["edge_kind"]
+    eta_max = boundary["eta_max"].where(kind == regimes.EDGE_BOUNDED)
+    first_ok = boundary["eta_min"] > boundary.attrs.get("eta_search_min", regimes.ETA_SEARCH_MIN)
+    eta_min = boundary["eta_min"].where((kind != regimes.EDGE_NONE) & first_ok)
+    X, Y = np.meshgrid(xv, yv)
+    out = {}
+    for name, field in (("eta_max", eta_max), ("eta_min", eta_min)):
+        sel = {}
+        for d, G in ((x, X), (y, Y)):
+            if d in ("A", "N"):
+                sel[d] = G
+        for d in ("A", "N"):
+            if d not in sel:
+                sel[d] = np.full(X.shape, fixed[d])
+        f = field
+        for d in ("A", "N"):
+            if f.sizes[d] == 1:
+                f = f.isel({d: 0}, drop=True)
+        coords = {d: (("r", "c"), sel[d]) for d in ("A", "N") if d in f.dims}
+        import xarray as xr
+
+        vals = f.interp({d: xr.DataArray(sel[d], dims=("r", "c")) for d in coords})
+        out[name] = np.asarray(vals.values, float)
+    return out
+
+
+def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=12, path=None):
+    """Status over a 2-D slice of a sweep, one colour and legend entry per status present.
+
+    Overlays, where the other parameters are fixed: ``A = 1 - 2N^2``, the axis condition
+    ``(A-1) eps L + 2(A+1) N = 0`` (for ``A > -1``), ``A = -1`` and the traced edge
+    ``eps L = eta_max(A, N)`` (and the lower edge ``eta_min`` where one exists), each in the legend
+    when it crosses the plotted range.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A sweep result (dims eps, L, K, A, N) with ``status``.
+    x, y : str
+        The two dimensions to map.
+    at : dict, optional
+        Values (nearest) of the other dimensions that have more than one value.
+    boundary : xarray.Dataset, optional
+        From :func:`regimes.trace_boundary`; default: traced here on at most ``n_trace`` values of
+        A and N over the plotted range (only when ``trace`` is true and A or N is plotted).
+    """
+    if x == y or x not in DIMS or y not in DIMS:
+        raise ValueError(f"--x and --y must be two different dimensions of {DIMS}; got {x!r}, {y!r}")
+    if "status" not in ds:
+        raise ValueError("the result has no 'status' variable")
+    sub, fixed = select_slice(ds, (x, y), at)
+    status = sub["status"].transpose(y, x).values.astype(int)
+    xv, yv = sub[x].values.astype(float), sub[y].values.astype(float)
+    fig = new_figure()
+    ax = fig.subplots()
+    codes = [s.value for s in st.Status]
+    cmap = ListedColormap([STATUS_COLORS[st.Status(c)] for c in codes])
+    norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, cmap.N)
+    ax.pcolormesh(_edges(xv), _edges(yv), status, cmap=cmap, norm=norm, shading="flat",
+                  rasterized=True)
+    handles = [Patch(facecolor=STATUS_COLORS[st.Status(c)], edgecolor="0.3",
+                     label=st.Status(c).name) for c in codes if np.any(status == c)]
+
+    xf = np.linspace(xv.min(), xv.max(), 400) if xv.size > 1 else xv
+    yf = np.linspace(yv.min(), yv.max(), 400) if yv.size > 1 else yv
+    if xv.size > 1 and yv.size > 1:
+        traced = None
+        if trace or boundary is not None:
+            traced = _traced_on_grid(x, y, xf, yf, fixed, boundary, n_trace)
+        X, Y = np.meshgrid(xf, yf)
+        for name, F in _boundary_fields(x, y, X, Y, fixed, traced).items():
+            F = np.asarray(F, float)
+            if not (np.nanmin(F, initial=np.inf) < 0.0 < np.nanmax(F, initial=-np.inf)):
+                continue
+            cs = ax.contour(X, Y, F, levels=[0.0], colors=[BOUNDARY_STYLES[name]["color"]],
+                            linestyles=[BOUNDARY_STYLES[name]["ls"]],
+                            linewidths=[BOUNDARY_STYLES[name]["lw"]])
+            if not any(len(seg) for seg in cs.allsegs[0]):
+                continue
+            handles.append(Line2D([], [], label=BOUNDARY_LABELS[name], **BOUNDARY_STYLES[name]))
+    ax.set_xlim(_edges(xv)[[0, -1]])
+    ax.set_ylim(_edges(yv)[[0, -1]])
+    ax.set_xlabel(DIM_LABELS[x])
+    ax.set_ylabel(DIM_LABELS[y])
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+              title="status / boundary")
+    ax.set_title("Solution status: " + parameter_title(**fixed))
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def boundary_figure(bds, path=None):
+    """``eta_max(A)`` with one line per ``N`` (log scale), the axis edge of each ``N`` dashed."""
+    fig = new_figure()
+    ax = fig.subplots()
+    A = bds["A"].values
+    top = bds.attrs.get("eta_search_max", regimes.ETA_SEARCH_MAX)
+    flagged = False
+    for j, n in enumerate(bds["N"].values):
+        color = f"C{j % 10}"
+        kind = bds["edge_kind"].values[:, j]
+        em = bds["eta_max"].values[:, j]
+        bounded = np.where(kind == regimes.EDGE_BOUNDED, em, np.nan)
+        ax.plot(A, bounded, "-o", ms=3, color=color, label=rf"$\eta_{{\max}}$, $N$ = {n:.4g}")
+        ax.plot(A, bds["axis_edge_eta"].values[:, j], "--", lw=1, color=color)
+        unb = kind == regimes.EDGE_UNBOUNDED
+        if unb.any():
+            ax.plot(A[unb], np.full(unb.sum(), top), "^", mfc="none", color=color,
+                    label=None if flagged else rf"ok up to $\eta$ = {top:g} (no edge found)")
+            flagged = True
+    ax.plot([], [], "--", color="0.4", lw=1, label=r"axis condition $\eta = 2(A+1)N/(1-A)$")
+    ax.set_yscale("log")
+    ax.set_xlabel(DIM_LABELS["A"])
+    ax.set_ylabel(r"$\eta_{\max} = (\varepsilon L)_{\max}$ (-)")
+    ax.set_title(r"Edge of solvability: largest $\eta = \varepsilon L$ with a solution "
+                 rf"(searched in [{bds.attrs.get('eta_search_min', 0):g}, {top:g}])")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize="small", loc="best")
+    if path is not None:
+        save_figure(fig, path)
+    return fig

@@ -1,0 +1,185 @@
+"""Solvability: phase-plane data, the traced edge eta_max(A, N), and the analytic regime lines."""
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_channel import model, regimes
+from cosserat_channel import status as st
+from cosserat_channel.solve import ParameterError, solve_point
+from cosserat_channel.sweep import run_sweep
+
+# (A, N) with a bounded edge, one per region of interest.
+BOUNDED = [
+    (1 / 3, 1.0),  # the paper's A with a fully rough wall (Appendix A: eps = 0.33 at L = 10)
+    (-0.5, 1.0),  # A between -1 and 0
+    (0.9, 2.0),  # close to A = 1, smoother wall
+]
+
+
+@pytest.fixture(scope="module")
+def edges():
+    """Traced edges of the BOUNDED cases."""
+    return {an: regimes.trace_edge(*an) for an in BOUNDED}
+
+
+@pytest.mark.parametrize("A,N", BOUNDED)
+def test_traced_edge_agrees_with_direct_solves(edges, A, N):
+    """solve_point is ok at eta_max (1 - 1e-6) and not ok at eta_max (1 + 1e-6)."""
+    e = edges[(A, N)]
+    assert e.kind == regimes.EDGE_BOUNDED and e.monotone
+    L = max(10.0, 2.0 * e.eta_max)  # keeps eps <= 1/2
+    inside = solve_point(e.eta_max * (1 - 1e-6) / L, L, 0.5, A, N, rtol=1e-10, atol=1e-14)
+    outside = solve_point(e.eta_max * (1 + 1e-6) / L, L, 0.5, A, N, rtol=1e-10, atol=1e-14)
+    assert inside.ok
+    assert not outside.ok
+    # At the solver's default tolerance the edge holds to ~1e-5 (see regimes.EDGE_RTOL).
+    assert solve_point(e.eta_max * (1 - 1e-5) / L, L, 0.5, A, N).ok
+    assert not solve_point(e.eta_max * (1 + 1e-5) / L, L, 0.5, A, N).ok
+
+
+def test_paper_appendix_a_edge(edges):
+    """A = 1/3, N = 1: eta_max in (3.30, 3.35) (eps 0.33 feasible, 0.335 not at L = 10)."""
+    e = edges[(1 / 3, 1.0)]
+    assert 3.30 < e.eta_max < 3.35
+    assert e.status_above == st.EPS_TOO_LARGE_PATH
+
+
+def test_edge_below_axis_condition(edges):
+    """For A < 1 the path fails before the axis edge 2(A+1)N/(1-A)."""
+    for (A, N), e in edges.items():
+        assert e.eta_max < float(regimes.axis_edge_eta(A, N))
+
+
+def test_bisection_bracket_width():
+    """The bracket is 1e-10 relative: a second trace with another coarse grid agrees to ~1e-9."""
+    a = regimes.trace_edge(0.0, 1.0)
+    b = regimes.trace_edge(0.0, 1.0, n_coarse=17)
+    assert abs(a.eta_max - b.eta_max) <= 1e-9 * a.eta_max
+
+
+@pytest.mark.parametrize("A,N,kind", [
+    (-2.0, 1.0, regimes.EDGE_NONE),  # A < 1 - 2N^2: wall inadmissible
+    (-1.5, 2.0, regimes.EDGE_NONE),  # 1 - 2N^2 <= A < -1: axis spin unbounded
+    (-1.0, 1.0, regimes.EDGE_UNBOUNDED),  # A = -1: closed form for every eta
+    (1.0, 1.0, regimes.EDGE_UNBOUNDED),  # A = 1: ok up to eta = 100
+])
+def test_edge_kinds(A, N, kind):
+    """Regimes without an edge inside (0, 100] are flagged, with eta_max = 100 when unbounded."""
+    e = regimes.trace_edge(A, N)
+    assert e.kind == kind
+    if kind == regimes.EDGE_UNBOUNDED:
+        assert e.eta_max == regimes.ETA_SEARCH_MAX
+        assert solve_point(1.0, 100.0, 0.5, A, N).ok
+    else:
+        assert math.isnan(e.eta_max)
+
+
+def test_non_monotone_feasibility_found():
+    """A = 3, N = 0.5: small eta fails, large eta is ok; the trace reports the lower edge."""
+    e = regimes.trace_edge(3.0, 0.5)
+    assert e.kind == regimes.EDGE_UNBOUNDED
+    assert 0.01 < e.eta_min < 1.0
+    assert not solve_point(e.eta_min * (1 - 1e-5) / 10, 10, 0.5, 3.0, 0.5).ok
+    assert solve_point(e.eta_min * (1 + 1e-5) / 10, 10, 0.5, 3.0, 0.5).ok
+
+
+def test_monotone_assumption_on_fine_grid():
+    """For A = 1/3, N = 1 a 200-point scan sees exactly the one change that trace_edge reports."""
+    e = regimes.trace_edge(1 / 3, 1.0)
+    etas = np.geomspace(1e-3, 3.9, 200)
+    ok = np.array([solve_point(x / 10, 10, 0.5, 1 / 3, 1.0).ok for x in etas])
+    changes = np.flatnonzero(ok[1:] != ok[:-1])
+    assert changes.size == 1
+    assert etas[changes[0]] <= e.eta_max <= etas[changes[0] + 1]
+
+
+def test_trace_boundary_dataset():
+    """trace_boundary returns eta_max on (A, N) with flag attributes and the axis edge."""
+    ds = regimes.trace_boundary([-2.0, 0.0, 1 / 3, 2.0], [1.0])
+    assert ds["eta_max"].dims == ("A", "N")
+    kinds = ds["edge_kind"].values[:, 0]
+    assert list(kinds) == [regimes.EDGE_NONE, regimes.EDGE_BOUNDED, regimes.EDGE_BOUNDED,
+                           regimes.EDGE_UNBOUNDED]
+    assert ds["edge_kind"].attrs["flag_meanings"].split() == list(regimes.EDGE_KINDS)
+    assert ds["axis_edge_eta"].sel(A=0.0, N=1.0) == pytest.approx(2.0)
+
+
+def test_trace_rejects_bad_input():
+    """Bad A, N or range raise ParameterError."""
+    with pytest.raises(ParameterError):
+        regimes.trace_edge(0.0, -1.0)
+    with pytest.raises(ParameterError):
+        regimes.trace_edge(0.0, 1.0, eta_range=(1.0, 0.5))
+
+
+@pytest.fixture(scope="module")
+def fine_sweep():
+    """A fine (A, N) sweep at eps = 1/30, L = 10 (eta = 1/3)."""
+    return run_sweep({"grid": {"eps": 1 / 30, "L": 10, "K": 0.5,
+                               "A": {"linspace": [-3, 3, 121]},
+                               "N": {"linspace": [0.3, 3, 55]}}}, workers=2)
+
+
+def test_analytic_lines_match_status_changes(fine_sweep):
+    """wall_inadmissible exactly below A = 1 - 2N^2, axis_spin_unbounded exactly in
+    [1 - 2N^2, -1), eps_too_large_axis exactly where (A-1) eta + 2(A+1)N <= 0 (A > -1)."""
+    s = fine_sweep["status"].squeeze().transpose("A", "N").values
+    A = fine_sweep["A"].values[:, None]
+    N = fine_sweep["N"].values[None, :]
+    eta = 1 / 30 * 10
+    wall = A < 1 - 2 * N**2
+    spin = ~wall & (A < -1)
+    axis = ~wall & (A > -1) & ((A - 1) * eta + 2 * (A + 1) * N <= 0)
+    np.testing.assert_array_equal(s == st.WALL_INADMISSIBLE, wall)
+    np.testing.assert_array_equal(s == st.AXIS_SPIN_UNBOUNDED, spin)
+    np.testing.assert_array_equal(s == st.EPS_TOO_LARGE_AXIS, axis)
+    assert wall.any() and spin.any() and axis.any()
+
+
+def test_traced_edge_matches_path_statuses(fine_sweep):
+    """Where A is in (-1, 1) and the axis condition holds, ok exactly where eta < eta_max(A, N)."""
+    # A from -0.95 to 0.9 in steps of 0.3, N = 0.8, 1.0, 2.0.
+    sub = fine_sweep.isel(A=slice(41, 80, 6), N=[10, 14, 34])
+    bds = regimes.trace_boundary(sub["A"].values, sub["N"].values)
+    eta = 1 / 30 * 10
+    s = sub["status"].squeeze().transpose("A", "N").values
+    em = bds["eta_max"].values
+    candidate = (bds["edge_kind"].values == regimes.EDGE_BOUNDED) & (s != st.EPS_TOO_LARGE_AXIS)
+    assert candidate.sum() >= 5
+    np.testing.assert_array_equal((s == st.OK)[candidate], (eta < em)[candidate])
+
+
+def test_phase_plane_figure12():
+    """Figure 12: E+ from -NL meets D = 0 before the wall, E- from -NL reaches the wall with the
+    solver's m(1), E+ cannot leave +NL; D = 0 and nullcline curves are the analytic ones."""
+    pp = regimes.phase_plane(1 / 30, 10, 1 / 3, 1)
+    tr = {(t.root, t.start < 0): t for t in pp.trajectories}
+    assert tr[("+", True)].end == "D=0" and 0.2 < tr[("+", True)].xi[-1] < 0.9
+    assert tr[("+", False)].end == "no_start"
+    em = tr[("-", True)]
+    assert em.end == "wall"
+    r = solve_point(1 / 30, 10, 0.5, 1 / 3, 1)
+    assert em.m[-1] == pytest.approx(r.m_wall, rel=1e-5)
+    # D = 0 on the curve, sqrt(D) = (A+1) xi on the nullcline.
+    xi = pp.xi[::20]
+    assert np.allclose(regimes.yield_D(xi, regimes.d_zero_curve(xi, 10, 1 / 3, 1), 10, 1 / 3, 1),
+                       0, atol=1e-9)
+    nc = regimes.nullcline_curve(xi, 10, 1)
+    ok = np.isfinite(nc)
+    D = regimes.yield_D(xi[ok], nc[ok], 10, 1 / 3, 1)
+    assert np.allclose(np.sqrt(D), (4 / 3) * xi[ok], atol=1e-9)
+    # Sign regions: E+ >= 0 wherever D >= 0 (A > -1), as Appendix A argues.
+    assert np.all(pp.E_plus[pp.D >= 0] >= -1e-12)
+    assert set(np.unique(pp.region)) <= {regimes.REGION_D_NEGATIVE, regimes.REGION_EP_POS_EM_NEG,
+                                         regimes.REGION_EM_POS}
+
+
+def test_series_root_is_models_axis_root():
+    """For E- from -NL the series coefficient is eq:20's smaller root (model.axis_constants)."""
+    eps, L, A, N = 1 / 30, 10.0, 1 / 3, 1.0
+    x = regimes._series_coefficient(eps, L, A, N, "-", -1.0)
+    ax = np.empty(model.N_AX)
+    model.axis_constants(eps * L, A, N, ax)
+    assert x / L == pytest.approx(ax[model.AX_Y], rel=1e-12)

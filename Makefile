@@ -15,6 +15,8 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	mkdir -p demo
 	$(VENV)/bin/cosserat-channel run sweeps/quickstart.toml
+	$(VENV)/bin/cosserat-channel info demo/quickstart.nc
+	$(VENV)/bin/cosserat-channel plot demo/quickstart.nc --x eps --y Delta --hue L --at K=0.5,A=0.3333333333333333,N=1 -o demo/delta_vs_eps.png
 	$(VENV)/bin/cosserat-channel point --eps 0.0333333333333 --L 10 --K 0.5 --A 0.3333333333333 --N 1 --plot demo/point_fig2.png
 	@echo "demo outputs are in demo/"
 

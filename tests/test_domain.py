@@ -247,7 +247,9 @@ def test_just_above_A_minus_one(a1, eta, want):
         tol = _rel_tol(ref, A, eta / L, 0.5)
         for name in OUTPUTS:
             assert getattr(r, name) == pytest.approx(ref[name], rel=tol[name]), name
-        assert r.counters["stage1_accepted"] < 1000
+        # Stage 1 runs twice here: D(1) ~ 1e-9 makes solve_eta re-march at the condition-scaled
+        # tolerance (~2100-3600 steps in all); bounded, and what buys the accuracy above.
+        assert r.counters["stage1_accepted"] < 5000
     if want == "eps_too_large_path":
         # The whole path runs at a relative margin ~1e-7 above D = 0 here: xi_stop to ~1e-3.
         assert r.xi_stop == pytest.approx(ref["xi_stop"], rel=1e-2)

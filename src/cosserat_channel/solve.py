@@ -216,6 +216,53 @@ def start_xi(ax):
 
 
 @njit(nogil=True, cache=True)
+def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
+    """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
+
+    Where the path meets D = 0, sqrt(D) ~ sqrt(xi_stop - xi): the RHS has a kink that the last
+    (wide, error-controlled) step glides over, so the dense output locates xi_stop only to ~1e-4.
+    That last step is marched again with steps 1/16 as wide, until the location settles.
+    """
+    y0 = np.empty(1)
+    y0[0] = w1
+    stats_r = np.zeros_like(stats1)
+    # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
+    # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
+    s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, args1, rtol1, atol1, T1, Q1, stats_r)
+    for i in range(rk45.STAT_STIFF):
+        stats1[i] += stats_r[i]
+    stats1[rk45.STAT_STIFF] = max(stats1[rk45.STAT_STIFF], stats_r[rk45.STAT_STIFF])
+    for _ in range(EVENT_REFINEMENTS):
+        if s1 != rk45.EVENT:
+            break
+        k = n1 - 1
+        span = t1 - T1[k]
+        if not span > 0.0:
+            break
+        y0[0] = Q1[k, 0, 0]
+        stop = min(Q1.shape[0], k + REFINE_MAX_STEPS)
+        s_new, nb, t_new = _march_stage1(stiff, T1[k], y0, span / 16.0, span / 16.0, args1, rtol1,
+                                         atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
+        for i in range(rk45.STAT_STIFF):
+            stats1[i] += stats_r[i]
+        n1 = k + nb
+        if s_new == rk45.SUCCESS:
+            # With finer steps the path reaches the wall: the crossing was the interpolant's.
+            s1 = s_new
+            t1 = t_new
+            break
+        if s_new != rk45.EVENT:
+            # Budget spent crawling into the sqrt kink (D ~ 0 over a long stretch, next to the
+            # axis edge): keep the previous location, good to the last pass's step width.
+            break
+        settled = abs(t_new - t1) <= rtol1 * t1
+        t1 = t_new
+        if settled:
+            break
+    return s1, n1, t1
+
+
+@njit(nogil=True, cache=True)
 def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method=METHOD_AUTO):
     """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``.
 
@@ -278,40 +325,20 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     rtol1 = stage1_rtol(rtol, A, N, ax)
     stiff = use_stiff_path(eta, ax) if method == METHOD_AUTO else method == METHOD_STIFF
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
-    # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
-    # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
-    s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, args1, rtol1, atol1, T1, Q1, stats1)
-    # Where the path meets D = 0, sqrt(D) ~ sqrt(xi_stop - xi): the RHS has a kink that the last
-    # (wide, error-controlled) step glides over, so the dense output locates xi_stop only to ~1e-4.
-    # March that last step again with steps 1/16 as wide, until the location settles.
-    stats_r = np.zeros_like(stats1)
-    for _ in range(EVENT_REFINEMENTS):
-        if s1 != rk45.EVENT:
-            break
-        k = n1 - 1
-        span = t1 - T1[k]
-        if not span > 0.0:
-            break
-        y0[0] = Q1[k, 0, 0]
-        stop = min(Q1.shape[0], k + REFINE_MAX_STEPS)
-        s_new, nb, t_new = _march_stage1(stiff, T1[k], y0, span / 16.0, span / 16.0, args1, rtol1,
-                                         atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
-        for i in range(rk45.STAT_STIFF):
-            stats1[i] += stats_r[i]
-        n1 = k + nb
-        if s_new == rk45.SUCCESS:
-            # With finer steps the path reaches the wall: the crossing was the interpolant's.
-            s1 = s_new
-            t1 = t_new
-            break
-        if s_new != rk45.EVENT:
-            # Budget spent crawling into the sqrt kink (D ~ 0 over a long stretch, next to the
-            # axis edge): keep the previous location, good to the last pass's step width.
-            break
-        settled = abs(t_new - t1) <= rtol1 * t1
-        t1 = t_new
-        if settled:
-            break
+    s1, n1, t1 = _stage1_pass(stiff, xi1, y0[0], args1, rtol1, atol1, T1, Q1, stats1)
+    if s1 == rk45.SUCCESS:
+        # Near the path edge D(1) is small and Delta, sigma_yx(1) and stage 2 (B ~ 1/sqrt(D))
+        # depend on D(1) with condition ~ |dD/d delta| delta / D(1): an error rtol1 in delta is
+        # an error rtol1 * that in D. March stage 1 once more at rtol * D(1)/(|dD/d delta| delta)
+        # so that D(1), hence Delta, is good to ~rtol (before this, near-edge points at rtol 1e-5
+        # came back with Delta 28 % off; see docs/work_precision.md).
+        delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
+        D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
+        scale = 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
+        rtol_cond = rtol * D_wall / scale if scale > 0.0 else rtol1
+        if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
+            rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
+            s1, n1, t1 = _stage1_pass(stiff, xi1, y0[0], args1, rtol1, atol1, T1, Q1, stats1)
     res[R_N1] = n1
     if s1 == rk45.EVENT:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH

@@ -634,6 +634,8 @@ OUTPUTS = {
     "sigma_yx_wall_Pa": ("Pa", "wall shear stress sigma_yx"),
     "m_wall_Pa_m": ("Pa m", "wall couple stress m"),
 }
+# The outputs that need a material (filled by _add_material).
+MATERIAL_OUTPUTS = ("nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
 
 
 @dataclass

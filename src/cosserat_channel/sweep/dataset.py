@@ -17,7 +17,7 @@ import xarray as xr
 from .. import __version__, model
 from .. import solve
 from .. import status as st
-from ..solve import OUTPUTS
+from ..solve import MATERIAL_OUTPUTS, OUTPUTS
 from .spec import DIMS
 
 COORD_ATTRS = {
@@ -38,7 +38,6 @@ PROFILES = {
     "sigma_yx": ("1", "shear-stress profile sigma_yx(xi)/nu (rho_p g W units)"),
 }
 XI_LONG_NAME = "distance from the centre line / channel half-width"
-MATERIAL_OUTPUTS = ("nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
 # Variables that need the per-point eps K root search (1 - xi_p).
 NEED_ONE_MINUS = {"Delta", "xi_p"}
 

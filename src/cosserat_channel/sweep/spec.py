@@ -49,6 +49,7 @@ from ..solve import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
     MATERIAL_KEYS,
+    MATERIAL_OUTPUTS,
     OUTPUTS,
     ParameterError,
     check_material,
@@ -59,9 +60,7 @@ from ..solve import (
 DIMS = ("eps", "L", "K", "A", "N")
 
 # Outputs that need a [material] (see solve._add_material).
-MATERIAL_VARIABLES = (
-    "nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m",
-)
+MATERIAL_VARIABLES = MATERIAL_OUTPUTS
 # Dimensionless outputs: the default variables of a sweep without a material.
 DIMENSIONLESS_VARIABLES = tuple(k for k in OUTPUTS if k not in MATERIAL_VARIABLES)
 # Accepted-step counters of the two stages, stored only on request.

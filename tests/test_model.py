@@ -187,18 +187,3 @@ def test_solids_fraction_root_is_unique_and_solves_eq35():
         resid = np.array([tan_delta * model.sigma_c(v, 817.0, 0.5, 0.65, 2.5, 2.2) - rho_g_W * v
                           for v in grid])
         assert np.count_nonzero(np.diff(np.sign(resid)) != 0) == 1
-
-
-def test_a_minus_one_closed_form_is_consistent():
-    """J(xi) = 2(1-xi^(c+1))/(c+1) has dJ/dxi = -2 xi^c, and 1-xi_p solves eq:13 for large c."""
-    for c in (3.0, 60.0, 1e5):
-        xi = 0.999
-        hstep = 1e-7
-        dJ = (model.a_minus_one_J(xi + hstep, c) - model.a_minus_one_J(xi - hstep, c)) / (2 * hstep)
-        assert dJ == pytest.approx(-2 * xi**c, rel=1e-5)
-        for eps_K in (0.0, 1e-4):
-            one_minus = model.a_minus_one_one_minus_xi_p(eps_K, c)
-            J0 = model.a_minus_one_J(0.0, c)
-            Jp = model.a_minus_one_J(1.0 - one_minus, c)
-            assert Jp == pytest.approx(model.plug_target(J0, eps_K), rel=1e-9)
-    assert model.a_minus_one_one_minus_xi_p(1.0, 60.0) == 0.0  # eps K >= 19 J(0): Delta = 0

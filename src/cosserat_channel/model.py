@@ -234,26 +234,6 @@ def a_minus_one_h():
 
 
 @njit(nogil=True, cache=True)
-def a_minus_one_J(xi, c):
-    """``J(xi) = 2 (1 - xi^(c+1)) / (c+1)`` for A = -1, with ``omega_hat = xi^c``, ``c = 2N/eta``."""
-    if xi <= 0.0:
-        return 2.0 / (c + 1.0)
-    return -2.0 * math.expm1((c + 1.0) * math.log(xi)) / (c + 1.0)
-
-
-@njit(nogil=True, cache=True)
-def a_minus_one_one_minus_xi_p(eps_K, c):
-    """``1 - xi_p`` for A = -1: ``xi_p^(c+1) = 0.05 (1 + eps K (c+1)/2)``; 0 when the plug fills the channel."""
-    arg = 0.05 * (1.0 + 0.5 * eps_K * (c + 1.0))
-    if arg >= 1.0:
-        return 0.0
-    return -math.expm1(math.log(arg) / (c + 1.0))
-
-
-# --------------------------------------------------------------------------------------------
-# Solids fraction and dimensional wall stresses (eq:24, eq:35)
-# --------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
 def sigma_c(nu, Lambda, nu_min, nu_max, p, q):
     """Critical-state mean stress, eq:24 (Pa when ``Lambda`` is in Pa)."""
     if nu <= nu_min:

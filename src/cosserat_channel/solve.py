@@ -263,27 +263,32 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
 
 
 @njit(nogil=True, cache=True)
-def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method=METHOD_AUTO):
-    """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``.
+def _wall_D_sensitivity(A, N, delta_wall):
+    """``|dD/d delta| delta`` at the wall: what a relative error in delta does to D(1)."""
+    return 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
 
-    ``method`` picks stage 1's integrator: ``METHOD_AUTO`` (by :func:`use_stiff_path`),
-    ``METHOD_EXPLICIT`` (Dormand-Prince) or ``METHOD_STIFF`` (RODAS4).
 
-    Fills ``res[N_R]`` (slots ``R_*``), the axis constants ``ax``, the dense outputs (T1, Q1) of
-    stage 1 and (T2, Q2) of stage 2 and the counters. Returns the status code.
+@njit(nogil=True, cache=True)
+def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_AUTO):
+    """Stage 1 for one ``(eta, A, N)``: the regime, the march from the axis and the wall values.
+
+    Fills ``res`` (all ``R_*`` slots reset; stage 1 sets ``R_STATUS``, ``R_XI_STOP``, ``R_XI1``,
+    ``R_N1``, ``R_PATH``, ``R_MU_WALL``, ``R_SIGMA_YX_WALL``), the axis constants ``ax``, the dense
+    output (T1, Q1) and ``stats1``. Returns ``(status, near_edge)``: ``near_edge`` says D(1) lies
+    within ``WALL_D_FALLBACK`` resolutions of zero, where a stage-2 failure means D(1) = 0 within
+    the dense output's resolution (see :func:`solve_eta`).
     """
     for i in range(N_R):
         res[i] = math.nan
     for i in range(stats1.size):
         stats1[i] = 0
-        stats2[i] = 0
     res[R_N1] = 0.0
     res[R_N2] = 0.0
     res[R_PATH] = PATH_NONE
     code = model.classify(eta, A, N)
     res[R_STATUS] = code
     if code != st.OK:
-        return code
+        return code, False
     if A == -1.0:
         # Appendix A: stage 1 is exact (m = -NL, sigma_yx = -xi, delta = 0), no integration and
         # no stage-1 path; stage 2 runs through the same march as every other A, with B = c/xi
@@ -293,10 +298,9 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
         ax[model.AX_K] = 0.0
         ax[AX_BETA] = model.a_minus_one_xi_B(eta, N)
         res[R_XI1] = 0.0
-        res[R_PATH] = PATH_NONE
         res[R_MU_WALL] = -N
         res[R_SIGMA_YX_WALL] = -1.0
-        return _march_stage2(eta, A, N, rtol, atol, ax, 0.0, T1, Q1, 0, T2, Q2, stats2, res)
+        return st.OK, False
 
     model.axis_constants(eta, A, N, ax)
     if (1e-3 * model.axis_relative_margin(A, N, ax) < STAGE1_RTOL_FLOOR
@@ -309,14 +313,11 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
         # A -> -1 that crossing can lie beyond the wall even for a tiny c0; such points are
         # integrated (at the floor tolerance) instead.
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
-        return st.EPS_TOO_LARGE_PATH
+        return st.EPS_TOO_LARGE_PATH, False
     xi1 = start_xi(ax)
     res[R_XI1] = xi1
     buf = np.empty(1)
-
-    # Stage 1: axis -> wall.
-    y0 = np.empty(1)
-    y0[0] = model.delta_axis_series(xi1, ax) / (xi1 * xi1)
+    w1 = model.delta_axis_series(xi1, ax) / (xi1 * xi1)
     atol1 = np.empty(1)
     atol1[0] = atol
     args1 = (eta, A, N, ax)
@@ -325,48 +326,68 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     rtol1 = stage1_rtol(rtol, A, N, ax)
     stiff = use_stiff_path(eta, ax) if method == METHOD_AUTO else method == METHOD_STIFF
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
-    s1, n1, t1 = _stage1_pass(stiff, xi1, y0[0], args1, rtol1, atol1, T1, Q1, stats1)
+    s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
     if s1 == rk45.SUCCESS:
-        # Near the path edge D(1) is small and Delta, sigma_yx(1) and stage 2 (B ~ 1/sqrt(D))
-        # depend on D(1) with condition ~ |dD/d delta| delta / D(1): an error rtol1 in delta is
-        # an error rtol1 * that in D. March stage 1 once more at rtol * D(1)/(|dD/d delta| delta)
-        # so that D(1), hence Delta, is good to ~rtol (before this, near-edge points at rtol 1e-5
-        # came back with Delta 28 % off; see docs/work_precision.md).
         delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
-        scale = 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
-        rtol_cond = rtol * D_wall / scale if scale > 0.0 else rtol1
+        sensitivity = _wall_D_sensitivity(A, N, delta_wall)
+        # Near the path edge D(1) is small and Delta, sigma_yx(1) and stage 2 (B ~ 1/sqrt(D))
+        # depend on D(1) with condition ~ sensitivity / D(1): an error rtol1 in delta is an error
+        # rtol1 * sensitivity in D. March stage 1 once more at rtol * D(1)/sensitivity so that
+        # D(1), hence Delta, is good to ~rtol (before this, near-edge points at rtol 1e-5 came
+        # back with Delta 28 % off; see docs/work_precision.md).
+        rtol_cond = rtol * D_wall / sensitivity if sensitivity > 0.0 else rtol1
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
-            s1, n1, t1 = _stage1_pass(stiff, xi1, y0[0], args1, rtol1, atol1, T1, Q1, stats1)
+            s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
+            if s1 == rk45.SUCCESS:
+                delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
+                D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
+                sensitivity = _wall_D_sensitivity(A, N, delta_wall)
     res[R_N1] = n1
     if s1 == rk45.EVENT:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
         res[R_XI_STOP] = t1
-        return st.EPS_TOO_LARGE_PATH
+        return st.EPS_TOO_LARGE_PATH, False
     if s1 != rk45.SUCCESS:
         res[R_STATUS] = st.INTEGRATION_FAILED
-        return st.INTEGRATION_FAILED
-    delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
-    D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
-    # An error e in delta moves D by |dD/d delta| e = 4(A+1)|N - delta| e, and stage 1 resolves
-    # delta to ~rtol1 |delta|: a D(1) well below that is zero within what stage 1 resolves. Stage 2
-    # there marches B ~ 1/sqrt(D) on noise (20,000 steps, no answer, seen at D(1) ~ 0.1 of it), so
-    # such a point is reported as reaching D = 0 at the wall, like D(1) <= 0 itself. The fallback
-    # below catches what this cheap cut lets through; together they move the edge < 1e-5 relative.
-    D_resolution = WALL_D_RESOLUTION * rtol1 * 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
+        return st.INTEGRATION_FAILED, False
+    # Stage 1 resolves delta to ~rtol1 |delta|, hence D(1) to ~rtol1 * sensitivity: a D(1) well
+    # below that is zero within what stage 1 resolves. Stage 2 there marches B ~ 1/sqrt(D) on
+    # noise (20,000 steps, no answer, seen at D(1) ~ 0.1 of it), so such a point is reported as
+    # reaching D = 0 at the wall, like D(1) <= 0 itself. The stage-2 fallback in solve_eta catches
+    # what this cheap cut lets through; together they move the edge < 1e-5 relative.
+    D_resolution = WALL_D_RESOLUTION * rtol1 * sensitivity
     if not D_wall > D_resolution:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
         res[R_XI_STOP] = 1.0
-        return st.EPS_TOO_LARGE_PATH
+        return st.EPS_TOO_LARGE_PATH, False
     res[R_MU_WALL] = delta_wall - N
     res[R_SIGMA_YX_WALL] = model.sigma_yx(1.0, D_wall, A)
+    return st.OK, D_wall < WALL_D_FALLBACK * D_resolution
 
-    code = _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, res)
-    if code == st.INTEGRATION_FAILED and D_wall < WALL_D_FALLBACK * D_resolution:
+
+@njit(nogil=True, cache=True)
+def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method=METHOD_AUTO):
+    """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``.
+
+    ``method`` picks stage 1's integrator: ``METHOD_AUTO`` (by :func:`use_stiff_path`),
+    ``METHOD_EXPLICIT`` (Dormand-Prince) or ``METHOD_STIFF`` (RODAS4P2).
+
+    Fills ``res[N_R]`` (slots ``R_*``), the axis constants ``ax``, the dense outputs (T1, Q1) of
+    stage 1 and (T2, Q2) of stage 2 and the counters. Returns the status code.
+    """
+    for i in range(stats2.size):
+        stats2[i] = 0
+    code, near_edge = solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)
+    if code != st.OK:
+        return code
+    code = _march_stage2(eta, A, N, rtol, atol, ax, res[R_XI1], T1, Q1, int(res[R_N1]), T2, Q2,
+                         stats2, res)
+    if code == st.INTEGRATION_FAILED and near_edge:
         # Stage 2 failed on B ~ 1/sqrt(D) with D(1) a few decades above stage 1's step error but
         # not above its interpolation error (tight rtol): D(1) is zero within the dense output's
-        # resolution, the same verdict as the cut above.
+        # resolution, the same verdict as the cut in solve_stage1.
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
         res[R_XI_STOP] = 1.0
         res[R_J_AXIS] = math.nan
@@ -470,28 +491,15 @@ def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
 
 @njit(nogil=True, cache=True)
 def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
-    """Stage 1 alone for many triples (benchmarks): ``m(1)/(nu L)`` into ``mu_wall`` (NaN when the
-    path fails or the regime has no solution) and the counters into ``stats[i]``."""
+    """Stage 1 alone for many triples (benchmarks), exactly as :func:`solve_eta` runs it:
+    ``m(1)/(nu L)`` into ``mu_wall`` (NaN without a solution) and the counters into ``stats[i]``."""
     ax = np.empty(N_AX)
     T1 = np.empty(max_steps + 1)
     Q1 = np.empty((max_steps, 5, 1))
-    y0 = np.empty(1)
-    atol1 = np.empty(1)
-    atol1[0] = atol
-    buf = np.empty(1)
+    res = np.empty(N_R)
     for i in range(eta.size):
-        mu_wall[i] = math.nan
-        if model.classify(eta[i], A[i], N[i]) != st.OK or A[i] == -1.0:
-            continue
-        model.axis_constants(eta[i], A[i], N[i], ax)
-        xi1 = start_xi(ax)
-        y0[0] = model.delta_axis_series(xi1, ax) / (xi1 * xi1)
-        stiff = use_stiff_path(eta[i], ax) if method == METHOD_AUTO else method == METHOD_STIFF
-        s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, (eta[i], A[i], N[i], ax),
-                                   stage1_rtol(rtol, A[i], N[i], ax), atol1,
-                                   T1, Q1, stats[i])
-        if s1 == rk45.SUCCESS:
-            mu_wall[i] = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf) - N[i]
+        solve_stage1(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, stats[i], res, method)
+        mu_wall[i] = res[R_MU_WALL]
 
 
 @njit(nogil=True, cache=True)

@@ -2,7 +2,7 @@
 
 For A = 1/3, N = 1, rtol = 1e-8: accepted stage-1 steps, microseconds for both stages (best of
 5 x 20 runs) and the relative error of Delta against scipy Radau at rtol 1e-12. The crossover
-justifies ``solve.STIFF_LAMBDA`` (RODAS4P2 when 2/eta > 20).
+justifies ``stages.STIFF_LAMBDA`` (RODAS4P2 when 2/eta > 20).
 
 Run:  .venv/bin/python benchmarks/bench_paths.py
 """
@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from cosserat_channel import solve
+from cosserat_channel import solve, stages
 from cosserat_channel.reference import reference
 
 
@@ -34,12 +34,12 @@ def main():
         eps, L = eta / 10, 10.0
         ref = reference(eps, L, 0.5, 1 / 3, 1.0, method="Radau")
         cells = [f"{eta:g}"]
-        for method in (solve.METHOD_EXPLICIT, solve.METHOD_STIFF):
-            us = timed(ws, eta, method, reps=2 if (method == solve.METHOD_EXPLICIT and eta < 1e-3) else 20)
-            om = solve.one_minus_xi_p(1 / 3, 1.0, eta, eps * 0.5, ws.res, ws.T2, ws.Q2)
+        for method in (stages.METHOD_EXPLICIT, stages.METHOD_STIFF):
+            us = timed(ws, eta, method, reps=2 if (method == stages.METHOD_EXPLICIT and eta < 1e-3) else 20)
+            om = stages.one_minus_xi_p(1 / 3, 1.0, eta, eps * 0.5, ws.res, ws.T2, ws.Q2)
             cells += [str(ws.stats1[0]), f"{us:.0f}", f"{abs(om / eps / ref['Delta'] - 1):.1e}"]
-        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, solve.METHOD_AUTO)
-        cells.append("RODAS4P2" if ws.res[solve.R_PATH] else "DP5")
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_AUTO)
+        cells.append("RODAS4P2" if ws.res[stages.R_PATH] else "DP5")
         print("| " + " | ".join(cells) + " |")
 
 

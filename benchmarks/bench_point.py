@@ -24,7 +24,7 @@ import scipy
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from cosserat_channel import model, rk45, solve
+from cosserat_channel import model, rk45, solve, stages
 
 RTOL = 1e-8
 ATOL = 1e-12
@@ -40,12 +40,12 @@ def grid():
 def ours(eps, L, K=0.5, A=1 / 3, N=1.0):
     n = eps.size
     eta = eps * L
-    res = np.empty((n, solve.N_R))
+    res = np.empty((n, stages.N_R))
     stats = np.zeros((n, 2, rk45.N_STATS), np.int64)
     one_minus = np.empty(n)
-    solve.solve_batch(eta, np.full(n, A), np.full(n, N), eps * K, np.arange(n + 1), RTOL, ATOL,
-                      solve.MAX_STEPS_STAGE1, solve.MAX_STEPS_STAGE2, res, stats, one_minus,
-                      np.empty(0), np.empty((n, solve.N_PROF, 0)))
+    stages.solve_batch(eta, np.full(n, A), np.full(n, N), eps * K, np.arange(n + 1), RTOL, ATOL,
+                      stages.MAX_STEPS_STAGE1, stages.MAX_STEPS_STAGE2, res, stats, one_minus,
+                      np.empty(0), np.empty((n, stages.N_PROF, 0)))
     return one_minus / eps, res, stats
 
 
@@ -53,8 +53,8 @@ def ours_stage1(eps, L, A=1 / 3, N=1.0):
     n = eps.size
     mu = np.empty(n)
     stats = np.zeros((n, rk45.N_STATS), np.int64)
-    solve.stage1_batch(eps * L, np.full(n, A), np.full(n, N), RTOL, ATOL, solve.METHOD_AUTO,
-                       solve.MAX_STEPS_STAGE1, mu, stats)
+    stages.stage1_batch(eps * L, np.full(n, A), np.full(n, N), RTOL, ATOL, stages.METHOD_AUTO,
+                       stages.MAX_STEPS_STAGE1, mu, stats)
     return mu
 
 
@@ -65,7 +65,7 @@ def _scipy_stage1_run(eps, L, A, N, method, dense):
         return None
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1 = solve.start_xi(ax)
+    xi1 = stages.start_xi(ax)
 
     def f1(xi, w):
         return [model.dw_dxi(xi, w[0], eta, A, N, ax)]
@@ -110,7 +110,7 @@ def scipy_point(eps, L, K, A, N, method):
         return z[0] - math.log(1e-3 * RTOL)
 
     gone.terminal = True
-    s2 = solve_ivp(f2, [0.0, math.log(solve.XI_FLOOR)], [0.0, 0.0], method=method, rtol=RTOL,
+    s2 = solve_ivp(f2, [0.0, math.log(stages.XI_FLOOR)], [0.0, 0.0], method=method, rtol=RTOL,
                    atol=[RTOL, ATOL], events=gone, dense_output=True)
     J0 = s2.y[1, -1]
     target = model.plug_target(J0, eps * K)
@@ -164,8 +164,8 @@ def main():
     print(f"# machine: {platform.machine()}, {os.cpu_count()} cores; python {platform.python_version()}, "
           f"numba {numba.__version__}, numpy {np.__version__}, scipy {scipy.__version__}")
     print(f"# statuses over the grid: "
-          + ", ".join(f"{s.name} {int(np.sum(res[:, solve.R_STATUS] == s.value))}"
-                      for s in solve.st.Status if np.any(res[:, solve.R_STATUS] == s.value)))
+          + ", ".join(f"{s.name} {int(np.sum(res[:, stages.R_STATUS] == s.value))}"
+                      for s in solve.st.Status if np.any(res[:, stages.R_STATUS] == s.value)))
     print(f"# mean accepted steps per point: stage 1 {stats[:, 0, rk45.STAT_ACCEPTED].mean():.1f}, "
           f"stage 2 {stats[:, 1, rk45.STAT_ACCEPTED].mean():.1f}")
     print()

@@ -171,19 +171,3 @@ def test_other_root_between_regimes_has_unbounded_axis_spin():
         B = 2 * (A + 1) * (N + p) / (eta * s)
         assert B < 0
         assert B * xi < -1.0  # B ~ beta/xi with beta < 0: omega_hat ~ xi^beta -> infinity
-
-
-def test_solids_fraction_root_is_unique_and_solves_eq35():
-    """eq:35 has one root in (nu_min, nu_max); the bisection finds it to round-off."""
-    for _ in range(200):
-        rho_g_W = 10 ** RNG.uniform(1, 6)
-        tan_delta = 10 ** RNG.uniform(-2, 1)
-        nu = model.solids_fraction(rho_g_W, tan_delta, 817.0, 0.5, 0.65, 2.5, 2.2)
-        assert 0.5 < nu < 0.65
-        lhs = rho_g_W * nu
-        rhs = tan_delta * model.sigma_c(nu, 817.0, 0.5, 0.65, 2.5, 2.2)
-        assert rhs == pytest.approx(lhs, rel=1e-9)
-        grid = np.linspace(0.5 + 1e-9, 0.65 - 1e-9, 2001)
-        resid = np.array([tan_delta * model.sigma_c(v, 817.0, 0.5, 0.65, 2.5, 2.2) - rho_g_W * v
-                          for v in grid])
-        assert np.count_nonzero(np.diff(np.sign(resid)) != 0) == 1

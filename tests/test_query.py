@@ -11,7 +11,8 @@ import xarray as xr
 
 from cosserat_channel import cli, query
 from cosserat_channel import status as st
-from cosserat_channel.solve import OUTPUTS, ParameterError
+from cosserat_channel.outputs import OUTPUTS
+from cosserat_channel.parameters import ParameterError
 
 COORDS = {
     "eps": np.array([0.001, 0.01, 0.1]),
@@ -40,7 +41,7 @@ def make_results() -> xr.Dataset:
     delta = np.where(status == st.OK, 1000 * eps + L + K, np.nan)
 
     def out(name, data):
-        unit, text = OUTPUTS[name]
+        unit, text = OUTPUTS[name].units, OUTPUTS[name].long_name
         return DIMS, data, {"units": unit, "long_name": text}
 
     profile = np.broadcast_to(1.0 - XI**2, shape + XI.shape).copy()

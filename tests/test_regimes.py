@@ -7,7 +7,8 @@ import pytest
 
 from cosserat_channel import model, regimes
 from cosserat_channel import status as st
-from cosserat_channel.solve import ParameterError, solve_point
+from cosserat_channel.parameters import ParameterError
+from cosserat_channel.solve import solve_point
 from cosserat_channel.sweep import run_sweep
 
 # (A, N) with a bounded edge, one per region of interest.

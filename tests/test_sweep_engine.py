@@ -8,7 +8,7 @@ import netCDF4
 import numpy as np
 import pytest
 
-from cosserat_channel import solve
+from cosserat_channel import outputs, solve, stages
 from cosserat_channel import status as st
 from cosserat_channel.sweep import run_sweep
 from cosserat_channel.sweep.plan import Plan, block_plan
@@ -149,7 +149,7 @@ def test_netcdf_file_is_cf_and_plain_readable(tmp_path):
             assert "units" in var.ncattrs(), name
             assert "long_name" in var.ncattrs(), name
         assert nc["eps"].long_name == "particle diameter / channel half-width, d_p/W"
-        assert nc["Delta"].units == solve.OUTPUTS["Delta"][0]
+        assert nc["Delta"].units == outputs.OUTPUTS["Delta"].units
         assert same(nc["Delta"][:].filled(np.nan), ds.Delta.values)
         assert same(nc["status"][:], ds.status.values)
         assert nc["u_over_u0"].dimensions[-1] == "xi"
@@ -173,7 +173,7 @@ def test_output_path_from_spec(tmp_path):
 
 def test_kernel_exception_costs_one_triple(monkeypatch):
     """A kernel that raises on one triple loses that triple only, as integration_failed."""
-    real = solve.solve_batch
+    real = stages.solve_batch
     bad_eta = 0.5
 
     def flaky(eta, *args):
@@ -181,7 +181,7 @@ def test_kernel_exception_costs_one_triple(monkeypatch):
             raise ZeroDivisionError("division by zero")
         return real(eta, *args)
 
-    monkeypatch.setattr(solve, "solve_batch", flaky)
+    monkeypatch.setattr(stages, "solve_batch", flaky)
     grid = {"eps": [0.05], "L": [5.0, 10.0, 20.0], "K": [0.5, 1.0], "A": [1 / 3], "N": [1.0]}
     ds = run_sweep(sweep(grid), workers=1, block_size=3)
     status = ds.status.sel(eps=0.05, A=1 / 3, N=1.0).values

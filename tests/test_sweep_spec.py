@@ -7,12 +7,10 @@ import pathlib
 import numpy as np
 import pytest
 
-from cosserat_channel import solve
-from cosserat_channel.solve import ParameterError
+from cosserat_channel import outputs, parameters
+from cosserat_channel.parameters import ParameterError
 from cosserat_channel.sweep.spec import (
-    DIMENSIONLESS_VARIABLES,
     DIMS,
-    MATERIAL_VARIABLES,
     SweepError,
     SweepSpec,
     load_sweep,
@@ -66,7 +64,7 @@ def test_file_fields(tmp_path):
     assert isinstance(spec, SweepSpec)
     assert spec.shape == (5, 3, 3, 1, 1) and spec.size == 45
     assert list(spec.coords()) == list(DIMS)
-    assert spec.material == solve.check_material(FIG2_MATERIAL)
+    assert spec.material == parameters.check_material(FIG2_MATERIAL)
     assert (spec.rtol, spec.atol) == (1e-6, 1e-10)
     assert spec.output_path == "out/x.nc"
     assert spec.variables == ("Delta", "nu", "stage1_steps")
@@ -96,12 +94,13 @@ def test_grid_forms_exact(form, expected):
 def test_defaults():
     """Without solver/output/material: default tolerances, dimensionless variables, no path."""
     spec = load_sweep(_grid())
-    assert (spec.rtol, spec.atol) == (solve.DEFAULT_RTOL, solve.DEFAULT_ATOL)
+    assert (spec.rtol, spec.atol) == (parameters.DEFAULT_RTOL, parameters.DEFAULT_ATOL)
     assert spec.material is None and spec.output_path is None and spec.profile_points is None
-    assert spec.variables == DIMENSIONLESS_VARIABLES
+    dimensionless = tuple(n for n, o in outputs.OUTPUTS.items() if not o.material)
+    assert spec.variables == dimensionless
     with_material = load_sweep({**_grid(), "material": FIG2_MATERIAL})
-    assert with_material.variables == DIMENSIONLESS_VARIABLES + MATERIAL_VARIABLES
-    assert set(with_material.variables) == set(solve.OUTPUTS)
+    assert with_material.variables == dimensionless + outputs.material_outputs()
+    assert set(with_material.variables) == set(outputs.OUTPUTS)
 
 
 def test_axes_are_read_only():

@@ -44,18 +44,38 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
         sys.modules["numba"].config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
 
-def run_sweep(*args, **kwargs):
-    """Run a sweep file or mapping; see :func:`cosserat_channel.sweep.run_sweep`."""
-    from .sweep import run_sweep as _run
+# The public API, imported on first use (PEP 562) so that ``import cosserat_channel`` stays light
+# and reading a result file never compiles a kernel. Each name is the real object of its home.
+_API = {
+    "solve_point": "solve",
+    "PointResult": "solve",
+    "Workspace": "solve",
+    "Status": "status",
+    "ParameterError": "parameters",
+    "check_point": "parameters",
+    "PARAMETERS": "parameters",
+    "OUTPUTS": "outputs",
+    "Output": "outputs",
+    "load_sweep": "sweep.spec",
+    "run_sweep": "sweep.engine",
+    "open_results": "query",
+    "trace_edge": "regimes",
+    "trace_boundary": "regimes",
+    "phase_plane": "regimes",
+}
 
-    return _run(*args, **kwargs)
+__all__ = ["__version__", *_API]
 
 
-def open_results(path):
-    """Open a result file lazily; see :func:`cosserat_channel.query.open_results`."""
-    from .query import open_results as _open
+def __getattr__(name):
+    if name in _API:
+        import importlib
 
-    return _open(path)
+        value = getattr(importlib.import_module(f".{_API[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["__version__", "run_sweep", "open_results"]
+def __dir__():
+    return sorted(set(globals()) | set(_API))

@@ -23,6 +23,8 @@ import sys
 from dataclasses import dataclass
 from typing import Callable
 
+from .parameters import DIMS, MATERIAL, MATERIAL_REQUIRED, PARAMETERS, TOLERANCES, ParameterError
+
 PROG = "cosserat-channel"
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -127,20 +129,11 @@ def _note(message: str) -> None:
 # ---------------------------------------------------------------------------------------------
 # Shared argument groups and checks
 # ---------------------------------------------------------------------------------------------
-# Numbers are parsed with float() only: nan and inf must reach solve.check_point, whose message
+# Numbers are parsed with float() only: nan and inf must reach parameters.check_point, whose message
 # names the parameter and its range (one message for the API and the command line).
-_POINT_ARGS = (
-    ("--eps", "eps", "d_p/W, particle diameter over channel half-width, in (0, 1]"),
-    ("--L", "L", "Cosserat length in particle diameters, > 0"),
-    ("--K", "K", "wall roughness (u = eps K omega at the wall), >= 0"),
-    ("--A", "A", "yield-surface constant a2/a1"),
-    ("--N", "N", "sin(phi)/tan(delta), > 0"),
-)
-_MATERIAL_ARGS = (
-    ("--d-p", "d_p", "particle diameter d_p in m"),
-    ("--rho-p", "rho_p", "particle density rho_p in kg/m^3"),
-    ("--phi", "phi", "angle of internal friction phi in degrees"),
-)
+_POINT_ARGS = tuple((f"--{d}", d, f"{PARAMETERS[d].long_name}, in {PARAMETERS[d].interval}")
+                    for d in DIMS)
+_MATERIAL_ARGS = tuple(("--" + k.replace("_", "-"), k, MATERIAL[k].long_name) for k in MATERIAL_REQUIRED)
 
 
 def add_point_arguments(p: argparse.ArgumentParser) -> None:
@@ -149,10 +142,10 @@ def add_point_arguments(p: argparse.ArgumentParser) -> None:
     for flag, dest, text in _POINT_ARGS:
         g.add_argument(flag, dest=dest, type=float, required=True, metavar=dest.upper(), help=text)
     t = p.add_argument_group("tolerances")
-    t.add_argument("--rtol", type=float,
-                   help="relative tolerance of both integrations, in [1e-13, 1) "
-                   "(default: solve_point's)")
-    t.add_argument("--atol", type=float, help="absolute tolerance, > 0 (default: solve_point's)")
+    for name, param in TOLERANCES.items():
+        t.add_argument(f"--{name}", type=float,
+                       help=f"{param.long_name} of both integrations, in {param.interval} "
+                       f"(default {param.default:g})")
 
 
 def add_material_arguments(p: argparse.ArgumentParser) -> None:
@@ -192,10 +185,6 @@ def check_output_path(path: str, option: str) -> None:
 # ---------------------------------------------------------------------------------------------
 # point
 # ---------------------------------------------------------------------------------------------
-# Outputs of PointResult in table order: (field, unit, description).
-_MATERIAL_UNITS = {"d_p": "m", "rho_p": "kg/m^3", "phi": "deg"}
-
-
 def _point_arguments(p: argparse.ArgumentParser) -> None:
     add_point_arguments(p)
     add_material_arguments(p)
@@ -228,15 +217,14 @@ def _point(args: argparse.Namespace) -> int:
             args.eps, args.L, args.K, args.A, args.N,
             material=material, profile=profile, **tolerances,
         )
-    except solve.ParameterError as exc:
+    except ParameterError as exc:
         raise CliError(str(exc)) from None
 
     if args.json:
         # allow_nan=False: to_dict maps NaN to null, and the output must stay strict JSON.
         print(json.dumps(result.to_dict(), allow_nan=False))
     else:
-        tol = {"rtol": tolerances.get("rtol", solve.DEFAULT_RTOL),
-               "atol": tolerances.get("atol", solve.DEFAULT_ATOL)}
+        tol = {k: tolerances.get(k, p.default) for k, p in TOLERANCES.items()}
         print(format_point_table(result, tol, material))
 
     if args.plot is not None:
@@ -257,7 +245,7 @@ def _row(name: str, value, unit: str = "", text: str = "") -> str:
 
 def format_point_table(result, tolerances: dict, material: dict | None) -> str:
     """The human-readable report of one point: parameters, status, outputs, counters."""
-    from .solve import OUTPUTS
+    from .outputs import OUTPUTS
 
     lines = ["parameters"]
     for _, dest, text in _POINT_ARGS:
@@ -267,12 +255,12 @@ def format_point_table(result, tolerances: dict, material: dict | None) -> str:
         lines.append(_row(k, float(v), "-", text))
     if material is not None:
         for _, dest, text in _MATERIAL_ARGS:
-            unit = _MATERIAL_UNITS[dest]
-            lines.append(_row(dest, float(material[dest]), unit, text.rsplit(" in ", 1)[0]))
+            lines.append(_row(dest, float(material[dest]), MATERIAL[dest].units,
+                              text.rsplit(" in ", 1)[0]))
     lines.append(f"status  {result.status.name}: {result.status.message}")
     outputs = [
-        _row(name, float(getattr(result, name)), unit, text)
-        for name, (unit, text) in OUTPUTS.items()
+        _row(name, float(getattr(result, name)), o.units, o.long_name)
+        for name, o in OUTPUTS.items()
         if math.isfinite(getattr(result, name))
     ]
     if outputs:
@@ -313,8 +301,6 @@ def _query(args: argparse.Namespace) -> int:
     if args.output is not None:
         check_output_path(args.output, "-o")
     from . import query
-    from .solve import ParameterError
-
     try:
         ds = query.open_results(args.results)
     except ParameterError as exc:
@@ -357,8 +343,6 @@ def _info_arguments(p: argparse.ArgumentParser) -> None:
           _info_arguments)
 def _info(args: argparse.Namespace) -> int:
     from . import query
-    from .solve import ParameterError
-
     try:
         ds = query.open_results(args.results)
     except ParameterError as exc:
@@ -498,8 +482,6 @@ def _phase_plane(args: argparse.Namespace) -> int:
     _figure_output(args.output)
     from . import regimes
     from .plot import regimes as plot_regimes
-    from .solve import ParameterError
-
     try:
         pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
     except ParameterError as exc:
@@ -645,8 +627,6 @@ def _plot(args: argparse.Namespace) -> int:
     from . import query
     from .plot import lines as plot_lines
     from .plot import regimes as plot_regimes
-    from .solve import ParameterError
-
     try:
         ds = query.open_results(args.results)
     except ParameterError as exc:

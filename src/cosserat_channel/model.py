@@ -2,7 +2,7 @@
 
 Source: Mohan, Nott & Rao, "A frictional Cosserat model for the flow of granular materials
 through a vertical channel"; the labels (``e-61``, ``eq:56`` ...) are the paper's ``\\label``s and
-``docs/model.md`` (shared) restates the problem. Nothing here integrates, sweeps or writes files.
+``docs/model.md`` restates the problem. Nothing here integrates, sweeps or writes files.
 
 Scaled variables
 ----------------
@@ -34,14 +34,6 @@ import math
 from numba import njit
 
 from . import status as st
-
-# Gravity and the critical-state closure eq:24 (paper section "Parameter values").
-G_DEFAULT = 9.81
-LAMBDA_DEFAULT = 817.0  # Pa; used as a stress in pascals (model.md: reproduces nu = 0.60, 0.59)
-NU_MIN_DEFAULT = 0.5
-NU_MAX_DEFAULT = 0.65
-P_DEFAULT = 2.5
-Q_DEFAULT = 2.2
 
 # Slots of the axis-constants array returned by `axis_constants`.
 AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)
@@ -231,38 +223,3 @@ def a_minus_one_xi_B(eta, N):
 def a_minus_one_h():
     """``h = 2`` for A = -1: Appendix A's ``du/dxi = -2 omega`` (e-59 with sigma_yx = -xi)."""
     return 2.0
-
-
-@njit(nogil=True, cache=True)
-def sigma_c(nu, Lambda, nu_min, nu_max, p, q):
-    """Critical-state mean stress, eq:24 (Pa when ``Lambda`` is in Pa)."""
-    if nu <= nu_min:
-        return 0.0
-    return Lambda * (nu - nu_min) ** p / (nu_max - nu) ** q
-
-
-@njit(nogil=True, cache=True)
-def solids_fraction(rho_g_W, tan_delta, Lambda, nu_min, nu_max, p, q):
-    """The root of eq:35, ``rho_p g W nu = tan(delta) sigma_c(nu)``, in ``(nu_min, nu_max)``.
-
-    In logarithms the residual ``ln(tan(delta) sigma_c) - ln(rho_p g W nu)`` has derivative
-    ``p/(nu-nu_min) + q/(nu_max-nu) - 1/nu > 0`` (as ``p/(nu - nu_min) > 1/nu`` for p >= 1), so the
-    root is unique; bisection to round-off.
-    """
-    lo = nu_min
-    hi = nu_max
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            break
-        f = (
-            math.log(tan_delta * Lambda)
-            + p * math.log(mid - nu_min)
-            - q * math.log(nu_max - mid)
-            - math.log(rho_g_W * mid)
-        )
-        if f > 0.0:
-            hi = mid
-        else:
-            lo = mid
-    return 0.5 * (lo + hi)

@@ -38,9 +38,8 @@ import numpy as np
 import xarray as xr
 
 from .files import atomic_output
-from .solve import ParameterError
+from .parameters import DIMS, ParameterError
 
-DIMS = ("eps", "L", "K", "A", "N")
 RANGE_SLACK = 1e-9
 ROW_BLOCK = 1_000_000
 TABLE_ROWS = 200

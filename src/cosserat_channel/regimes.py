@@ -33,7 +33,8 @@ import numpy as np
 
 from . import model
 from . import status as st
-from .solve import ParameterError, Workspace, check_point
+from .parameters import PARAMETERS, ParameterError, check_point
+from .solve import Workspace
 
 # Search range of eta = eps L: eps <= 1 and L up to ~100 (model.md's ranges of interest).
 ETA_SEARCH_MIN = 1e-3
@@ -469,8 +470,8 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
             "axis_edge_eta": (("A", "N"), axis_edge_eta(A[:, None], N[None, :]), {
                 "long_name": "eps L on the axis condition (A-1) eps L + 2(A+1) N = 0"}),
         },
-        coords={"A": ("A", A, {"long_name": "yield-surface constant a2/a1"}),
-                "N": ("N", N, {"long_name": "sin(phi)/tan(delta)"})},
+        coords={d: (d, v, {"long_name": PARAMETERS[d].long_name, "units": PARAMETERS[d].units})
+                for d, v in (("A", A), ("N", N))},
         attrs={
             "title": "cosserat-channel boundary: edge of solvability in eta = eps L",
             "eta_search_min": float(eta_range[0]), "eta_search_max": float(eta_range[1]),

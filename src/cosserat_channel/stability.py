@@ -27,13 +27,15 @@ import numpy as np
 
 from . import asymptotics
 from . import solve as sv
+from . import stages
+from . import parameters
 from . import status as st
 from .reference import reference
 
 L_REPORT = 10.0  # eps = eta / L; the outputs depend on eta only (model.md's similarity)
 K_REPORT = 0.5
-RTOL = sv.DEFAULT_RTOL
-ATOL = sv.DEFAULT_ATOL
+RTOL = parameters.DEFAULT_RTOL
+ATOL = parameters.DEFAULT_ATOL
 SERIES = ((1 / 3, 1.0), (2.0, 3.0))  # (A, N): the paper's, and a smoother wall with large A
 ETA_MIN = 1e-8
 ETA_STIFFEST = 1e-6  # the acceptance's "stiffest point"

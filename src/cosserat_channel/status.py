@@ -1,8 +1,10 @@
-"""Why a point has (or has no) solution: one code, one name, one message.
+"""Why a point has (or has no) solution: one code, one name, one message, one colour.
 
-Kernels return these codes as plain integers; files carry them as int8 with CF
-``flag_values`` / ``flag_meanings``; people read the messages. The names are part of the file
-format: do not rename them.
+Each status is one line of :class:`Status`; everything else (the messages people read, the CF
+``flag_values`` / ``flag_meanings`` of files, the colours of regime maps) is read from it, so a new
+status is a change to this module alone (plus the kernel that reports it). Kernels return the codes
+as plain integers (an IntEnum member is a Python object there), hence the module constants below.
+The names are part of the file format: do not rename them.
 """
 
 from __future__ import annotations
@@ -11,53 +13,50 @@ from enum import IntEnum
 
 import numpy as np
 
-# Plain integers for Numba kernels (an IntEnum member is a Python object there).
-OK = 0
-WALL_INADMISSIBLE = 1
-EPS_TOO_LARGE_AXIS = 2
-EPS_TOO_LARGE_PATH = 3
-AXIS_SPIN_UNBOUNDED = 4
-INTEGRATION_FAILED = 5
-
 
 class Status(IntEnum):
     """Outcome of one point; ``Status(code).message`` says why in one line."""
 
-    ok = OK
-    wall_inadmissible = WALL_INADMISSIBLE
-    eps_too_large_axis = EPS_TOO_LARGE_AXIS
-    eps_too_large_path = EPS_TOO_LARGE_PATH
-    axis_spin_unbounded = AXIS_SPIN_UNBOUNDED
-    integration_failed = INTEGRATION_FAILED
-
-    @property
-    def message(self) -> str:
-        return MESSAGES[self]
-
-
-MESSAGES = {
-    Status.ok: "solved: stresses reach the wall and the spin vanishes on the axis",
-    Status.wall_inadmissible: (
+    # name = code, colour on regime maps, message
+    ok = 0, "#4daf4a", "solved: stresses reach the wall and the spin vanishes on the axis"
+    wall_inadmissible = 1, "#999999", (
         "A < 1 - 2N^2: the yield condition has no real sigma_yx at the wall for any couple "
         "stress (Appendix A)"
-    ),
-    Status.eps_too_large_axis: (
+    )
+    eps_too_large_axis = 2, "#ff7f00", (
         "eps too large at the axis: (A-1) eps L + 2(A+1) N < 0, the axis series (eq:20) has "
         "no admissible root"
-    ),
-    Status.eps_too_large_path: (
+    )
+    eps_too_large_path = 3, "#e41a1c", (
         "eps too large along the path: the stress path left the yield-admissible region "
         "(D = 0) before the wall, at xi_stop (NaN within ~1e-5 of the axis edge, where the "
         "location is below double-precision resolution)"
-    ),
-    Status.axis_spin_unbounded: (
+    )
+    axis_spin_unbounded = 4, "#984ea3", (
         "1 - 2N^2 < A < -1: only the root m(0) = +NL reaches the wall, and on it the spin "
         "grows without bound towards the axis, so omega(0) = 0 fails (Appendix A)"
-    ),
-    Status.integration_failed: (
+    )
+    integration_failed = 5, "#000000", (
         "the integrator exhausted its step budget or step size inside the solvable region"
-    ),
-}
+    )
+
+    def __new__(cls, code: int, color: str, message: str):
+        member = int.__new__(cls, code)
+        member._value_ = code
+        member.color = color
+        member.message = message
+        return member
+
+
+# Plain integers for Numba kernels.
+OK = int(Status.ok)
+WALL_INADMISSIBLE = int(Status.wall_inadmissible)
+EPS_TOO_LARGE_AXIS = int(Status.eps_too_large_axis)
+EPS_TOO_LARGE_PATH = int(Status.eps_too_large_path)
+AXIS_SPIN_UNBOUNDED = int(Status.axis_spin_unbounded)
+INTEGRATION_FAILED = int(Status.integration_failed)
+
+MESSAGES = {s: s.message for s in Status}
 
 
 def cf_flag_attrs() -> dict:

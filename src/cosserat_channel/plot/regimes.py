@@ -15,9 +15,9 @@ from matplotlib.patches import Patch
 
 from .. import regimes
 from .. import status as st
+from ..parameters import DIMS
 from . import new_figure, parameter_title, save_figure
 
-DIMS = ("eps", "L", "K", "A", "N")
 # Axis labels: symbol and unit ("-" for dimensionless).
 DIM_LABELS = {
     "eps": r"$\varepsilon = d_p/W$ (-)",
@@ -27,15 +27,6 @@ DIM_LABELS = {
     "A": r"$A = a_2/a_1$ (-)",
     "N": r"$N = \sin\phi/\tan\delta$ (-)",
     "xi": r"$\xi = x/W$ (-)",
-}
-# One fixed colour per status, the same on every map.
-STATUS_COLORS = {
-    st.Status.ok: "#4daf4a",
-    st.Status.wall_inadmissible: "#999999",
-    st.Status.eps_too_large_axis: "#ff7f00",
-    st.Status.eps_too_large_path: "#e41a1c",
-    st.Status.axis_spin_unbounded: "#984ea3",
-    st.Status.integration_failed: "#000000",
 }
 BOUNDARY_STYLES = {
     "wall": dict(color="k", ls="-", lw=2.0),
@@ -247,11 +238,11 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=
     fig = new_figure()
     ax = fig.subplots()
     codes = [s.value for s in st.Status]
-    cmap = ListedColormap([STATUS_COLORS[st.Status(c)] for c in codes])
+    cmap = ListedColormap([st.Status(c).color for c in codes])
     norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, cmap.N)
     ax.pcolormesh(_edges(xv), _edges(yv), status, cmap=cmap, norm=norm, shading="flat",
                   rasterized=True)
-    handles = [Patch(facecolor=STATUS_COLORS[st.Status(c)], edgecolor="0.3",
+    handles = [Patch(facecolor=st.Status(c).color, edgecolor="0.3",
                      label=st.Status(c).name) for c in codes if np.any(status == c)]
 
     xf = np.linspace(xv.min(), xv.max(), 400) if xv.size > 1 else xv

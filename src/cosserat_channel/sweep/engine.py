@@ -2,7 +2,7 @@
 
 :func:`run_sweep` is the whole pipeline; ``cosserat-channel run`` is a thin wrapper around it.
 
-Parallelism: each block is one :func:`solve.solve_batch` call, which holds no GIL, so dask's
+Parallelism: each block is one :func:`stages.solve_batch` call, which holds no GIL, so dask's
 threaded scheduler keeps every core busy without pickling anything; ``scheduler=ADDRESS`` sends
 the same blocks to a ``dask.distributed`` cluster instead, and the results come back to this
 process, which alone writes the store and the file (workers need no shared file system). Every
@@ -19,9 +19,10 @@ import time
 import numpy as np
 
 from .. import __version__, rk45
-from .. import solve
+from .. import outputs as out_
+from .. import stages
 from .. import status as st
-from .dataset import NEED_ONE_MINUS, build_dataset, encoding
+from .dataset import build_dataset, encoding
 from .plan import BlockInputs, Plan
 from .spec import SweepError, SweepSpec, load_sweep
 from .store import FORMAT, WorkStore, check_writable
@@ -148,13 +149,13 @@ def _profile_xi(spec):
 # One block
 # ---------------------------------------------------------------------------------------------
 def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None) -> dict:
-    """Run :func:`solve.solve_batch` on one block; returns the arrays the store keeps."""
+    """Run :func:`stages.solve_batch` on one block; returns the arrays the store keeps."""
     n = inp.eta.size
-    res = np.empty((n, solve.N_R))
+    res = np.empty((n, stages.N_R))
     stats = np.zeros((n, 2, rk45.N_STATS), dtype=np.int64)
     one_minus = np.empty(inp.eps_K.size)
     xi_k = np.empty(0) if xi is None else xi
-    prof = np.empty((n, solve.N_PROF, xi_k.size))
+    prof = np.empty((n, stages.N_PROF, xi_k.size))
     try:
         _batch(inp, slice(0, n), rtol, atol, xi_k, res, stats, one_minus, prof)
     except ArithmeticError:
@@ -169,7 +170,7 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None) -> dict:
                             "integration_failed", type(exc).__name__, float(inp.eta[i]),
                             float(inp.A[i]), float(inp.N[i]))
                 res[i] = np.nan
-                res[i, solve.R_STATUS] = st.INTEGRATION_FAILED
+                res[i, stages.R_STATUS] = st.INTEGRATION_FAILED
                 stats[i] = 0
                 one_minus[inp.offsets[i]:inp.offsets[i + 1]] = np.nan
                 prof[i] = np.nan
@@ -187,8 +188,8 @@ def _batch(inp: BlockInputs, sl: slice, rtol, atol, xi_k, res, stats, one_minus,
     """solve_batch on triples ``sl`` of the block (views: results land in the block's arrays)."""
     lo, hi = inp.offsets[sl.start], inp.offsets[sl.stop]
     offsets = inp.offsets[sl.start:sl.stop + 1] - lo
-    solve.solve_batch(inp.eta[sl], inp.A[sl], inp.N[sl], inp.eps_K[lo:hi], offsets, rtol, atol,
-                      solve.MAX_STEPS_STAGE1, solve.MAX_STEPS_STAGE2, res[sl], stats[sl],
+    stages.solve_batch(inp.eta[sl], inp.A[sl], inp.N[sl], inp.eps_K[lo:hi], offsets, rtol, atol,
+                      stages.MAX_STEPS_STAGE1, stages.MAX_STEPS_STAGE2, res[sl], stats[sl],
                       one_minus[lo:hi], xi_k, prof[sl])
 
 
@@ -256,10 +257,10 @@ def _run_distributed(plan, todo, store, args, scheduler, progress) -> None:
 def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None):
     """Gather every block from the store onto the grid and build the Dataset."""
     n = plan.n_triples
-    per_triple = {"res": np.empty((n, solve.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
-    need_one_minus = bool(NEED_ONE_MINUS & set(spec.variables))
+    per_triple = {"res": np.empty((n, stages.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
+    need_one_minus = out_.needs_plug_edge(spec.variables)
     one_minus = np.empty(plan.size) if need_one_minus else None
-    profiles = np.empty((n, solve.N_PROF, xi.size)) if xi is not None else None
+    profiles = np.empty((n, stages.N_PROF, xi.size)) if xi is not None else None
     for k, triples in enumerate(plan.blocks):
         b = store.get(k)
         per_triple["res"][triples] = b["res"]

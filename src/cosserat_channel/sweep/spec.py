@@ -26,10 +26,10 @@ A sweep file has four tables; only ``[grid]`` is required::
 
 Everything is checked here, before any solve, and every rejection is a :class:`SweepError` with a
 one-line message that names the key (``grid.eps: ...``). The ranges are the solver's own
-(:func:`solve.check_point`, :func:`solve.check_material`, :func:`solve.check_tolerances`), so the
-sweep file, the API and the ``point`` command accept exactly the same values.
+(:mod:`cosserat_channel.parameters`), so the sweep file, the API and the ``point`` command accept
+exactly the same values; the variables are those of :mod:`cosserat_channel.outputs`.
 
-Pure Python plus numpy; no dask here (the engine is the only importer of dask).
+Pure Python plus numpy: no numba and no dask here (the engine is the only importer of dask).
 """
 
 from __future__ import annotations
@@ -45,27 +45,17 @@ from typing import Mapping
 
 import numpy as np
 
-from ..solve import (
+from .. import outputs as out_
+from ..parameters import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
-    MATERIAL_KEYS,
-    MATERIAL_OUTPUTS,
-    OUTPUTS,
+    DIMS,
+    MATERIAL,
     ParameterError,
     check_material,
-    check_point,
     check_tolerances,
+    check_values,
 )
-
-DIMS = ("eps", "L", "K", "A", "N")
-
-# Outputs that need a [material] (see solve._add_material).
-MATERIAL_VARIABLES = MATERIAL_OUTPUTS
-# Dimensionless outputs: the default variables of a sweep without a material.
-DIMENSIONLESS_VARIABLES = tuple(k for k in OUTPUTS if k not in MATERIAL_VARIABLES)
-# Accepted-step counters of the two stages, stored only on request.
-COUNTER_VARIABLES = ("stage1_steps", "stage2_steps")
-VARIABLES = tuple(OUTPUTS) + COUNTER_VARIABLES
 
 # Memory guard: a float64 output over this many points is already 1.6 GB.
 MAX_POINTS = 200_000_000
@@ -76,10 +66,18 @@ SOLVER_KEYS = ("rtol", "atol")
 OUTPUT_KEYS = ("path", "variables", "profile_points")
 GRID_FORMS = ("linspace", "logspace")
 
-# A value inside the domain for each dimension, so check_point can test one dimension at a time.
-_INSIDE = {"eps": 0.5, "L": 1.0, "K": 1.0, "A": 0.0, "N": 1.0}
 
-assert set(MATERIAL_VARIABLES) <= set(OUTPUTS)
+
+def allowed_variables(has_material: bool) -> tuple[str, ...]:
+    """Every variable a sweep may ask for: the registry's outputs, then the work counters."""
+    return tuple(n for n, o in out_.OUTPUTS.items() if has_material or not o.material) + tuple(
+        out_.COUNTERS)
+
+
+def default_variables(has_material: bool) -> tuple[str, ...]:
+    """What a sweep stores when it names no variables: every output, the material's last."""
+    plain = tuple(n for n, o in out_.OUTPUTS.items() if not o.material)
+    return plain + (out_.material_outputs() if has_material else ())
 
 
 class SweepError(ParameterError):
@@ -132,7 +130,7 @@ def load_sweep(path_or_mapping) -> SweepSpec:
     Raises
     ------
     SweepError
-        (a :class:`solve.ParameterError`, so a ``ValueError``) with a one-line message naming the
+        (a :class:`parameters.ParameterError`, so a ``ValueError``) with a one-line message naming the
         offending key, for anything :func:`solve.solve_point` would reject and for malformed files.
     """
     if isinstance(path_or_mapping, Mapping):
@@ -194,12 +192,10 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
     for d in DIMS:
         key = f"grid.{d}"
         values = _axis_values(grid[d], key)
-        for v in values.tolist():
-            point = dict(_INSIDE, **{d: v})
-            try:
-                check_point(*(point[k] for k in DIMS))
-            except ParameterError as exc:
-                raise SweepError(f"{key}: {exc}") from None
+        try:
+            check_values(d, values)
+        except ParameterError as exc:
+            raise SweepError(f"{key}: {exc}") from None
         uniq, counts_ = np.unique(values, return_counts=True)
         if np.any(counts_ > 1):
             dup = ", ".join(f"{v!r}" for v in uniq[counts_ > 1][:5].tolist())
@@ -269,7 +265,7 @@ def _axis_values(value, key: str) -> np.ndarray:
 def _material(material: Mapping | None) -> dict | None:
     if material is None:
         return None
-    _check_keys(material, tuple(MATERIAL_KEYS), "material")
+    _check_keys(material, tuple(MATERIAL), "material")
     for k, v in material.items():
         if not _is_number(v):
             raise SweepError(f"material.{k}: must be a number; got {_show(v)}")
@@ -300,7 +296,7 @@ def _output(output: Mapping, has_material: bool):
     if path is not None and (not isinstance(path, str) or not path.strip()):
         raise SweepError(f"output.path: must be a non-empty string; got {_show(path)}")
 
-    allowed = tuple(v for v in VARIABLES if has_material or v not in MATERIAL_VARIABLES)
+    allowed = allowed_variables(has_material)
     if "variables" in output:
         names = output["variables"]
         if not isinstance(names, (list, tuple)) or not names:
@@ -310,7 +306,7 @@ def _output(output: Mapping, has_material: bool):
         for i, name in enumerate(names):
             if not isinstance(name, str):
                 raise SweepError(f"output.variables[{i}]: must be a string; got {_show(name)}")
-            if name in MATERIAL_VARIABLES and not has_material:
+            if name in out_.OUTPUTS and out_.OUTPUTS[name].material and not has_material:
                 raise SweepError(
                     f"output.variables: {name!r} needs a [material] table (d_p, rho_p, phi)"
                 )
@@ -321,9 +317,9 @@ def _output(output: Mapping, has_material: bool):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise SweepError(f"output.variables: listed twice: {', '.join(dup)}")
-        variables = tuple(names)
+        chosen = tuple(names)
     else:
-        variables = DIMENSIONLESS_VARIABLES + (MATERIAL_VARIABLES if has_material else ())
+        chosen = default_variables(has_material)
 
     profile_points = output.get("profile_points")
     if profile_points is not None:
@@ -338,7 +334,7 @@ def _output(output: Mapping, has_material: bool):
                 f"got {_show(profile_points)}"
             )
         profile_points = int(profile_points)
-    return path, variables, profile_points
+    return path, chosen, profile_points
 
 
 # ---------------------------------------------------------------------------------------------

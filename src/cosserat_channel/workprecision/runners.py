@@ -1,6 +1,6 @@
 """The solvers of the work-precision report, each timed over a set of points at one rtol.
 
-- ours: :func:`solve.solve_batch` (both stages) and :func:`solve.stage1_batch` (stage 1), the
+- ours: :func:`stages.solve_batch` (both stages) and :func:`stages.stage1_batch` (stage 1), the
   whole set in one kernel call, on one thread, warmed up, best of ``repeat`` calls;
 - scipy ``solve_ivp`` (RK45, DOP853, LSODA, Radau): stage 1 alone, point by point in a Python
   loop, in the formulation of ``benchmarks/bench_point.py``'s ``scipy_stage1`` (state
@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from .. import model, rk45, solve
+from .. import model, rk45, solve, stages
 from .. import status as st
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
@@ -51,22 +51,22 @@ def ours_both(eps, L, K, A, N, rtol, atol=ATOL, repeat=5):
     N = np.ascontiguousarray(N, dtype=float)
     eps_K = np.ascontiguousarray(eps * K)
     offsets = np.arange(n + 1)
-    res = np.empty((n, solve.N_R))
+    res = np.empty((n, stages.N_R))
     stats = np.zeros((n, 2, rk45.N_STATS), np.int64)
     one_minus = np.empty(n)
     no_xi = np.empty(0)
-    no_prof = np.empty((n, solve.N_PROF, 0))
+    no_prof = np.empty((n, stages.N_PROF, 0))
 
     def call():
-        solve.solve_batch(eta, A, N, eps_K, offsets, rtol, atol, solve.MAX_STEPS_STAGE1,
-                          solve.MAX_STEPS_STAGE2, res, stats, one_minus, no_xi, no_prof)
+        stages.solve_batch(eta, A, N, eps_K, offsets, rtol, atol, stages.MAX_STEPS_STAGE1,
+                          stages.MAX_STEPS_STAGE2, res, stats, one_minus, no_xi, no_prof)
 
     seconds = _best_of(call, repeat)
-    ok = res[:, solve.R_STATUS] == st.OK
-    J = res[:, solve.R_J_AXIS]
+    ok = res[:, stages.R_STATUS] == st.OK
+    J = res[:, stages.R_J_AXIS]
     out = {
         "Delta": np.where(ok, one_minus / eps, np.nan),
-        "m_wall": np.where(ok, L * res[:, solve.R_MU_WALL], np.nan),
+        "m_wall": np.where(ok, L * res[:, stages.R_MU_WALL], np.nan),
         "slip": np.where(ok, eps_K / (eps_K + J), np.nan),
     }
     return seconds / n, out
@@ -82,7 +82,7 @@ def ours_stage1(eps, L, A, N, rtol, atol=ATOL, repeat=5):
     stats = np.zeros((n, rk45.N_STATS), np.int64)
 
     def call():
-        solve.stage1_batch(eta, A, N, rtol, atol, solve.METHOD_AUTO, solve.MAX_STEPS_STAGE1, mu,
+        stages.stage1_batch(eta, A, N, rtol, atol, stages.METHOD_AUTO, stages.MAX_STEPS_STAGE1, mu,
                            stats)
 
     seconds = _best_of(call, repeat)
@@ -112,7 +112,7 @@ def scipy_stage1(eps, L, A, N, method, rtol, atol=ATOL, max_nfev=60_000):
         return math.nan
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1 = solve.start_xi(ax)
+    xi1 = stages.start_xi(ax)
     calls = [0]
 
     def f1(xi, w):
@@ -192,7 +192,7 @@ def _numbalsoda_kernels(nbs):
     axis_constants = model.axis_constants
     delta_axis_series = model.delta_axis_series
     classify = model.classify
-    start_xi = solve.start_xi
+    start_xi = stages.start_xi
     OK = st.OK
 
     @njit

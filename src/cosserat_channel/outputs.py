@@ -1,0 +1,234 @@
+"""Every output of a point, defined once: name, CF attributes, the stage it needs, its formula.
+
+The kernels return a few raw numbers per ``(eta, A, N)`` (the status, ``J(0)``, the wall values of
+stage 1, ``xi_stop``) and, per ``eps K``, the plug edge ``1 - xi_p``. Every output a user sees is
+derived from those here, by one broadcasting function, :func:`derive`, which serves one point
+(:func:`cosserat_channel.solve.solve_point`) and a whole grid (the sweep's Dataset) alike: the two
+agree to the last bit because they run the same operations. Adding an output is one
+:class:`Output` in :data:`OUTPUTS` (or :func:`register` at run time): the point API, sweep files,
+the Dataset, the command line and ``query`` pick it up from here.
+
+Pure Python plus numpy (the closure of :mod:`.closure` included): reading or describing a result
+file never imports numba.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+
+from . import closure
+from . import status as st
+
+__all__ = ["Output", "Inputs", "OUTPUTS", "COUNTERS", "PROFILES", "register", "registered",
+           "derive", "material_outputs", "needs_plug_edge", "needs_stage2"]
+
+STAGE_NONE = 0  # needs no integration (material only)
+STAGE_STRESS = 1  # stage 1: stresses, axis -> wall
+STAGE_VELOCITY = 2  # stage 2: velocities, wall -> axis
+
+
+@dataclass(frozen=True)
+class Output:
+    """One scalar output per point.
+
+    Attributes
+    ----------
+    name : str
+        Variable name in results and files.
+    units : str
+        UDUNITS-parsable unit (``"1"`` when dimensionless).
+    long_name : str
+        What it is, in words (CF ``long_name``).
+    compute : callable
+        ``compute(x)`` with ``x`` an :class:`Inputs`: the value, broadcast over the inputs' shape,
+        NaN where the point has none.
+    stage : int
+        The last solver stage it depends on: 0 (none), 1 (stresses) or 2 (velocities).
+    plug_edge : bool
+        Needs the plug edge ``1 - xi_p`` of eq:13 (a root search per ``eps K``).
+    material : bool
+        Needs a material (``nu`` and the stresses in Pa).
+    """
+
+    name: str
+    units: str
+    long_name: str
+    compute: Callable[["Inputs"], np.ndarray]
+    stage: int = STAGE_VELOCITY
+    plug_edge: bool = False
+    material: bool = False
+
+
+class Inputs:
+    """What the outputs are derived from: raw solver values and parameters, all broadcastable.
+
+    Parameters
+    ----------
+    status : array_like of int
+        Status codes (:class:`cosserat_channel.status.Status`).
+    eps, L, K, N : array_like
+        The point's parameters (``A`` enters only through the solve).
+    J_axis, mu_wall, sigma_yx_wall, xi_stop : array_like, optional
+        The kernel's per-triple values: ``J(0)``, ``m(1)/(nu L)``, ``sigma_yx(1)/nu`` and where a
+        stress path met D = 0. Values where the status is not ``ok`` are ignored.
+    one_minus : array_like, optional
+        ``1 - xi_p`` (NaN where the point has no solution).
+    material : dict, optional
+        A checked material (:func:`cosserat_channel.parameters.check_material`).
+    """
+
+    def __init__(self, status, eps, L, K, N, *, J_axis=None, mu_wall=None, sigma_yx_wall=None,
+                 xi_stop=None, one_minus=None, material=None):
+        self.status = np.asarray(status)
+        self.eps, self.L, self.K, self.N = (np.asarray(v, dtype=np.float64) for v in (eps, L, K, N))
+        self._raw = {"J_axis": J_axis, "mu_wall": mu_wall, "sigma_yx_wall": sigma_yx_wall,
+                     "xi_stop": xi_stop, "one_minus": one_minus}
+        self.material = material
+        self.shape = np.broadcast_shapes(self.status.shape, self.eps.shape, self.L.shape,
+                                         self.K.shape, self.N.shape)
+        self._values: dict[str, np.ndarray] = {}
+
+    def raw(self, name: str) -> np.ndarray:
+        """A raw solver value, NaN where the status is not ``ok`` (as ``solve_point`` reports)."""
+        value = self._raw[name]
+        if value is None:
+            raise ValueError(f"output needs the solver value {name!r}, which was not computed")
+        return np.where(self.ok, value, np.nan)
+
+    def get(self, name: str) -> np.ndarray:
+        """Output ``name`` (computed once, then reused by the outputs derived from it)."""
+        if name not in self._values:
+            self._values[name] = OUTPUTS[name].compute(self)
+        return self._values[name]
+
+    @cached_property
+    def ok(self) -> np.ndarray:
+        return self.status == st.OK
+
+    @cached_property
+    def eps_K(self) -> np.ndarray:
+        return self.eps * self.K
+
+    @cached_property
+    def one_minus(self) -> np.ndarray:
+        value = self._raw["one_minus"]
+        if value is None:
+            raise ValueError("output needs the plug edge 1 - xi_p, which was not computed")
+        return np.asarray(value, dtype=np.float64)
+
+    # The material's quantities depend on (eps, N) only: eq:35 is solved once per pair.
+    @cached_property
+    def tan_delta(self) -> np.ndarray:
+        return math.sin(math.radians(self.material["phi"])) / self.N
+
+    @cached_property
+    def rho_g_W(self) -> np.ndarray:
+        mat = self.material
+        return mat["rho_p"] * mat["g"] * (mat["d_p"] / self.eps)
+
+    @cached_property
+    def nu(self) -> np.ndarray:
+        rho_g_W, tan_delta = np.broadcast_arrays(self.rho_g_W, self.tan_delta)
+        nu = np.empty(rho_g_W.shape)
+        for i in np.ndindex(nu.shape):
+            nu[i] = closure.solids_fraction(float(rho_g_W[i]), float(tan_delta[i]), self.material)
+        return nu
+
+    @cached_property
+    def stress_scale_Pa(self) -> np.ndarray:
+        """``rho_p g W nu``: a scaled stress times this is in Pa."""
+        return self.rho_g_W * self.nu
+
+
+def _xi_stop(x: Inputs):
+    value = x._raw["xi_stop"]
+    return np.where(x.status == st.EPS_TOO_LARGE_PATH, value, np.nan)
+
+
+# Table order is the order of the command line's table, of a sweep's default variables and of the
+# variables in a file.
+OUTPUTS: dict[str, Output] = {o.name: o for o in (
+    Output("Delta", "particle diameters", "shear-layer thickness (1 - xi_p)/eps",
+           lambda x: x.one_minus / x.eps, plug_edge=True),
+    Output("xi_p", "1", "plug edge, u(xi_p) = 0.95 u(0) (eq:13)",
+           lambda x: 1.0 - x.one_minus, plug_edge=True),
+    Output("slip", "1", "wall slip u(1)/u(0)", lambda x: x.eps_K / x.get("u_axis")),
+    Output("u_axis", "1", "centre-line velocity u(0)/omega_w", lambda x: x.eps_K + x.raw("J_axis")),
+    Output("m_wall", "1", "wall couple stress m(1)/nu (rho_p g W d_p units)",
+           lambda x: x.L * x.raw("mu_wall"), stage=STAGE_STRESS),
+    Output("sigma_yx_wall", "1", "wall shear stress sigma_yx(1)/nu (rho_p g W units)",
+           lambda x: x.raw("sigma_yx_wall"), stage=STAGE_STRESS),
+    Output("xi_stop", "1", "where the stress path met D = 0", _xi_stop, stage=STAGE_STRESS),
+    Output("nu", "1", "solids fraction (eq:35)", lambda x: x.nu, stage=STAGE_NONE, material=True),
+    Output("sigma_xx_wall_Pa", "Pa", "wall normal stress sigma_xx, compressive positive",
+           lambda x: x.stress_scale_Pa / x.tan_delta, stage=STAGE_NONE, material=True),
+    Output("sigma_xy_wall_Pa", "Pa", "wall shear stress sigma_xy",
+           lambda x: -x.stress_scale_Pa, stage=STAGE_NONE, material=True),
+    Output("sigma_yx_wall_Pa", "Pa", "wall shear stress sigma_yx",
+           lambda x: np.where(x.ok, x.stress_scale_Pa * x.get("sigma_yx_wall"), np.nan),
+           stage=STAGE_STRESS, material=True),
+    Output("m_wall_Pa_m", "Pa m", "wall couple stress m",
+           lambda x: np.where(x.ok, x.stress_scale_Pa * x.material["d_p"] * x.get("m_wall"), np.nan),
+           stage=STAGE_STRESS, material=True),
+)}
+
+# Per-point work counters, stored in a sweep only on request: (units, long_name, stage).
+COUNTERS = {
+    "stage1_steps": ("1", "accepted steps of the stage-1 integration (0 where none ran)", STAGE_STRESS),
+    "stage2_steps": ("1", "accepted steps of the stage-2 integration (0 where none ran)", STAGE_VELOCITY),
+}
+
+# Profiles over xi (sweeps with ``profile_points``): (units, long_name).
+PROFILES = {
+    "u_over_u0": ("1", "velocity profile u(xi)/u(0)"),
+    "omega_hat": ("1", "spin profile omega(xi)/omega_w"),
+    "m": ("1", "couple-stress profile m(xi)/nu (rho_p g W d_p units)"),
+    "sigma_yx": ("1", "shear-stress profile sigma_yx(xi)/nu (rho_p g W units)"),
+}
+
+
+def register(output: Output) -> None:
+    """Add an output (or replace one of the same name) for every caller from now on."""
+    OUTPUTS[output.name] = output
+
+
+@contextlib.contextmanager
+def registered(output: Output):
+    """Register ``output`` for the duration of a ``with`` block (tests, experiments)."""
+    previous = OUTPUTS.get(output.name)
+    register(output)
+    try:
+        yield output
+    finally:
+        if previous is None:
+            OUTPUTS.pop(output.name, None)
+        else:
+            OUTPUTS[output.name] = previous
+
+
+def material_outputs() -> tuple[str, ...]:
+    """Names of the outputs that need a material."""
+    return tuple(name for name, o in OUTPUTS.items() if o.material)
+
+
+def needs_plug_edge(names) -> bool:
+    """Whether any of ``names`` needs the plug-edge root ``1 - xi_p``."""
+    return any(OUTPUTS[n].plug_edge for n in names if n in OUTPUTS)
+
+
+def needs_stage2(names) -> bool:
+    """Whether any of ``names`` (outputs or counters) needs the velocity stage."""
+    stages = [OUTPUTS[n].stage for n in names if n in OUTPUTS]
+    stages += [COUNTERS[n][2] for n in names if n in COUNTERS]
+    return needs_plug_edge(names) or any(s >= STAGE_VELOCITY for s in stages)
+
+
+def derive(names, inputs: Inputs) -> dict[str, np.ndarray]:
+    """The outputs ``names`` from ``inputs``, each broadcast to the inputs' full shape."""
+    return {name: np.broadcast_to(inputs.get(name), inputs.shape).copy() for name in names}

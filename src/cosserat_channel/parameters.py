@@ -1,0 +1,189 @@
+"""The model's parameters: names, ranges, meanings and units, and the checks that enforce them.
+
+The one home of every parameter's definition. The point API, sweep files, the command line, the
+Dataset attributes and the plots all take names, ranges and descriptions from here, so a range
+changed here changes everywhere. Pure Python plus numpy: reading a result file or parsing a sweep
+never imports numba.
+
+Parameters and their order follow the paper (see ``docs/model.md``): ``(eps, L, K, A, N)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+__all__ = [
+    "DIMS",
+    "Parameter",
+    "PARAMETERS",
+    "MATERIAL",
+    "MATERIAL_REQUIRED",
+    "TOLERANCES",
+    "DEFAULT_RTOL",
+    "DEFAULT_ATOL",
+    "ParameterError",
+    "check_point",
+    "check_values",
+    "check_tolerances",
+    "check_material",
+]
+
+DIMS = ("eps", "L", "K", "A", "N")
+
+
+class ParameterError(ValueError):
+    """A parameter outside the model's or the solver's domain; the message names it and its range."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter: its name, meaning, unit and allowed interval.
+
+    Attributes
+    ----------
+    name : str
+        The paper's symbol in ASCII (``eps``, ``L`` ...).
+    long_name : str
+        What it is, in words (also the CF ``long_name`` of its coordinate).
+    units : str
+        UDUNITS-parsable unit (``"1"`` when dimensionless).
+    lo, hi : float
+        Bounds of the allowed interval; ``lo_closed`` / ``hi_closed`` say whether each is allowed.
+    default : float or None
+        Value used when the parameter is not given (material closure constants only).
+    """
+
+    name: str
+    long_name: str
+    units: str = "1"
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_closed: bool = False
+    hi_closed: bool = False
+    default: float | None = None
+
+    @property
+    def interval(self) -> str:
+        """The allowed interval in the usual notation, e.g. ``(0, 1]``."""
+        lb = "[" if self.lo_closed else "("
+        rb = "]" if self.hi_closed else ")"
+        return f"{lb}{self.lo:g}, {self.hi:g}{rb}"
+
+    def contains(self, x):
+        """Elementwise: ``x`` is finite and inside the interval (works on floats and arrays)."""
+        above = (x >= self.lo) if self.lo_closed else (x > self.lo)
+        below = (x <= self.hi) if self.hi_closed else (x < self.hi)
+        return np.isfinite(x) & above & below
+
+    def check(self, value, label: str | None = None) -> float:
+        """``float(value)`` if it is a real number inside the interval, else :class:`ParameterError`.
+
+        Booleans (Python's and numpy's) and strings are refused even where ``float()`` would
+        accept them: ``True`` is not a length and ``"1"`` is not a number.
+        """
+        label = label or self.name
+        what = f"a number in {self.interval} ({self.long_name})"
+        if isinstance(value, (bool, np.bool_, str, bytes)) or not _is_real(value):
+            raise ParameterError(f"{label} must be {what}; got {value!r}")
+        try:
+            x = float(value)
+        except (TypeError, ValueError, OverflowError):
+            raise ParameterError(f"{label} must be {what}; got {value!r}") from None
+        if not self.contains(x):
+            raise ParameterError(
+                f"{label} = {value!r} is outside the allowed range {self.interval} ({self.long_name})"
+            )
+        return x
+
+
+def _is_real(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) or (
+        isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf"
+    )
+
+
+# The point's parameters. The ranges are the solver's domain; model.md says which values the paper
+# studies and what each status means outside the region with a solution.
+PARAMETERS = {
+    "eps": Parameter("eps", "particle diameter / channel half-width, d_p/W", "1", 0.0, 1.0, False, True),
+    "L": Parameter("L", "Cosserat length in particle diameters", "1", 0.0, math.inf),
+    "K": Parameter("K", "wall roughness in u = eps K omega at the wall", "1", 0.0, math.inf, True),
+    "A": Parameter("A", "yield-surface constant a2/a1", "1"),
+    "N": Parameter("N", "sin(phi)/tan(delta)", "1", 0.0, math.inf),
+}
+
+# The material, for nu and the dimensional stresses: the particle (required) and the
+# critical-state closure sigma_c(nu) of eq:24 with the paper's constants as defaults.
+MATERIAL = {
+    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 0.0, math.inf),
+    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 0.0, math.inf),
+    "phi": Parameter("phi", "angle of internal friction phi in degrees", "degree", 0.0, 90.0),
+    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 0.0, math.inf, default=9.81),
+    # Lambda is a stress in pascals: that reproduces the paper's nu = 0.60 and 0.59 (model.md).
+    "Lambda": Parameter("Lambda", "closure constant Lambda in Pa (eq:24)", "Pa", 0.0, math.inf,
+                        default=817.0),
+    "nu_min": Parameter("nu_min", "closure nu_min (eq:24)", "1", 0.0, 1.0, True, default=0.5),
+    "nu_max": Parameter("nu_max", "closure nu_max (eq:24)", "1", 0.0, 1.0, default=0.65),
+    "p": Parameter("p", "closure exponent p (eq:24)", "1", 1.0, math.inf, True, default=2.5),
+    "q": Parameter("q", "closure exponent q (eq:24)", "1", 0.0, math.inf, True, default=2.2),
+}
+MATERIAL_REQUIRED = ("d_p", "rho_p", "phi")
+
+DEFAULT_RTOL = 1e-8
+DEFAULT_ATOL = 1e-12
+TOLERANCES = {
+    "rtol": Parameter("rtol", "relative tolerance", "1", 1e-13, 1.0, True, default=DEFAULT_RTOL),
+    "atol": Parameter("atol", "absolute tolerance", "1", 0.0, math.inf, default=DEFAULT_ATOL),
+}
+
+
+def check_point(eps, L, K, A, N):
+    """Validate ``(eps, L, K, A, N)``; returns them as floats or raises :class:`ParameterError`."""
+    return tuple(PARAMETERS[d].check(v) for d, v in zip(DIMS, (eps, L, K, A, N)))
+
+
+def check_values(name: str, values, label: str | None = None) -> np.ndarray:
+    """Validate a whole axis of parameter ``name`` at once; returns it as float64.
+
+    Vectorised, so an axis of 10^8 values takes seconds. The message names the first value
+    outside the range, as :meth:`Parameter.check` would for that value alone.
+    """
+    param = PARAMETERS[name]
+    x = np.asarray(values, dtype=np.float64)
+    bad = ~param.contains(x)
+    if bad.any():
+        param.check(x.ravel()[np.flatnonzero(bad.ravel())[0]].item(), label)
+    return x
+
+
+def check_tolerances(rtol, atol):
+    """Validate the tolerances; returns them as floats or raises :class:`ParameterError`."""
+    return TOLERANCES["rtol"].check(rtol), TOLERANCES["atol"].check(atol)
+
+
+def check_material(material: Mapping | None) -> dict | None:
+    """Validate a material mapping; fill in the closure's defaults; None stays None."""
+    if material is None:
+        return None
+    if not isinstance(material, Mapping):
+        raise ParameterError("material must be a mapping with keys " + ", ".join(MATERIAL))
+    unknown = sorted(set(material) - set(MATERIAL), key=str)
+    if unknown:
+        raise ParameterError(
+            f"material: unknown key(s) {', '.join(map(repr, unknown))}; allowed: " + ", ".join(MATERIAL)
+        )
+    missing = [k for k in MATERIAL_REQUIRED if k not in material]
+    if missing:
+        raise ParameterError(f"material: missing required key(s) {', '.join(missing)}")
+    full = {k: p.default for k, p in MATERIAL.items() if p.default is not None}
+    for key, value in material.items():
+        full[key] = MATERIAL[key].check(value, f"material.{key}")
+    if not full["nu_min"] < full["nu_max"]:
+        raise ParameterError(
+            f"material.nu_min = {full['nu_min']:g} must be below material.nu_max = {full['nu_max']:g}"
+        )
+    return full

@@ -345,8 +345,9 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
                xtol=ETA_XTOL, rtol=EDGE_RTOL, atol=EDGE_ATOL, workspace=None) -> Edge:
     """``eta_max(A, N)``: the largest ``eta = eps L`` in ``eta_range`` that has a solution.
 
-    Feasibility is status ok of :func:`cosserat_channel.solve.Workspace.run` (both stages, as
-    ``solve_point``); the regimes of Appendix A with no solution for any ``eta`` are decided by
+    Feasibility is status ok of :func:`cosserat_channel.solve.Workspace.status` (the status of
+    ``solve_point`` by the cheapest solve that decides it: stage 2 only next to the path edge);
+    the regimes of Appendix A with no solution for any ``eta`` are decided by
     :func:`model.classify` alone.
 
     Assumption, and how it is checked: the feasible set is a union of intervals no shorter than
@@ -377,7 +378,7 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
         code = model.classify(eta, A, N)
         if code == st.OK and A != -1.0:
             try:
-                code = ws.run(eta, A, N, rtol, atol)
+                code = ws.status(eta, A, N, rtol, atol)
             except ZeroDivisionError:  # a kernel that raised counts as a failed integration
                 code = st.INTEGRATION_FAILED
         return code == st.OK, int(code)

@@ -60,7 +60,7 @@ class PointResult:
     m_wall_Pa_m : float
         Wall couple stress in Pa m (N/m) (only with a material).
     values : dict
-        All outputs by name (the attributes above read from here).
+        The computed outputs by name (the attributes above read from here).
     counters : dict
         Accepted/rejected steps and right-hand-side evaluations of both stages, and whether the
         stage-1 stiffness detector fired.
@@ -86,6 +86,11 @@ class PointResult:
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
+    def computed(self) -> tuple[str, ...]:
+        """Names of the outputs that were computed (``solve_point(outputs=...)``); others read NaN."""
+        return tuple(self.values)
+
+    @property
     def ok(self) -> bool:
         return self.status == st.Status.ok
 
@@ -98,8 +103,9 @@ class PointResult:
         d = {"eps": self.eps, "L": self.L, "K": self.K, "A": self.A, "N": self.N}
         d["status"] = self.status.name
         d["message"] = self.status.message
-        for k in out_.OUTPUTS:
+        for k in out_.OUTPUTS:  # every output, null where none or not computed
             d[k] = clean(float(getattr(self, k)))
+        d["computed"] = list(self.values)
         d["counters"] = dict(self.counters)
         if self.profile is not None:
             d["profile"] = {k: [clean(float(v)) for v in a] for k, a in self.profile.items()}
@@ -119,12 +125,21 @@ class Workspace:
         self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
         self.res = np.empty(stages.N_R)
 
-    def run(self, eta, A, N, rtol, atol, method=stages.METHOD_AUTO):
-        """Both stages for one ``(eta, A, N)``; returns the status code, fills ``self.res``."""
+    def run(self, eta, A, N, rtol, atol, method=stages.METHOD_AUTO, stage2=True):
+        """Both stages for one ``(eta, A, N)``; returns the status code, fills ``self.res``.
+
+        ``stage2=False``: stage 2 only where it decides the status (:func:`stages.solve_eta`).
+        """
         return stages.solve_eta(
             eta, A, N, rtol, atol, self.ax, self.T1, self.Q1, self.T2, self.Q2,
-            self.stats1, self.stats2, self.res, method,
+            self.stats1, self.stats2, self.res, method, stage2,
         )
+
+    def status(self, eta, A, N, rtol, atol) -> int:
+        """The status code of ``(eta, A, N)`` by the cheapest solve that decides it as the full
+        solve does: stage 1 to the wall with the same event and edge handling, and stage 2 only
+        next to the path edge. For edge tracing, regime maps and the atlas."""
+        return self.run(eta, A, N, rtol, atol, stages.METHOD_AUTO, False)
 
 
 def _check_profile(profile) -> np.ndarray:
@@ -139,8 +154,26 @@ def _check_profile(profile) -> np.ndarray:
     return xi
 
 
+def _check_outputs(names, material) -> list[str]:
+    """The outputs to compute: all (with a material, the material's too) or the names given."""
+    if names is None:
+        return [n for n, o in out_.OUTPUTS.items() if material is not None or not o.material]
+    if isinstance(names, str):
+        names = [names]
+    try:
+        names = list(dict.fromkeys(names))
+    except TypeError:
+        raise ParameterError("outputs must be a list of output names") from None
+    for name in names:
+        if name not in out_.OUTPUTS:
+            raise ParameterError(f"outputs: unknown output {name!r}; valid: {', '.join(out_.OUTPUTS)}")
+        if out_.OUTPUTS[name].material and material is None:
+            raise ParameterError(f"outputs: {name!r} needs a material (d_p, rho_p, phi)")
+    return names
+
+
 def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=None, profile=None,
-                workspace: Workspace | None = None) -> PointResult:
+                outputs=None, workspace: Workspace | None = None) -> PointResult:
     """Solve one point ``(eps, L, K, A, N)`` of the channel-flow model through both stages.
 
     Parameters
@@ -155,6 +188,12 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
         ``nu_min``, ``nu_max``, ``p``, ``q``. Adds ``nu`` and the dimensional wall stresses.
     profile : array_like, optional
         ``xi`` values in [0, 1] at which to return u/u(0), omega_hat, m, sigma_xy and sigma_yx.
+    outputs : list of str, optional
+        Compute only these outputs (names of :data:`cosserat_channel.outputs.OUTPUTS`); the others
+        read NaN and :attr:`PointResult.computed` lists what was computed. Asking only for
+        stage-1 outputs (``m_wall``, ``sigma_yx_wall``, ``xi_stop``, the material's) skips the
+        velocity stage wherever it cannot change the status, and without ``Delta`` or ``xi_p``
+        no plug-edge root is searched. The status is always computed.
     workspace : Workspace, optional
         Work arrays to reuse across calls (saves their allocation).
 
@@ -178,19 +217,21 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     rtol, atol = check_tolerances(rtol, atol)
     mat = check_material(material)
     xi_prof = None if profile is None else _check_profile(profile)
+    names = _check_outputs(outputs, mat)
+    plug_edge = out_.needs_plug_edge(names)
     ws = workspace or Workspace()
     eta = eps * L
-    code = ws.run(eta, A, N, rtol, atol)
+    code = ws.run(eta, A, N, rtol, atol, stages.METHOD_AUTO,
+                  xi_prof is not None or out_.needs_stage2(names))
     res = ws.res
     one_minus = math.nan
-    if code == st.OK:
+    if code == st.OK and plug_edge:
         one_minus = float(stages.one_minus_xi_p(A, N, eta, eps * K, res, ws.T2, ws.Q2))
     inputs = out_.Inputs(
         code, eps, L, K, N, J_axis=res[stages.R_J_AXIS], mu_wall=res[stages.R_MU_WALL],
         sigma_yx_wall=res[stages.R_SIGMA_YX_WALL], xi_stop=res[stages.R_XI_STOP],
         one_minus=one_minus, material=mat,
     )
-    names = [n for n, o in out_.OUTPUTS.items() if mat is not None or not o.material]
     values = {k: float(v) for k, v in out_.derive(names, inputs).items()}
     result = PointResult(eps=eps, L=L, K=K, A=A, N=N, status=st.Status(code), values=values)
     result.counters = _counters(ws)

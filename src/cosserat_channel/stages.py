@@ -381,11 +381,18 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
 
 
 @njit(nogil=True, cache=True)
-def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method=METHOD_AUTO):
-    """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``.
+def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method=METHOD_AUTO,
+              stage2=True):
+    """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``, or only what decides.
 
     ``method`` picks stage 1's integrator: ``METHOD_AUTO`` (by :func:`use_stiff_path`),
     ``METHOD_EXPLICIT`` (Dormand-Prince) or ``METHOD_STIFF`` (RODAS4P2).
+
+    With ``stage2=False`` stage 2 runs only where it can change the status: next to the path
+    edge (``near_edge`` of :func:`solve_stage1`), where its failure means D(1) = 0 within
+    resolution. Everywhere else a solved stage 1 is the answer for the status and the wall
+    values, and ``R_J_AXIS`` stays NaN. The one status this cannot reproduce is a stage-2
+    failure away from the edge (``integration_failed``; none is known, see docs/model.md).
 
     Fills ``res[N_R]`` (slots ``R_*``), the axis constants ``ax``, the dense outputs (T1, Q1) of
     stage 1 and (T2, Q2) of stage 2 and the counters. Returns the status code.
@@ -393,7 +400,7 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     for i in range(stats2.size):
         stats2[i] = 0
     code, near_edge = solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)
-    if code != st.OK:
+    if code != st.OK or not (stage2 or near_edge):
         return code
     code = _march_stage2(eta, A, N, rtol, atol, ax, res[R_XI1], T1, Q1, int(res[R_N1]), T2, Q2,
                          stats2, res)
@@ -517,7 +524,7 @@ def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
 
 @njit(nogil=True, cache=True)
 def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_steps_stage2,
-                res, stats, one_minus, xi_profile, profiles):
+                res, stats, one_minus, xi_profile, profiles, stage2=True, plug_edge=True):
     """Many ``(eta, A, N)`` triples, each with its own run of ``eps K`` values, on one core.
 
     Triple ``i`` owns ``eps_K[offsets[i]:offsets[i+1]]``; ``one_minus`` (same length as ``eps_K``)
@@ -527,6 +534,10 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
     receives the triple's profiles (slots ``P_*``; NaN without a solution).
     One integration per triple, whatever the number of ``eps K`` values (model.md's similarity).
     The work arrays are allocated once, here, so the kernel releases the GIL for its whole run.
+
+    Only what is asked for is computed: ``stage2=False`` runs stage 2 only where it decides the
+    status (:func:`solve_eta`), ``plug_edge=False`` skips the eq:13 root (``one_minus`` is NaN).
+    Profiles need both.
     """
     ax = np.empty(N_AX)
     T1 = np.empty(max_steps_stage1 + 1)
@@ -535,9 +546,9 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
     Q2 = np.empty((max_steps_stage2, 5, 2))
     for i in range(eta.size):
         code = solve_eta(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, T2, Q2, stats[i, 0],
-                         stats[i, 1], res[i])
+                         stats[i, 1], res[i], METHOD_AUTO, stage2 or plug_edge or xi_profile.size > 0)
         for j in range(offsets[i], offsets[i + 1]):
-            if code == st.OK:
+            if code == st.OK and plug_edge:
                 one_minus[j] = one_minus_xi_p(A[i], N[i], eta[i], eps_K[j], res[i], T2, Q2)
             else:
                 one_minus[j] = math.nan

@@ -106,7 +106,8 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
             progress = sys.stderr.isatty()
         t0 = time.perf_counter()
         if todo:
-            args = (spec.rtol, spec.atol, xi)
+            args = (spec.rtol, spec.atol, xi, out_.needs_stage2(spec.variables),
+                    out_.needs_plug_edge(spec.variables))
             if scheduler is None:
                 _run_threads(plan, todo, store, args, n_workers, progress)
             else:
@@ -148,8 +149,14 @@ def _profile_xi(spec):
 # ---------------------------------------------------------------------------------------------
 # One block
 # ---------------------------------------------------------------------------------------------
-def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None) -> dict:
-    """Run :func:`stages.solve_batch` on one block; returns the arrays the store keeps."""
+def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None, stage2=True,
+                plug_edge=True) -> dict:
+    """Run :func:`stages.solve_batch` on one block; returns the arrays the store keeps.
+
+    ``stage2`` / ``plug_edge``: whether the sweep's variables need the velocity stage and the
+    eq:13 root (:func:`outputs.needs_stage2`); what is not needed is not computed.
+    """
+    need = (stage2, plug_edge)
     n = inp.eta.size
     res = np.empty((n, stages.N_R))
     stats = np.zeros((n, 2, rk45.N_STATS), dtype=np.int64)
@@ -157,14 +164,14 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None) -> dict:
     xi_k = np.empty(0) if xi is None else xi
     prof = np.empty((n, stages.N_PROF, xi_k.size))
     try:
-        _batch(inp, slice(0, n), rtol, atol, xi_k, res, stats, one_minus, prof)
+        _batch(inp, slice(0, n), rtol, atol, xi_k, res, stats, one_minus, prof, need)
     except ArithmeticError:
         # The kernel raised on some triple (a bug at a boundary of the domain, e.g. an axis
         # margin of exactly 0): redo the block triple by triple so that only that triple is lost,
         # reported as integration_failed, instead of the whole run.
         for i in range(n):
             try:
-                _batch(inp, slice(i, i + 1), rtol, atol, xi_k, res, stats, one_minus, prof)
+                _batch(inp, slice(i, i + 1), rtol, atol, xi_k, res, stats, one_minus, prof, need)
             except ArithmeticError as exc:
                 log.warning("kernel raised %s at eta=%r, A=%r, N=%r; reported as "
                             "integration_failed", type(exc).__name__, float(inp.eta[i]),
@@ -184,13 +191,14 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None) -> dict:
     return out
 
 
-def _batch(inp: BlockInputs, sl: slice, rtol, atol, xi_k, res, stats, one_minus, prof) -> None:
+def _batch(inp: BlockInputs, sl: slice, rtol, atol, xi_k, res, stats, one_minus, prof,
+           need) -> None:
     """solve_batch on triples ``sl`` of the block (views: results land in the block's arrays)."""
     lo, hi = inp.offsets[sl.start], inp.offsets[sl.stop]
     offsets = inp.offsets[sl.start:sl.stop + 1] - lo
     stages.solve_batch(inp.eta[sl], inp.A[sl], inp.N[sl], inp.eps_K[lo:hi], offsets, rtol, atol,
                       stages.MAX_STEPS_STAGE1, stages.MAX_STEPS_STAGE2, res[sl], stats[sl],
-                      one_minus[lo:hi], xi_k, prof[sl])
+                      one_minus[lo:hi], xi_k, prof[sl], need[0], need[1])
 
 
 def _block_task(plan: Plan, k: int, args) -> dict:

@@ -1,0 +1,107 @@
+"""Compute only what the question needs: stage-1-only sweeps and edge tracing, timed side by side.
+
+Measures, in one run on this machine:
+
+1. the same unreduced sweep (one core) asked for every output and for ``m_wall`` alone (stage-1
+   output: no velocity stage away from the path edge, no plug-edge root);
+2. ``regimes.trace_edge`` deciding feasibility by the full two-stage solve (as before) and by
+   ``Workspace.status`` (stage 2 only next to the edge), with the two eta_max compared.
+
+Run: ``.venv/bin/python benchmarks/bench_needed.py [--quick]``. Targets: sweep ratio <= 0.55,
+trace_edge ratio <= 0.5 with identical eta_max to 1e-10 (relative).
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+
+from cosserat_channel import regimes, run_sweep
+from cosserat_channel.solve import Workspace
+
+EDGE_CASES = ((1 / 3, 1.0), (0.0, 2.0), (-0.5, 1.0), (3.0, 0.5), (1.0, 1.0), (2.0, 3.0))
+
+
+class FullSolveWorkspace(Workspace):
+    """Feasibility by both stages everywhere: what edge tracing did before the status path."""
+
+    def status(self, eta, A, N, rtol, atol):
+        return self.run(eta, A, N, rtol, atol)
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def sweep_mapping(n_eps, n_L, variables=None):
+    m = {"grid": {"eps": {"logspace": [-3, -0.5, n_eps]}, "L": {"linspace": [2, 20, n_L]},
+                  "K": [0.1, 0.5, 1.0, 5.0, 50.0], "A": [1 / 3, 1.0], "N": 1.0}}
+    if variables:
+        m["output"] = {"variables": variables}
+    return m
+
+
+def time_sweep(mapping, repeat):
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        ds = run_sweep(mapping, reduce=False, workers=1, progress=False)
+        best = min(best, time.perf_counter() - t0)
+    return best, ds
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="a small grid (CI smoke run)")
+    ap.add_argument("--repeat", type=int, default=2)
+    args = ap.parse_args()
+    n = 20 if args.quick else 100
+    print(f"CPU: {cpu_model()}; one core; unreduced sweep of {n} x {n} x 5 x 2 points")
+    time_sweep(sweep_mapping(3, 2), 1)  # compile / load the kernels outside the timing
+
+    t_all, ds_all = time_sweep(sweep_mapping(n, n), args.repeat)
+    t_m, ds_m = time_sweep(sweep_mapping(n, n, ["m_wall"]), args.repeat)
+    same_status = bool((ds_all.status.values == ds_m.status.values).all())
+    same_m = bool(np.array_equal(ds_all.m_wall.values, ds_m.m_wall.values, equal_nan=True))
+    ratio = t_m / t_all
+    print(f"sweep, every output : {t_all:8.2f} s")
+    print(f"sweep, m_wall only  : {t_m:8.2f} s   ratio {ratio:.2f}  (target <= 0.55: "
+          f"{'PASS' if ratio <= 0.55 else 'FAIL'})  statuses identical: {same_status}, "
+          f"m_wall identical: {same_m}")
+
+    ws_full, ws_new = FullSolveWorkspace(max_steps_stage1=regimes.EDGE_MAX_STEPS), \
+        Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
+    regimes.trace_edge(1 / 3, 1.0, workspace=ws_new)  # warm up
+    t_old = t_new = 0.0
+    worst = 0.0
+    for A, N in EDGE_CASES:
+        t0 = time.perf_counter()
+        old = regimes.trace_edge(A, N, workspace=ws_full)
+        t1 = time.perf_counter()
+        new = regimes.trace_edge(A, N, workspace=ws_new)
+        t2 = time.perf_counter()
+        t_old += t1 - t0
+        t_new += t2 - t1
+        if np.isfinite(old.eta_max) or np.isfinite(new.eta_max):
+            worst = max(worst, abs(new.eta_max - old.eta_max) / abs(old.eta_max))
+        print(f"  A = {A:6.3f}, N = {N:4.2f}: eta_max {old.eta_max:.12g} (full) "
+              f"{new.eta_max:.12g} (status path); {t1 - t0:6.2f} s -> {t2 - t1:6.2f} s")
+    r = t_new / t_old
+    print(f"trace_edge, {len(EDGE_CASES)} edges: {t_old:.2f} s -> {t_new:.2f} s, ratio {r:.2f} "
+          f"(target <= 0.5: {'PASS' if r <= 0.5 else 'FAIL'}); max relative eta_max difference "
+          f"{worst:.1e} (target <= 1e-10: {'PASS' if worst <= 1e-10 else 'FAIL'})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,98 @@
+"""The kernels' "compute only what is asked" paths against the full two-stage solve."""
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_channel import rk45, solve_point, stages
+from cosserat_channel import status as st
+from cosserat_channel.solve import Workspace
+from cosserat_channel.sweep.engine import solve_block
+from cosserat_channel.sweep.plan import Plan
+
+STAGE1_OUTPUTS = ["m_wall", "sigma_yx_wall", "xi_stop"]
+# The test points of tests/test_solve.py (bulk, stiff, near and past the path edge, every regime).
+POINTS = [
+    (1e-4, 1.0, 0.5, 1 / 3, 1.0), (1e-4, 3.0, 5.0, 2.0, 2.0), (1 / 600, 10.0, 0.5, 1 / 3, 1.0),
+    (1 / 30, 10.0, 0.5, 1 / 3, 1.0), (0.05, 5.0, 1.0, -0.85, 3.0), (0.01, 1.0, 10.0, 2.9, 0.7),
+    (0.3, 10.0, 0.5, 1 / 3, 1.0), (0.32, 10.0, 0.5, 1 / 3, 1.0), (0.33, 10.0, 0.5, 1 / 3, 1.0),
+    (0.3308, 10.0, 0.5, 1 / 3, 1.0), (0.335, 10.0, 0.5, 1 / 3, 1.0), (0.45, 10.0, 0.5, 1 / 3, 1.0),
+    (0.05, 10.0, 0.5, 0.0, 0.7), (0.05, 10.0, 0.5, 0.1, 0.7), (1 / 30, 10.0, 0.5, -1.0, 1.0),
+    (0.05, 10.0, 0.5, -1.5, 1.5), (0.0235, 10.0, 0.5, 3.0, 0.5),
+]
+
+
+def _random_domain(n, seed=15):
+    """Points over the whole domain: eps 1e-7..0.5, L 0.5..100, A -3..5, N 0.3..10 (log where wide)."""
+    rng = np.random.default_rng(seed)
+    eps = 10 ** rng.uniform(-7, math.log10(0.5), n)
+    L = 10 ** rng.uniform(math.log10(0.5), 2, n)
+    A = rng.uniform(-3, 5, n)
+    N = 10 ** rng.uniform(math.log10(0.3), 1, n)
+    return [(e, l, 0.5, a, m) for e, l, a, m in zip(eps, L, A, N)]
+
+
+def _edge_points():
+    """Points within 1e-3 .. 1e-9 (relative) of eta_max at A = 1/3, N = 1, on both sides."""
+    eta_max = 3.308860581
+    return [(eta_max * (1 + s * d) / 10, 10.0, 0.5, 1 / 3, 1.0)
+            for d in (1e-3, 1e-5, 1e-7, 1e-9) for s in (-1, 1)]
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-8, 1e-10])
+def test_status_path_decides_as_the_full_solve(rtol):
+    """Workspace.status equals the full solve's status on the test points, near the edge and on a
+    random domain-wide sample, at three tolerances."""
+    ws_full, ws = Workspace(), Workspace()
+    for eps, L, K, A, N in POINTS + _edge_points() + _random_domain(300):
+        eta = eps * L
+        assert ws.status(eta, A, N, rtol, 1e-12) == ws_full.run(eta, A, N, rtol, 1e-12), (eps, L, A, N)
+
+
+def test_status_path_skips_stage2_away_from_the_edge():
+    """In the bulk the status path runs no stage 2 at all; next to the edge it does."""
+    ws = Workspace()
+    assert ws.status(1 / 3, 1 / 3, 1.0, 1e-8, 1e-12) == st.OK
+    assert ws.stats2[rk45.STAT_ACCEPTED] == 0 and math.isnan(ws.res[stages.R_J_AXIS])
+    ws.run(1 / 3, 1 / 3, 1.0, 1e-8, 1e-12)
+    assert ws.stats2[rk45.STAT_ACCEPTED] > 0
+
+
+def test_solve_point_subset_of_outputs():
+    """Asking for stage-1 outputs gives the same bits as the full solve, without stage 2."""
+    for p in POINTS + _random_domain(60, seed=3):
+        full = solve_point(*p)
+        part = solve_point(*p, outputs=STAGE1_OUTPUTS)
+        assert part.status == full.status, p
+        assert part.computed == tuple(STAGE1_OUTPUTS)
+        for name in STAGE1_OUTPUTS:
+            a, b = getattr(part, name), getattr(full, name)
+            assert a == b or (math.isnan(a) and math.isnan(b)), (p, name)
+        assert math.isnan(part.Delta) and part.to_dict()["Delta"] is None
+        if part.ok and full.counters["stage2_accepted"] and not part.counters["stage2_accepted"]:
+            assert part.counters["stage1_accepted"] == full.counters["stage1_accepted"]
+
+
+def test_no_plug_edge_root_without_Delta():
+    """slip needs stage 2 but no plug-edge root; Delta needs both."""
+    r = solve_point(1 / 30, 10.0, 0.5, 1 / 3, 1.0, outputs=["slip"])
+    full = solve_point(1 / 30, 10.0, 0.5, 1 / 3, 1.0)
+    assert r.slip == full.slip and math.isnan(r.xi_p)
+    assert r.counters["stage2_accepted"] == full.counters["stage2_accepted"]
+
+
+def test_sweep_block_computes_only_what_is_asked():
+    """A block asked for stage-1 outputs runs no stage 2 in the bulk and no root; statuses hold."""
+    axes = {"eps": np.array([0.01, 1 / 30, 0.3308, 0.45]), "L": np.array([10.0]),
+            "K": np.array([0.5, 5.0]), "A": np.array([1 / 3, 3.0]), "N": np.array([0.5, 1.0])}
+    plan = Plan(axes, reduce=False, block_size=1000)
+    inp = plan.inputs(0)
+    full = solve_block(inp, 1e-8, 1e-12)
+    part = solve_block(inp, 1e-8, 1e-12, None, False, False)
+    assert np.array_equal(part["res"][:, stages.R_STATUS], full["res"][:, stages.R_STATUS])
+    ok = full["res"][:, stages.R_STATUS] == st.OK
+    for slot in (stages.R_MU_WALL, stages.R_SIGMA_YX_WALL):
+        assert np.array_equal(part["res"][ok, slot], full["res"][ok, slot])
+    assert np.isnan(part["one_minus"]).all()
+    assert part["steps"][:, 1].sum() < full["steps"][:, 1].sum() / 4

@@ -99,17 +99,49 @@ def _stage1_event(xi, y, args):
     return model.yield_D(xi, xi * xi * y[0], A, N, ax)
 
 
+# Slots of the small work vector that stage 2 keeps about the stage-1 solution it reads.
+W_STEP = 0  # the stage-1 step of the last lookup (stage 2 moves through them in order)
+W_XI = 1  # xi of the last evaluation of the rates ...
+W_H = 2  # ... and h there, which the tail event needs again at the same xi
+N_W = 3
+
+
 @njit(nogil=True, cache=True)
-def _delta_at(xi, xi1, ax, T1, Q1, n1, buf):
+def _stage1_step(T1, n1, xi, work):
+    """The stage-1 step containing ``xi``: the index :func:`rk45.find_step` returns, found by a
+    walk from the step of the previous lookup (stage 2 asks for nearby, mostly decreasing xi, so
+    the walk is zero or one step where a binary search would take log2(n1))."""
+    if n1 <= 1:
+        return 0
+    k = min(int(work[W_STEP]), n1 - 1)
+    while k > 0 and T1[k] > xi:
+        k -= 1
+    while k < n1 - 1 and T1[k + 1] <= xi:
+        k += 1
+    work[W_STEP] = k
+    return k
+
+
+@njit(nogil=True, cache=True)
+def _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work):
     """Stage-1 solution anywhere in [0, 1]: the axis series below ``xi1``, the dense output above."""
     if xi <= xi1:
         return model.delta_axis_series(xi, ax)
-    rk45.dense_eval(T1, Q1, n1, xi, buf)
+    rk45.dense_eval_step(T1, Q1, _stage1_step(T1, n1, xi, work), xi, buf)
     return xi * xi * buf[0]
 
 
 @njit(nogil=True, cache=True)
-def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf):
+def _stage1_work(n1):
+    work = np.empty(N_W)
+    work[W_STEP] = n1 - 1
+    work[W_XI] = math.nan
+    work[W_H] = math.nan
+    return work
+
+
+@njit(nogil=True, cache=True)
+def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work):
     """``(xi B, h)`` of e-60 / e-59 at ``xi``, on the stage-1 solution.
 
     For A = -1 (Appendix A) ``D`` vanishes identically and the general formulas are 0/0; there
@@ -119,18 +151,21 @@ def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf):
     """
     if A == -1.0:
         return model.a_minus_one_xi_B(eta, N), model.a_minus_one_h()
-    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
+    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work)
     D = model.yield_D(xi, delta, A, N, ax)
-    return xi * model.spin_rate_B(delta, D, eta, A, N), model.shear_rate_h(xi, D, A)
+    h = model.shear_rate_h(xi, D, A)
+    work[W_XI] = xi
+    work[W_H] = h
+    return xi * model.spin_rate_B(delta, D, eta, A, N), h
 
 
 @njit(nogil=True, cache=True)
 def _stage2_rhs(t, y, args, out):
     # Independent variable t = ln(xi): near the axis B ~ beta/xi, so d log(omega_hat)/dt -> beta
     # is smooth all the way down, where marching in xi would crawl in geometric steps.
-    eta, A, N, ax, xi1, T1, Q1, n1, buf, tail_tol = args
+    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol = args
     xi = math.exp(t)
-    xiB, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf)
+    xiB, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work)
     out[0] = xiB  # d log(omega_hat)/dt   (e-60)
     out[1] = -xi * h * math.exp(y[0])  # dJ/dt   (e-59)
 
@@ -147,12 +182,15 @@ def _h_axis(A, ax):
 def _stage2_event(t, y, args):
     # Positive while the rest of J (from xi down to the axis) can still matter: that rest is at
     # most xi * max(h) * omega_hat(xi), because omega_hat increases with xi (B > 0 near the axis).
-    eta, A, N, ax, xi1, T1, Q1, n1, buf, tail_tol = args
+    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol = args
     J = y[1]
     if J <= 0.0:
         return 1.0
     xi = math.exp(t)
-    _, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf)
+    if xi == work[W_XI]:
+        h = work[W_H]  # the step's last stage was evaluated here (FSAL): no second lookup
+    else:
+        _, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work)
     h_bound = 2.0 * max(h, _h_axis(A, ax))
     return y[0] + t + math.log(h_bound) - math.log(tail_tol * J)
 
@@ -341,7 +379,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
     s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
     if s1 == rk45.SUCCESS:
-        delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
+        delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf, _stage1_work(n1))
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
         sensitivity = _wall_D_sensitivity(A, N, delta_wall)
         # Near the path edge D(1) is small and Delta, sigma_yx(1) and stage 2 (B ~ 1/sqrt(D))
@@ -354,7 +392,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
             s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
             if s1 == rk45.SUCCESS:
-                delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf)
+                delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf, _stage1_work(n1))
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
                 sensitivity = _wall_D_sensitivity(A, N, delta_wall)
     res[R_N1] = n1
@@ -429,7 +467,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     atol2 = np.empty(2)
     atol2[0] = rtol  # an absolute error in log(omega_hat) is a relative error in omega_hat
     atol2[1] = atol * min(1.0, eta)
-    args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, TAIL_FRACTION * rtol)
+    args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, _stage1_work(n1), TAIL_FRACTION * rtol)
     s2, n2, t2 = rk45.dopri5(
         _stage2_rhs, _stage2_event, 0.0, y2, math.log(XI_FLOOR), args2, rtol, atol2, 0.0, 0.0, T2, Q2,
         stats2,
@@ -576,6 +614,7 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     n2 = int(res[R_N2])
     t_tail = res[R_T_TAIL]
     J_axis = res[R_J_AXIS]
+    work = _stage1_work(n1)
     # Below where stage 2 stopped, omega_hat ~ xi^beta (Appendix B) and J has converged.
     rk45.dense_eval(T2, Q2, n2, t_tail, yb)
     logw_tail = yb[0]
@@ -595,7 +634,7 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
             out[P_DELTA, i] = 0.0  # m = -N L
             out[P_SIGMA_YX, i] = -xi
         else:
-            delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf)
+            delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work)
             D = model.yield_D(xi, delta, A, N, ax)
             out[P_DELTA, i] = delta
             out[P_SIGMA_YX, i] = model.sigma_yx(xi, D, A)

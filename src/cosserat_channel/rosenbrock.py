@@ -17,7 +17,7 @@ Gustafsson as in Hairer's ``rodas``. The coefficients are the published ones, wr
 
 Like :mod:`.rk45` it knows no physics; it is written for a scalar state (``y`` of length 1, the
 calling convention of :func:`.rk45.dopri5`) and writes its dense output in the layout of
-:func:`.rk45.dense_coefficients` so that :func:`.rk45.dense_eval` reads either method's output.
+:mod:`.dense` so that :func:`.dense.dense_eval` reads either method's output.
 
 References
 ----------
@@ -31,8 +31,9 @@ import math
 
 from numba import njit
 
-from . import rk45
-from .rk45 import EPS, EVENT, MAX_STEPS, NONFINITE, STEP_TOO_SMALL, SUCCESS
+from .dense import locate_event
+from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, STAT_ACCEPTED, STAT_FEV, STAT_REJECTED,
+                       STEP_TOO_SMALL, SUCCESS)
 
 # A tableau is (gamma, c2, c3, c4, d1, d2, d3, d4, a21, a31, a32, a41, a42, a43, a51, a52, a53,
 # a54, C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65, h21, h22, h23,
@@ -113,7 +114,7 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
     -------
     (status, nsteps, t_stop)
         As for :func:`.rk45.dopri5`; the dense output in ``T``/``Q`` is read by
-        :func:`.rk45.dense_eval`.
+        :func:`.dense.dense_eval`.
     """
     (GAMMA, C2, C3, C4, D1, D2, D3, D4, A21, A31, A32, A41, A42, A43, A51, A52, A53, A54,
      C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65,
@@ -133,7 +134,7 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
     t = t0
     y = y0[0]
     fun(t, y0, args, f0)
-    stats[rk45.STAT_FEV] += 1
+    stats[STAT_FEV] += 1
     sc = atol[0] + rtol * abs(y)
     if h0 > 0.0:
         h = min(h0, hmax)
@@ -165,7 +166,7 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
         ys[0] = y
         fun(t, ys, args, f0)
         J, ft = jac(t, ys, args)
-        stats[rk45.STAT_FEV] += 1
+        stats[STAT_FEV] += 1
         den = 1.0 / (GAMMA * hs) - J
         k1 = (f0[0] + hs * D1 * ft) / den
         ys[0] = y + A21 * k1
@@ -186,10 +187,10 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
         fun(t + hs, ys, args, ytmp)
         e = (ytmp[0] + (C61 * k1 + C62 * k2 + C63 * k3 + C64 * k4 + C65 * k5) / hs) / den
         y_new = y6 + e
-        stats[rk45.STAT_FEV] += 5
+        stats[STAT_FEV] += 5
         err = abs(e) / (atol[0] + rtol * max(abs(y), abs(y_new)))
         if not (math.isfinite(err) and math.isfinite(y_new)):
-            stats[rk45.STAT_REJECTED] += 1
+            stats[STAT_REJECTED] += 1
             bad += 1
             if bad > NONFINITE_MAX_TRIES:
                 return NONFINITE, nsteps, t
@@ -211,7 +212,7 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
             if rejected:
                 h_new = min(h_new, h)
             rejected = False
-            # Accept: store the dense output in rk45's layout (q4 = 0).
+            # Accept: store the dense output in dense's layout (q4 = 0).
             t_new = t + hs
             Q[nsteps, 0, 0] = y
             Q[nsteps, 1, 0] = y_new - y
@@ -219,14 +220,14 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
             Q[nsteps, 3, 0] = H31 * k1 + H32 * k2 + H33 * k3 + H34 * k4 + H35 * k5
             Q[nsteps, 4, 0] = 0.0
             T[nsteps + 1] = t_new
-            stats[rk45.STAT_ACCEPTED] += 1
+            stats[STAT_ACCEPTED] += 1
             nsteps += 1
             ys[0] = y_new
             g_new = event(t_new, ys, args)
             if g_new == 0.0:
                 return EVENT, nsteps, t_new
             if (g_new > 0.0) != (g_prev > 0.0):
-                t_ev = rk45._locate_event(event, args, T, Q, nsteps - 1, g_prev, g_new, ytmp)
+                t_ev = locate_event(event, args, T, Q, nsteps - 1, g_prev, g_new, ytmp)
                 return EVENT, nsteps, t_ev
             g_prev = g_new
             t = t_new
@@ -235,6 +236,6 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
                 return SUCCESS, nsteps, t
             h = min(h_new, hmax)
         else:
-            stats[rk45.STAT_REJECTED] += 1
+            stats[STAT_REJECTED] += 1
             rejected = True
             h = h_new

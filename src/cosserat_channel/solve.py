@@ -18,6 +18,7 @@ from typing import Mapping
 import numpy as np
 from numba import njit
 
+from . import dense
 from . import model
 from . import rk45
 from . import rosenbrock
@@ -101,7 +102,7 @@ def _delta_at(xi, xi1, ax, T1, Q1, n1, buf):
     """Stage-1 solution anywhere in [0, 1]: the axis series below ``xi1``, the dense output above."""
     if xi <= xi1:
         return model.delta_axis_series(xi, ax)
-    rk45.dense_eval(T1, Q1, n1, xi, buf)
+    dense.dense_eval(T1, Q1, n1, xi, buf)
     return xi * xi * buf[0]
 
 
@@ -419,7 +420,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         res[R_STATUS] = st.INTEGRATION_FAILED
         return st.INTEGRATION_FAILED
     yb = np.empty(2)
-    rk45.dense_eval(T2, Q2, n2, t2, yb)
+    dense.dense_eval(T2, Q2, n2, t2, yb)
     res[R_T_TAIL] = t2
     res[R_J_AXIS] = yb[1]
     if not (math.isfinite(yb[1]) and yb[1] > 0.0):
@@ -430,7 +431,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
 
 @njit(nogil=True, cache=True)
 def _J_at(T2, Q2, n2, t, yb):
-    rk45.dense_eval(T2, Q2, n2, t, yb)
+    dense.dense_eval(T2, Q2, n2, t, yb)
     return yb[1]
 
 
@@ -857,13 +858,13 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     t_tail = res[R_T_TAIL]
     J_axis = res[R_J_AXIS]
     # Below where stage 2 stopped, omega_hat ~ xi^beta (Appendix B) and J has converged.
-    rk45.dense_eval(T2, Q2, n2, t_tail, yb)
+    dense.dense_eval(T2, Q2, n2, t_tail, yb)
     logw_tail = yb[0]
     for i in range(xis.size):
         xi = xis[i]
         t = math.log(xi) if xi > 0.0 else -math.inf
         if t >= t_tail:
-            rk45.dense_eval(T2, Q2, n2, t, yb)
+            dense.dense_eval(T2, Q2, n2, t, yb)
             logw = yb[0]
             J = yb[1]
         else:

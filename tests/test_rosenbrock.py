@@ -119,3 +119,18 @@ def test_budget_and_counters():
     status, n, _ = _pr_run(1e4, 1e-10, 2.0, 0.0, rosenbrock.TABLEAU, T, Q, stats, False)
     assert status == stepping.MAX_STEPS and n == 5
     assert stats[stepping.STAT_FEV] == 1 + 6 * (stats[stepping.STAT_ACCEPTED] + stats[stepping.STAT_REJECTED])
+
+
+def test_controller_predicts_after_the_first_accepted_step():
+    """Gustafsson's prediction acts only once a step was accepted; rejections never grow h."""
+    accept, h, h_old, err_old = rosenbrock.control(0.5, 0.1, 1.0, 0.0, 1.0, False)
+    assert accept and h == pytest.approx(0.1 / (0.5 ** 0.25 / rosenbrock.SAFETY))
+    assert (h_old, err_old) == (0.1, 0.5)
+    # An error that grew fast since the last accepted step (0.01 -> 0.5) predicts a smaller step.
+    accept, h_pred, _, _ = rosenbrock.control(0.5, 0.1, 1.0, 0.1, 0.01, False)
+    assert accept and h_pred < h
+    accept, h, h_old, err_old = rosenbrock.control(2.0, 0.1, 1.0, 0.05, 0.3, False)
+    assert not accept and h < 0.1 and (h_old, err_old) == (0.05, 0.3)
+    accept, h, _, _ = rosenbrock.control(math.nan, 0.1, 1.0, 0.05, 0.3, False)
+    assert not accept and h == 0.025
+    assert rosenbrock.control(1e-9, 0.1, 1.0, 0.0, 1.0, True)[1] == 0.1

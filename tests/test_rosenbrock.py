@@ -43,6 +43,18 @@ def _pr_run(lam, rtol, t_end, h_max, tab, T, Q, stats, with_event):
                              0.0, h_max, T, Q, stats, tab)
 
 
+@njit(cache=True)
+def _event_one_minus_y(t, y, args):
+    # Zero at t = 0 (y = cos t), positive after.
+    return 1.0 - y[0]
+
+
+@njit(cache=True)
+def _pr_run_event_at_start(T, Q, stats):
+    return rosenbrock.rodas4(_pr_rhs, _pr_jac, _event_one_minus_y, 0.0, np.ones(1), 2.0, (1.0,),
+                             1e-8, np.full(1, 1e-13), 0.0, 0.0, T, Q, stats)
+
+
 def _run(lam, rtol=1e-8, t_end=2.0, h_max=0.0, tab=rosenbrock.TABLEAU, with_event=False):
     T = np.empty(200_001)
     Q = np.empty((200_000, 5, 1))
@@ -109,6 +121,15 @@ def test_event_located_on_dense_output():
     status, n, t_stop, *_ = _run(1.0, rtol=1e-10, with_event=True)
     assert status == stepping.EVENT
     assert t_stop == pytest.approx(math.pi / 3, abs=1e-8)
+
+
+def test_event_zero_at_start_is_ignored():
+    """As in dopri5, an event that vanishes exactly at t0 does not stop the integration."""
+    T = np.empty(10_001)
+    Q = np.empty((10_000, 5, 1))
+    stats = np.zeros(stepping.N_STATS, np.int64)
+    status, n, t_stop = _pr_run_event_at_start(T, Q, stats)
+    assert status == stepping.SUCCESS and t_stop == pytest.approx(2.0, abs=1e-14)
 
 
 def test_budget_and_counters():

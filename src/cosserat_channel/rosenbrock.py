@@ -18,7 +18,7 @@ Gustafsson as in Hairer's ``rodas``. The coefficients are the published ones, wr
 Like :mod:`.rk45` it knows no physics; it is written for a scalar state (``y`` of length 1, the
 calling convention of :func:`.rk45.dopri5`), returns the status codes and fills the counters of
 :mod:`.stepping`, and writes its dense output in the layout of :mod:`.dense` so that
-:func:`.dense.dense_eval` and :func:`.dense.locate_event` serve either method. The split follows
+:func:`.dense.dense_eval` and :func:`.dense.event_after_step` serve either method. The split follows
 :mod:`.rk45`: one step (:func:`rodas_step`), the controller (:func:`control`), a short driver.
 
 References
@@ -33,7 +33,7 @@ import math
 
 from numba import njit
 
-from .dense import locate_event
+from .dense import event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
                        STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS)
 
@@ -345,12 +345,9 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
         stats[STAT_ACCEPTED] += 1
         nsteps += 1
         ys[0] = y_new
-        g_new = event(t_new, ys, args)
-        if g_new == 0.0:
-            return EVENT, nsteps, t_new
-        if (g_new > 0.0) != (g_prev > 0.0):
-            return EVENT, nsteps, locate_event(event, args, T, Q, nsteps - 1, g_prev, g_new, ytmp)
-        g_prev = g_new
+        fired, t_event, g_prev = event_after_step(event, args, T, Q, nsteps, g_prev, ys, ytmp)
+        if fired:
+            return EVENT, nsteps, t_event
         t = t_new
         y = y_new
         if last:

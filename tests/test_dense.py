@@ -1,7 +1,5 @@
 """Tests for the dense output and event location in ``cosserat_channel.dense``."""
 
-import math
-
 import numpy as np
 import pytest
 from numba import njit

@@ -128,7 +128,7 @@ def test_event_zero_at_start_is_ignored():
     T = np.empty(10_001)
     Q = np.empty((10_000, 5, 1))
     stats = np.zeros(stepping.N_STATS, np.int64)
-    status, n, t_stop = _pr_run_event_at_start(T, Q, stats)
+    status, _, t_stop = _pr_run_event_at_start(T, Q, stats)
     assert status == stepping.SUCCESS and t_stop == pytest.approx(2.0, abs=1e-14)
 
 

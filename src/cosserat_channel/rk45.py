@@ -50,12 +50,12 @@ import numpy as np
 from numba import njit
 
 from .dense import Solution, dense_coefficients, event_after_step
-# The status codes, counter slots and no_event are part of dopri5's calling convention, so they
-# are re-exported here from their home, stepping.
 from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
                        STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
                        STEP_TOO_SMALL, SUCCESS, all_finite, error_norm, initial_step, no_event)
 
+# The status codes, counter slots and no_event are part of dopri5's calling convention, so they
+# are re-exported here from their home, stepping.
 __all__ = [
     "SUCCESS", "EVENT", "MAX_STEPS", "STEP_TOO_SMALL", "NONFINITE",
     "STAT_ACCEPTED", "STAT_REJECTED", "STAT_FEV", "STAT_STIFF_STEPS", "STAT_STIFF", "N_STATS",

@@ -129,8 +129,7 @@ def rodas_step(fun, jac, t, y, hs, args, tab, ys, ytmp):
         Stage increments, for the dense output (:func:`dense_coefficients`).
     """
     (GAMMA, C2, C3, C4, D1, D2, D3, D4, A21, A31, A32, A41, A42, A43, A51, A52, A53, A54,
-     C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65,
-     H21, H22, H23, H24, H25, H31, H32, H33, H34, H35) = tab
+     C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65) = tab[:33]
     # The Jacobian and f_t at the step start, reused by every stage (Rosenbrock).
     ys[0] = y
     fun(t, ys, args, ytmp)

@@ -19,11 +19,9 @@ from cosserat_channel.rk45 import (
     STAT_REJECTED,
     STEP_TOO_SMALL,
     SUCCESS,
-    dense_eval,
-    dense_eval_step,
+    control,
     dopri5,
     dopri5_step,
-    find_step,
     integrate,
     no_event,
 )
@@ -307,36 +305,8 @@ def test_error_decreases_with_tolerance():
 
 
 # ---------------------------------------------------------------------------
-# 4. Dense output
+# 4.-5. Step clipping and events (the dense output itself: test_dense.py)
 # ---------------------------------------------------------------------------
-def test_dense_output_gauss():
-    """Dense output at 1000 points matches exp(-t^2) to 1e-8 at rtol 1e-10."""
-    s = integrate(gauss, 0.0, [1.0], 2.0, rtol=1e-10, atol=1e-12)
-    assert s.status == SUCCESS
-    ts = np.linspace(0.0, 2.0, 1000)
-    ys = s.sol(ts)
-    assert ys.shape == (1000, 1)
-    assert np.max(np.abs(ys[:, 0] - gauss_exact(ts))) <= 1e-8
-    assert s.sol(1.3).shape == (1,)
-    assert s.sol(1.3)[0] == pytest.approx(gauss_exact(1.3), abs=1e-9)
-
-
-def test_dense_output_oscillator_and_continuity():
-    """Oscillator dense output is accurate and continuous at every step boundary."""
-    w = OSC_ARGS[0]
-    s = integrate(oscillator, 0.0, [1.0, 0.0], 4.0, args=OSC_ARGS, rtol=1e-10, atol=1e-12)
-    assert s.status == SUCCESS
-    ts = np.linspace(0.0, 4.0, 1000)
-    assert np.max(np.abs(s.sol(ts) - osc_exact(ts, w))) <= 1e-8 * w
-    out = np.empty(2)
-    for k in range(s.nsteps):
-        dense_eval_step(s.T, s.Q, k, s.T[k], out)
-        np.testing.assert_allclose(out, s.Q[k, 0], rtol=0, atol=1e-14)
-        dense_eval_step(s.T, s.Q, k, s.T[k + 1], out)
-        y_end = s.Q[k + 1, 0] if k + 1 < s.nsteps else s.y_stop
-        np.testing.assert_allclose(out, y_end, rtol=0, atol=1e-14)
-
-
 def test_steps_land_on_t_end_and_respect_h_max():
     """The last step is clipped onto t_end exactly and no step exceeds h_max."""
     s = integrate(decay, 0.0, [1.0], 3.0, rtol=1e-6, h_max=0.07)
@@ -346,36 +316,6 @@ def test_steps_land_on_t_end_and_respect_h_max():
     assert s.y_stop[0] == pytest.approx(math.exp(-3.0), rel=1e-5)
 
 
-def test_find_step_both_directions_and_clamps():
-    """find_step brackets t in increasing and decreasing T and clamps outside."""
-    T = np.array([0.0, 0.5, 1.5, 2.0, 4.0])
-    assert find_step(T, 4, 0.7) == 1
-    assert find_step(T, 4, 1.5) == 2
-    assert find_step(T, 4, -1.0) == 0
-    assert find_step(T, 4, 9.0) == 3
-    assert find_step(T, 4, 4.0) == 3
-    Td = -T
-    assert find_step(Td, 4, -0.7) == 1
-    assert find_step(Td, 4, 1.0) == 0
-    assert find_step(Td, 4, -9.0) == 3
-
-
-def test_backward_integration_dense():
-    """Integrating exp(-t^2) backwards from t=2 to 0 recovers y(0)=1 and a good interpolant."""
-    s = integrate(gauss, 2.0, [gauss_exact(2.0)], 0.0, rtol=1e-10, atol=1e-14)
-    assert s.status == SUCCESS
-    assert s.T[-1] == 0.0 and np.all(np.diff(s.T) < 0)
-    assert s.y_stop[0] == pytest.approx(1.0, abs=1e-8)
-    ts = np.linspace(2.0, 0.0, 500)
-    out = np.empty(1)
-    dense_eval(s.T, s.Q, s.nsteps, 0.9, out)
-    assert out[0] == pytest.approx(gauss_exact(0.9), abs=1e-8)
-    assert np.max(np.abs(s.sol(ts)[:, 0] - gauss_exact(ts))) <= 1e-8
-
-
-# ---------------------------------------------------------------------------
-# 5. Events
-# ---------------------------------------------------------------------------
 def test_event_location_forward():
     """The crossing y = 1/2 of exp(-t^2) is located at sqrt(ln 2) to 1e-10."""
     s = integrate(gauss, 0.0, [1.0], 2.0, rtol=1e-11, atol=1e-13, event=y_half)
@@ -482,6 +422,26 @@ def test_raw_dopri5_zero_length_and_stats_reset():
     assert status == SUCCESS and t_stop == 1.0
     assert stats[STAT_ACCEPTED] == nsteps and stats[STAT_REJECTED] == 0
     assert stats[STAT_FEV] == 2 + 6 * nsteps
+
+
+def test_controller_accepts_rejects_and_bounds_growth():
+    """err <= 1 accepts (growth at most 10x, capped by h_max); err > 1 rejects and shrinks."""
+    accept, h, facold = control(0.0, 0.01, 1.0, rk45.FACOLD_MIN, False)
+    assert accept and h == pytest.approx(0.1) and facold == rk45.FACOLD_MIN
+    assert control(0.0, 0.01, 0.05, rk45.FACOLD_MIN, False)[1] == 0.05
+    accept, h, facold = control(0.01, 0.01, 1.0, 0.3, False)
+    assert accept and 0.01 < h < 0.1 and facold == 0.01
+    accept, h, facold = control(50.0, 0.01, 1.0, 0.3, False)
+    assert not accept and 0.002 <= h < 0.01 and facold == 0.3
+
+
+def test_controller_after_rejection_and_nonfinite():
+    """After a rejection the step does not grow; a non-finite trial shrinks it by 4."""
+    accept, h, _ = control(1e-6, 0.01, 1.0, 0.3, True)
+    assert accept and h == 0.01
+    for err in (math.nan, math.inf):
+        accept, h, facold = control(err, 0.01, 1.0, 0.3, False)
+        assert not accept and h == 0.0025 and facold == 0.3
 
 
 # ---------------------------------------------------------------------------

@@ -16,8 +16,10 @@ Gustafsson as in Hairer's ``rodas``. The coefficients are the published ones, wr
 ``(1/(gamma h) - J) k_i = f(...) + h d_i f_t + sum c_ij k_j / h`` form.
 
 Like :mod:`.rk45` it knows no physics; it is written for a scalar state (``y`` of length 1, the
-calling convention of :func:`.rk45.dopri5`) and writes its dense output in the layout of
-:func:`.rk45.dense_coefficients` so that :func:`.rk45.dense_eval` reads either method's output.
+calling convention of :func:`.rk45.dopri5`), returns the status codes and fills the counters of
+:mod:`.stepping`, and writes its dense output in the layout of :mod:`.dense` so that
+:func:`.dense.dense_eval` and :func:`.dense.event_after_step` serve either method. The split follows
+:mod:`.rk45`: one step (:func:`rodas_step`), the controller (:func:`control`), a short driver.
 
 References
 ----------
@@ -31,8 +33,9 @@ import math
 
 from numba import njit
 
-from . import rk45
-from .rk45 import EPS, EVENT, MAX_STEPS, NONFINITE, STEP_TOO_SMALL, SUCCESS
+from .dense import event_after_step
+from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
+                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS)
 
 # A tableau is (gamma, c2, c3, c4, d1, d2, d3, d4, a21, a31, a32, a41, a42, a43, a51, a52, a53,
 # a54, C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65, h21, h22, h23,
@@ -90,9 +93,184 @@ TABLEAU = RODAS4P2
 SAFETY = 0.9
 MAX_GROWTH = 6.0
 MAX_SHRINK = 5.0
+# Non-finite trial steps in a row tolerated before giving up (the test is `>`, so one more than
+# rk45 allows).
 NONFINITE_MAX_TRIES = 20
 
-_JIT_INLINE = dict(nogil=True, cache=True, error_model="numpy", inline="always")
+_JIT = dict(nogil=True, cache=True, error_model="numpy")
+# See rk45's module docstring: kernels that receive fun/jac/event are inlined to stay cacheable.
+_JIT_INLINE = dict(_JIT, inline="always")
+
+
+@njit(**_JIT_INLINE)
+def rodas_step(fun, jac, t, y, hs, args, tab, ys, ytmp):
+    """One Rosenbrock step of signed size `hs` from ``(t, y)`` with the tableau `tab`.
+
+    Parameters
+    ----------
+    fun, jac : numba-compiled callables
+        As for :func:`rodas4`.
+    t, y, hs : float
+        Start time, scalar state and signed step size.
+    args : any numba-typed object
+        Passed through to `fun` and `jac`.
+    tab : tuple of float
+        One of ``RODAS4``, ``RODAS4P``, ``RODAS4P2``.
+    ys, ytmp : ndarray of float64, shape (1,)
+        Scratch for the stage argument and the stage derivative.
+
+    Returns
+    -------
+    y_new : float
+        The 4th-order solution at ``t + hs``.
+    e : float
+        Embedded error estimate (the last stage increment).
+    k1, k2, k3, k4, k5 : float
+        Stage increments, for the dense output (:func:`dense_coefficients`).
+    """
+    (GAMMA, C2, C3, C4, D1, D2, D3, D4, A21, A31, A32, A41, A42, A43, A51, A52, A53, A54,
+     C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65) = tab[:33]
+    # The Jacobian and f_t at the step start, reused by every stage (Rosenbrock).
+    ys[0] = y
+    fun(t, ys, args, ytmp)
+    f0 = ytmp[0]
+    J, ft = jac(t, ys, args)
+    den = 1.0 / (GAMMA * hs) - J
+    k1 = (f0 + hs * D1 * ft) / den
+    ys[0] = y + A21 * k1
+    fun(t + C2 * hs, ys, args, ytmp)
+    k2 = (ytmp[0] + hs * D2 * ft + C21 * k1 / hs) / den
+    ys[0] = y + A31 * k1 + A32 * k2
+    fun(t + C3 * hs, ys, args, ytmp)
+    k3 = (ytmp[0] + hs * D3 * ft + (C31 * k1 + C32 * k2) / hs) / den
+    ys[0] = y + A41 * k1 + A42 * k2 + A43 * k3
+    fun(t + C4 * hs, ys, args, ytmp)
+    k4 = (ytmp[0] + hs * D4 * ft + (C41 * k1 + C42 * k2 + C43 * k3) / hs) / den
+    y5 = y + A51 * k1 + A52 * k2 + A53 * k3 + A54 * k4
+    ys[0] = y5
+    fun(t + hs, ys, args, ytmp)
+    k5 = (ytmp[0] + (C51 * k1 + C52 * k2 + C53 * k3 + C54 * k4) / hs) / den
+    y6 = y5 + k5
+    ys[0] = y6
+    fun(t + hs, ys, args, ytmp)
+    e = (ytmp[0] + (C61 * k1 + C62 * k2 + C63 * k3 + C64 * k4 + C65 * k5) / hs) / den
+    return y6 + e, e, k1, k2, k3, k4, k5
+
+
+@njit(**_JIT)
+def dense_coefficients(y, y_new, k1, k2, k3, k4, k5, tab, q):
+    """Fill the dense-output coefficients of one accepted step, in :mod:`.dense`'s layout.
+
+    RODAS's continuous extension ``(1-theta) y0 + theta (y1 + (1-theta)(q3 + theta q4))`` is
+    that layout with ``q4 = 0``.
+
+    Parameters
+    ----------
+    y, y_new : float
+        Solution at the start and end of the step.
+    k1, k2, k3, k4, k5 : float
+        Stage increments from :func:`rodas_step`.
+    tab : tuple of float
+        The tableau of the step.
+    q : ndarray of float64, shape (5, 1)
+        Output.
+    """
+    H21, H22, H23, H24, H25, H31, H32, H33, H34, H35 = tab[33:]
+    q[0, 0] = y
+    q[1, 0] = y_new - y
+    q[2, 0] = H21 * k1 + H22 * k2 + H23 * k3 + H24 * k4 + H25 * k5
+    q[3, 0] = H31 * k1 + H32 * k2 + H33 * k3 + H34 * k4 + H35 * k5
+    q[4, 0] = 0.0
+
+
+@njit(**_JIT)
+def error_norm(e, y, y_new, atol, rtol):
+    """The scalar case of :func:`.stepping.error_norm`, without its squaring (no overflow to inf).
+
+    Not inlined, so that a zero scale gives inf whatever the caller's error model (see
+    :mod:`.rk45`).
+
+    Parameters
+    ----------
+    e, y, y_new : float
+        Error estimate, states at the start and end of the step.
+    atol, rtol : float
+        Tolerances.
+
+    Returns
+    -------
+    float
+    """
+    return abs(e) / (atol + rtol * max(abs(y), abs(y_new)))
+
+
+@njit(**_JIT)
+def control(err, h, h_max, h_old, err_old, rejected):
+    """Gustafsson's predictive step-size controller, as in ``rodas.f``: accept or reject.
+
+    Parameters
+    ----------
+    err : float
+        Error norm of the trial step; NaN or inf when it produced non-finite values.
+    h : float
+        Magnitude of the trial step.
+    h_max : float
+        Largest allowed step magnitude.
+    h_old, err_old : float
+        Magnitude and error norm (at least 0.01) of the last accepted step; ``h_old = 0``
+        before the first one.
+    rejected : bool
+        Whether the previous trial step was rejected: then the step must not grow.
+
+    Returns
+    -------
+    accept : bool
+    h_next : float
+        Magnitude of the next trial step.
+    h_old, err_old : float
+        The updated memory.
+    """
+    if not math.isfinite(err):
+        return False, h * NONFINITE_SHRINK, h_old, err_old
+    fac = max(1.0 / MAX_GROWTH, min(MAX_SHRINK, err ** 0.25 / SAFETY))
+    h_new = h / fac
+    if err > 1.0:
+        return False, h_new, h_old, err_old
+    if h_old > 0.0:
+        fac_pred = (h_old / h) * (err * err / err_old) ** 0.25 / SAFETY
+        fac_pred = max(1.0 / MAX_GROWTH, min(MAX_SHRINK, fac_pred))
+        fac = max(fac, fac_pred)
+        h_new = h / fac
+    if rejected:
+        h_new = min(h_new, h)
+    return True, min(h_new, h_max), h, max(0.01, err)
+
+
+@njit(**_JIT)
+def initial_step(y, f, atol, rtol, h_max, span):
+    """First step magnitude: the first estimate of :func:`.stepping.initial_step` only.
+
+    Its Euler probe would measure the fast (stiff) time scale, which an L-stable method need
+    not resolve.
+
+    Parameters
+    ----------
+    y, f : float
+        Scalar initial state and ``f(t0, y)``.
+    atol, rtol : float
+        Tolerances.
+    h_max, span : float
+        Largest allowed step and ``|t_end - t0|``.
+
+    Returns
+    -------
+    float
+    """
+    sc = atol + rtol * abs(y)
+    d0 = abs(y) / sc
+    d1 = abs(f) / sc
+    h = 0.01 * d0 / d1 if (d0 > 1e-5 and d1 > 1e-5) else 1e-6
+    return min(max(h, 1e-10 * span), h_max)
 
 
 @njit(**_JIT_INLINE)
@@ -108,133 +286,68 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
     event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats
         As for :func:`.rk45.dopri5` (``y0`` and ``atol`` of length 1). ``stats[STAT_FEV]`` counts
         right-hand-side evaluations (6 per trial step, plus one per Jacobian for ``f`` there).
+    tab : tuple of float, optional
+        The tableau.
 
     Returns
     -------
     (status, nsteps, t_stop)
         As for :func:`.rk45.dopri5`; the dense output in ``T``/``Q`` is read by
-        :func:`.rk45.dense_eval`.
+        :func:`.dense.dense_eval`.
     """
-    (GAMMA, C2, C3, C4, D1, D2, D3, D4, A21, A31, A32, A41, A42, A43, A51, A52, A53, A54,
-     C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65,
-     H21, H22, H23, H24, H25, H31, H32, H33, H34, H35) = tab
-    for i in range(stats.shape[0]):
-        stats[i] = 0
-    M = Q.shape[0]
+    stats[:] = 0
     T[0] = t0
     if t_end == t0:
         return SUCCESS, 0, t0
     direction = 1.0 if t_end > t0 else -1.0
     span = abs(t_end - t0)
     hmax = span if (h_max <= 0.0 or not math.isfinite(h_max)) else min(h_max, span)
-    f0 = y0.copy()
     ys = y0.copy()
     ytmp = y0.copy()
     t = t0
     y = y0[0]
-    fun(t, y0, args, f0)
-    stats[rk45.STAT_FEV] += 1
-    sc = atol[0] + rtol * abs(y)
-    if h0 > 0.0:
-        h = min(h0, hmax)
-    else:
-        d0 = abs(y) / sc
-        d1 = abs(f0[0]) / sc
-        h = 0.01 * d0 / d1 if (d0 > 1e-5 and d1 > 1e-5) else 1e-6
-        h = min(max(h, 1e-10 * span), hmax)
+    fun(t, y0, args, ytmp)
+    stats[STAT_FEV] += 1
+    h = min(h0, hmax) if h0 > 0.0 else initial_step(y, ytmp[0], atol[0], rtol, hmax, span)
     g_prev = event(t, y0, args)
-    h_old = 0.0
-    err_old = 1.0
-    rejected = False
-    first = True
-    bad = 0
-    nsteps = 0
+    h_old, err_old, rejected = 0.0, 1.0, False
+    bad = nsteps = 0
     while True:
-        if nsteps >= M:
+        if nsteps >= Q.shape[0]:
             return MAX_STEPS, nsteps, t
         if (t_end - t) * direction <= 0.0:
             return SUCCESS, nsteps, t
         if h < 10.0 * EPS * max(abs(t), 1.0):
             return STEP_TOO_SMALL, nsteps, t
-        last = False
-        if h >= abs(t_end - t):
+        # Clipped onto t_end without dopri5's 1.01 sliver guard: the too-small test above sees
+        # the controller's step, before clipping, so a sliver last step is still taken.
+        last = h >= abs(t_end - t)
+        if last:
             h = abs(t_end - t)
-            last = True
         hs = direction * h
-        # The Jacobian and f_t at the step start, reused by every stage (Rosenbrock).
-        ys[0] = y
-        fun(t, ys, args, f0)
-        J, ft = jac(t, ys, args)
-        stats[rk45.STAT_FEV] += 1
-        den = 1.0 / (GAMMA * hs) - J
-        k1 = (f0[0] + hs * D1 * ft) / den
-        ys[0] = y + A21 * k1
-        fun(t + C2 * hs, ys, args, ytmp)
-        k2 = (ytmp[0] + hs * D2 * ft + C21 * k1 / hs) / den
-        ys[0] = y + A31 * k1 + A32 * k2
-        fun(t + C3 * hs, ys, args, ytmp)
-        k3 = (ytmp[0] + hs * D3 * ft + (C31 * k1 + C32 * k2) / hs) / den
-        ys[0] = y + A41 * k1 + A42 * k2 + A43 * k3
-        fun(t + C4 * hs, ys, args, ytmp)
-        k4 = (ytmp[0] + hs * D4 * ft + (C41 * k1 + C42 * k2 + C43 * k3) / hs) / den
-        y5 = y + A51 * k1 + A52 * k2 + A53 * k3 + A54 * k4
-        ys[0] = y5
-        fun(t + hs, ys, args, ytmp)
-        k5 = (ytmp[0] + (C51 * k1 + C52 * k2 + C53 * k3 + C54 * k4) / hs) / den
-        y6 = y5 + k5
-        ys[0] = y6
-        fun(t + hs, ys, args, ytmp)
-        e = (ytmp[0] + (C61 * k1 + C62 * k2 + C63 * k3 + C64 * k4 + C65 * k5) / hs) / den
-        y_new = y6 + e
-        stats[rk45.STAT_FEV] += 5
-        err = abs(e) / (atol[0] + rtol * max(abs(y), abs(y_new)))
-        if not (math.isfinite(err) and math.isfinite(y_new)):
-            stats[rk45.STAT_REJECTED] += 1
-            bad += 1
+        y_new, e, k1, k2, k3, k4, k5 = rodas_step(fun, jac, t, y, hs, args, tab, ys, ytmp)
+        stats[STAT_FEV] += 6
+        err = error_norm(e, y, y_new, atol[0], rtol)
+        if not math.isfinite(y_new):
+            err = math.nan
+        accept, h, h_old, err_old = control(err, h, hmax, h_old, err_old, rejected)
+        rejected = not accept
+        bad = 0 if math.isfinite(err) else bad + 1
+        if not accept:
+            stats[STAT_REJECTED] += 1
             if bad > NONFINITE_MAX_TRIES:
                 return NONFINITE, nsteps, t
-            h *= 0.25
-            rejected = True
             continue
-        bad = 0
-        fac = max(1.0 / MAX_GROWTH, min(MAX_SHRINK, err ** 0.25 / SAFETY))
-        h_new = h / fac
-        if err <= 1.0:
-            if not first:
-                fac_pred = (h_old / h) * (err * err / err_old) ** 0.25 / SAFETY
-                fac_pred = max(1.0 / MAX_GROWTH, min(MAX_SHRINK, fac_pred))
-                fac = max(fac, fac_pred)
-                h_new = h / fac
-            first = False
-            h_old = h
-            err_old = max(0.01, err)
-            if rejected:
-                h_new = min(h_new, h)
-            rejected = False
-            # Accept: store the dense output in rk45's layout (q4 = 0).
-            t_new = t + hs
-            Q[nsteps, 0, 0] = y
-            Q[nsteps, 1, 0] = y_new - y
-            Q[nsteps, 2, 0] = H21 * k1 + H22 * k2 + H23 * k3 + H24 * k4 + H25 * k5
-            Q[nsteps, 3, 0] = H31 * k1 + H32 * k2 + H33 * k3 + H34 * k4 + H35 * k5
-            Q[nsteps, 4, 0] = 0.0
-            T[nsteps + 1] = t_new
-            stats[rk45.STAT_ACCEPTED] += 1
-            nsteps += 1
-            ys[0] = y_new
-            g_new = event(t_new, ys, args)
-            if g_new == 0.0:
-                return EVENT, nsteps, t_new
-            if (g_new > 0.0) != (g_prev > 0.0):
-                t_ev = rk45._locate_event(event, args, T, Q, nsteps - 1, g_prev, g_new, ytmp)
-                return EVENT, nsteps, t_ev
-            g_prev = g_new
-            t = t_new
-            y = y_new
-            if last:
-                return SUCCESS, nsteps, t
-            h = min(h_new, hmax)
-        else:
-            stats[rk45.STAT_REJECTED] += 1
-            rejected = True
-            h = h_new
+        t_new = t + hs
+        dense_coefficients(y, y_new, k1, k2, k3, k4, k5, tab, Q[nsteps])
+        T[nsteps + 1] = t_new
+        stats[STAT_ACCEPTED] += 1
+        nsteps += 1
+        ys[0] = y_new
+        fired, t_event, g_prev = event_after_step(event, args, T, Q, nsteps, g_prev, ys, ytmp)
+        if fired:
+            return EVENT, nsteps, t_event
+        t = t_new
+        y = y_new
+        if last:
+            return SUCCESS, nsteps, t

@@ -21,8 +21,10 @@ import math
 import numpy as np
 from numba import njit
 
+from . import dense
 from . import model
 from . import rk45
+from . import roots
 from . import rosenbrock
 from . import status as st
 from .model import AX_BETA, AX_C0, N_AX
@@ -41,6 +43,8 @@ WALL_D_RESOLUTION = 0.1
 WALL_D_FALLBACK = 1e5
 # Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
 TAIL_FRACTION = 1e-3
+# Evaluations of the plug-edge root (it needs ~10; the bound only guards a loop that cannot end).
+ROOT_MAX_ITER = 100
 # Stage 2 never marches below this xi: J's remaining tail there is < XI_FLOOR * max h.
 XI_FLOOR = 1e-14
 
@@ -107,27 +111,14 @@ N_W = 3
 
 
 @njit(nogil=True, cache=True)
-def _stage1_step(T1, n1, xi, work):
-    """The stage-1 step containing ``xi``: the index :func:`rk45.find_step` returns, found by a
-    walk from the step of the previous lookup (stage 2 asks for nearby, mostly decreasing xi, so
-    the walk is zero or one step where a binary search would take log2(n1))."""
-    if n1 <= 1:
-        return 0
-    k = min(int(work[W_STEP]), n1 - 1)
-    while k > 0 and T1[k] > xi:
-        k -= 1
-    while k < n1 - 1 and T1[k + 1] <= xi:
-        k += 1
-    work[W_STEP] = k
-    return k
-
-
-@njit(nogil=True, cache=True)
 def _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work):
     """Stage-1 solution anywhere in [0, 1]: the axis series below ``xi1``, the dense output above."""
     if xi <= xi1:
         return model.delta_axis_series(xi, ax)
-    rk45.dense_eval_step(T1, Q1, _stage1_step(T1, n1, xi, work), xi, buf)
+    # Stage 2 asks for nearby, mostly decreasing xi: start the search at the previous step.
+    k = dense.find_step_from(T1, n1, xi, int(work[W_STEP]))
+    work[W_STEP] = k
+    dense.dense_eval_step(T1, Q1, k, xi, buf)
     return xi * xi * buf[0]
 
 
@@ -477,7 +468,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         res[R_STATUS] = st.INTEGRATION_FAILED
         return st.INTEGRATION_FAILED
     yb = np.empty(2)
-    rk45.dense_eval(T2, Q2, n2, t2, yb)
+    dense.dense_eval(T2, Q2, n2, t2, yb)
     res[R_T_TAIL] = t2
     res[R_J_AXIS] = yb[1]
     if not (math.isfinite(yb[1]) and yb[1] > 0.0):
@@ -487,63 +478,44 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
 
 
 @njit(nogil=True, cache=True)
-def _J_at(T2, Q2, n2, t, yb):
-    rk45.dense_eval(T2, Q2, n2, t, yb)
-    return yb[1]
+def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
+    """``1 - xi_p`` from eq:13 (see :func:`_one_minus_xi_p`, which the batch kernel calls with scratch)."""
+    return _one_minus_xi_p(eps_K, res, T2, Q2, np.empty(2))
 
 
 @njit(nogil=True, cache=True)
-def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
+def _one_minus_xi_p(eps_K, res, T2, Q2, scratch):
     """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi).
 
-    The root is found in ``t = ln(xi_p)`` and returned as ``-expm1(t)``: no cancellation even when
-    the shear layer is a tiny fraction of the channel.
+    The bracket comes from the stored step starts (``J(T2[k])`` is the first dense-output row, no
+    interpolation needed), the root from :func:`roots.find_root` on that one step's polynomial.
+    The root is found in ``t = ln(xi_p)`` and returned as ``-expm1(t)``: no cancellation even
+    when the shear layer is a tiny fraction of the channel.
     """
     J_axis = res[R_J_AXIS]
     target = model.plug_target(J_axis, eps_K)
     if target <= 0.0:
         return 0.0
     n2 = int(res[R_N2])
-    yb = np.empty(2)
-    # Bracket on step ends: T2 (= ln xi) runs from 0 down, J from 0 up.
+    # T2 (= ln xi) runs from 0 down, J from 0 up: the last step start with J below the target.
     lo = 0
     hi = n2
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if _J_at(T2, Q2, n2, T2[mid], yb) < target:
+        if Q2[mid, 0, 1] < target:
             lo = mid
         else:
             hi = mid
-    a = T2[lo]  # J(a) < target
-    # T2[n2] is the end of the last step, which overshoots where an event stopped stage 2.
+    a = T2[lo]
+    # T2[n2] is the end of the last step, which overshoots where the tail event stopped stage 2.
     b = T2[hi] if hi < n2 else res[R_T_TAIL]
-    fa = _J_at(T2, Q2, n2, a, yb) - target
-    fb = _J_at(T2, Q2, n2, b, yb) - target
-    # Illinois regula falsi on the interpolant, safeguarded by bisection.
-    side = 0
-    x = a
-    for _ in range(100):
-        if fb == fa:
-            x = 0.5 * (a + b)
-        else:
-            x = b - fb * (b - a) / (fb - fa)
-            if not (min(a, b) < x < max(a, b)):
-                x = 0.5 * (a + b)
-        fx = _J_at(T2, Q2, n2, x, yb) - target
-        if fx == 0.0 or abs(b - a) <= 4e-16 * abs(x) + 1e-300:
-            break
-        if (fx < 0.0) == (fa < 0.0):
-            a = x
-            fa = fx
-            if side == -1:
-                fb *= 0.5
-            side = -1
-        else:
-            b = x
-            fb = fx
-            if side == 1:
-                fa *= 0.5
-            side = 1
+    packed = (T2, Q2, lo, 1, target, scratch)
+    fa = Q2[lo, 0, 1] - target
+    fb = dense.step_component_minus_level(b, packed)
+    if not fb > 0.0:
+        return -math.expm1(b)  # J reaches the target only at the step's end (within round-off)
+    x, _ = roots.find_root(dense.step_component_minus_level, packed, a, b, fa, fb,
+                           4e-16 * max(abs(a), abs(b)), ROOT_MAX_ITER)
     return -math.expm1(x)
 
 
@@ -580,6 +552,7 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
     ax = np.empty(N_AX)
     T1 = np.empty(max_steps_stage1 + 1)
     Q1 = np.empty((max_steps_stage1, 5, 1))
+    scratch = np.empty(2)
     T2 = np.empty(max_steps_stage2 + 1)
     Q2 = np.empty((max_steps_stage2, 5, 2))
     for i in range(eta.size):
@@ -587,7 +560,7 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
                          stats[i, 1], res[i], METHOD_AUTO, stage2 or plug_edge or xi_profile.size > 0)
         for j in range(offsets[i], offsets[i + 1]):
             if code == st.OK and plug_edge:
-                one_minus[j] = one_minus_xi_p(A[i], N[i], eta[i], eps_K[j], res[i], T2, Q2)
+                one_minus[j] = _one_minus_xi_p(eps_K[j], res[i], T2, Q2, scratch)
             else:
                 one_minus[j] = math.nan
         if xi_profile.size > 0:
@@ -616,13 +589,13 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     J_axis = res[R_J_AXIS]
     work = _stage1_work(n1)
     # Below where stage 2 stopped, omega_hat ~ xi^beta (Appendix B) and J has converged.
-    rk45.dense_eval(T2, Q2, n2, t_tail, yb)
+    dense.dense_eval(T2, Q2, n2, t_tail, yb)
     logw_tail = yb[0]
     for i in range(xis.size):
         xi = xis[i]
         t = math.log(xi) if xi > 0.0 else -math.inf
         if t >= t_tail:
-            rk45.dense_eval(T2, Q2, n2, t, yb)
+            dense.dense_eval(T2, Q2, n2, t, yb)
             logw = yb[0]
             J = yb[1]
         else:

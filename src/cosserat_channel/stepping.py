@@ -1,0 +1,223 @@
+"""What the adaptive integrators of the package share, in the role of scipy's
+``integrate/_ivp/common.py``: status codes, counter slots, the event function that never fires,
+weighted RMS norms, a finiteness test and Hairer's initial-step heuristic ``HINIT``.
+
+:mod:`.rk45` (explicit, any ``n``) and :mod:`.rosenbrock` (stiff, scalar) return the same status
+codes, fill the same counters and write the same dense output (:mod:`.dense`), so that
+:mod:`.solve` can run either one for stage 1. What differs between them (step-size controller,
+step clipping, initial step of RODAS) stays in their modules.
+
+Kernels that receive the right-hand side are ``inline="always"``; see :mod:`.rk45` for why, and
+for why the norms are not.
+
+References
+----------
+.. [HNW93] E. Hairer, S. P. Nørsett and G. Wanner, "Solving Ordinary Differential Equations I:
+   Nonstiff Problems", 2nd ed., Springer (1993); Sec. II.4 (error norm, ``HINIT``).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+__all__ = [
+    "SUCCESS",
+    "EVENT",
+    "MAX_STEPS",
+    "STEP_TOO_SMALL",
+    "NONFINITE",
+    "STAT_ACCEPTED",
+    "STAT_REJECTED",
+    "STAT_FEV",
+    "STAT_STIFF_STEPS",
+    "STAT_STIFF",
+    "N_STATS",
+    "EPS",
+    "NONFINITE_SHRINK",
+    "no_event",
+    "rms_norm",
+    "error_norm",
+    "all_finite",
+    "initial_step",
+]
+
+# Status codes returned by the integrators.
+SUCCESS = 0
+EVENT = 1
+MAX_STEPS = -1
+STEP_TOO_SMALL = -2
+NONFINITE = -3
+
+# Slots of the counter array ``stats`` (int64, length N_STATS).
+STAT_ACCEPTED = 0
+STAT_REJECTED = 1
+STAT_FEV = 2
+STAT_STIFF_STEPS = 3
+STAT_STIFF = 4
+N_STATS = 5
+
+EPS = 2.220446049250313e-16
+# Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
+NONFINITE_SHRINK = 0.25
+
+_JIT = dict(nogil=True, cache=True, error_model="numpy")
+_JIT_INLINE = dict(_JIT, inline="always")
+
+
+@njit(**_JIT)
+def no_event(t, y, args):
+    """Event function that never fires.
+
+    Parameters
+    ----------
+    t : float
+        Time.
+    y : ndarray of float64, shape (n,)
+        State.
+    args : any
+        Passed through, unused.
+
+    Returns
+    -------
+    float
+        Always 1.0, so no sign change can ever be observed.
+    """
+    return 1.0
+
+
+@njit(**_JIT)
+def rms_norm(v, y, atol, rtol):
+    """``sqrt(mean((v_i / (atol_i + rtol*|y_i|))**2))``.
+
+    Scaled with ``|y|`` only: the initial-step heuristic has no ``y_new`` yet.
+
+    Parameters
+    ----------
+    v, y, atol : ndarray of float64, shape (n,)
+        Vector to measure, state for the relative scale, componentwise absolute tolerance.
+    rtol : float
+        Relative tolerance.
+
+    Returns
+    -------
+    float
+    """
+    n = v.shape[0]
+    s = 0.0
+    for i in range(n):
+        r = v[i] / (atol[i] + rtol * abs(y[i]))
+        s += r * r
+    return math.sqrt(s / n)
+
+
+@njit(**_JIT)
+def error_norm(y_err, y, y_new, atol, rtol):
+    """Hairer's error norm of a trial step [HNW93, II.4].
+
+    ``sqrt(mean((err_i / (atol_i + rtol*max(|y_i|, |y_new_i|)))**2))``; a step is acceptable
+    when it is at most 1.
+
+    Parameters
+    ----------
+    y_err, y, y_new, atol : ndarray of float64, shape (n,)
+        Error estimate, states at the start and end of the step, absolute tolerance.
+    rtol : float
+        Relative tolerance.
+
+    Returns
+    -------
+    float
+    """
+    n = y.shape[0]
+    s = 0.0
+    for i in range(n):
+        yi = abs(y[i])
+        yn = abs(y_new[i])
+        sc = atol[i] + rtol * (yi if yi > yn else yn)
+        r = y_err[i] / sc
+        s += r * r
+    return math.sqrt(s / n)
+
+
+@njit(**_JIT)
+def all_finite(v):
+    """Whether every entry of the 1-d array `v` is finite.
+
+    Parameters
+    ----------
+    v : ndarray of float64, shape (n,)
+
+    Returns
+    -------
+    bool
+    """
+    for i in range(v.shape[0]):
+        if not math.isfinite(v[i]):
+            return False
+    return True
+
+
+@njit(**_JIT_INLINE)
+def initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, order, y1, f1):
+    """Hairer's ``HINIT`` [HNW93, II.4], in the form of scipy's ``select_initial_step``.
+
+    Costs one evaluation of `fun` (an explicit Euler probe).
+
+    Parameters
+    ----------
+    fun : numba-compiled callable
+        ``fun(t, y, args, out)`` writes dy/dt into `out`.
+    t0 : float
+        Start time.
+    y0, f0 : ndarray of float64, shape (n,)
+        Initial state and ``fun(t0, y0)``.
+    args : any numba-typed object
+        Passed through to `fun`.
+    direction : float
+        +1.0 or -1.0, the direction of integration.
+    rtol : float
+        Relative tolerance.
+    atol : ndarray of float64, shape (n,)
+        Absolute tolerance.
+    h_max, span : float
+        Largest allowed step and ``|t_end - t0|``.
+    order : int
+        Order of the error estimator (the local error is ``O(h**(order + 1))``).
+    y1, f1 : ndarray of float64, shape (n,)
+        Scratch for the Euler probe (overwritten).
+
+    Returns
+    -------
+    float
+        The (positive) initial step size.
+    """
+    n = y0.shape[0]
+    d0 = rms_norm(y0, y0, atol, rtol)
+    d1 = rms_norm(f0, y0, atol, rtol)
+    # Written as `not (...)` so that NaN norms fall into the cautious branch.
+    if not (d0 >= 1e-5 and d1 >= 1e-5):
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, span)
+    for i in range(n):
+        y1[i] = y0[i] + direction * h0 * f0[i]
+    fun(t0 + direction * h0, y1, args, f1)
+    for i in range(n):
+        f1[i] -= f0[i]
+    # The norm is taken in rms_norm, which is not inlined, so that a zero scale gives inf here
+    # whatever the error model of the caller this kernel is inlined into.
+    d2 = rms_norm(f1, y0, atol, rtol) / h0
+    if not math.isfinite(d2):
+        # The Euler probe already left the domain of f; let the integrator's non-finite
+        # handling shrink from a cautious start.
+        h1 = h0
+    else:
+        dmax = d1 if d1 > d2 else d2
+        if dmax <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / dmax) ** (1.0 / (order + 1))
+    return min(100.0 * h0, h1, span, h_max)

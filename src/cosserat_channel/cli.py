@@ -316,9 +316,9 @@ def _query(args: argparse.Namespace) -> int:
             selection = query.select(ds, sel, ranges, where, variables, " ".join(clauses))
         except ParameterError as exc:
             raise CliError(str(exc)) from None
-        if selection.count() == 0:
-            _note("the selection is empty: no point matches")
         try:
+            if selection.count() == 0:
+                _note("the selection is empty: no point matches")
             if args.format == "netcdf":
                 query.write_netcdf(selection, args.output)
             elif args.output is not None:
@@ -328,11 +328,32 @@ def _query(args: argparse.Namespace) -> int:
                 query.write_text(args.output, writer)
             else:
                 sys.stdout.write(query.render(selection, args.format))
-        except OSError as exc:
-            raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
+        except (OSError, RuntimeError) as exc:
+            raise _read_or_write_failure(exc, args.results, ds, args.output) from None
     finally:
         ds.close()
     return EXIT_OK
+
+
+def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | None) -> CliError:
+    """One line for an error met while reading ``results`` or writing ``output``.
+
+    Both raise the same types (netCDF4 reports a damaged chunk and a full disk alike as
+    ``RuntimeError: NetCDF: HDF error``), so the file is read through once more to tell them
+    apart: a damaged result file says so, whatever the output.
+    """
+    from . import query
+    from .files import WriteError
+
+    problem = query.read_problem(ds)
+    if problem:
+        return CliError(f"{results}: {problem}", EXIT_FAILURE)
+    if isinstance(exc, WriteError):
+        return CliError(f"-o: {exc}", EXIT_FAILURE)
+    if isinstance(exc, OSError):
+        where = repr(output) if output is not None else "standard output"
+        return CliError(f"cannot write {where}: {exc.strerror or exc}", EXIT_FAILURE)
+    return CliError(f"{results}: cannot read: {' '.join(str(exc).split())}", EXIT_FAILURE)
 
 
 def _info_arguments(p: argparse.ArgumentParser) -> None:
@@ -348,7 +369,11 @@ def _info(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
-        sys.stdout.write(query.describe(ds, args.results))
+        try:
+            text = query.describe(ds, args.results)
+        except (OSError, RuntimeError) as exc:
+            raise _read_or_write_failure(exc, args.results, ds, None) from None
+        sys.stdout.write(text)
     finally:
         ds.close()
     return EXIT_OK
@@ -399,7 +424,15 @@ def _run(args: argparse.Namespace) -> int:
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
-        raise CliError(f"cannot write {output!r}: {exc}", EXIT_FAILURE) from None
+        from .files import WriteError
+        from .sweep.store import partial_dir
+
+        message = str(exc) if isinstance(exc, WriteError) else \
+            f"cannot write {output!r}: {exc.strerror or exc}"
+        if os.path.isdir(partial_dir(output)):
+            message += (f"; finished blocks are kept in {partial_dir(output)}/, run the same "
+                        "command again to resume")
+        raise CliError(message, EXIT_FAILURE) from None
     except KeyboardInterrupt:
         _error(f"interrupted; finished blocks are kept in {output}.partial/, run the same "
                "command again to resume")
@@ -563,20 +596,22 @@ def _boundary(args: argparse.Namespace) -> int:
             name = "-" if above < 0 else Status(above).name
             print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
                   f"{regimes.EDGE_KINDS[k]:<20} {name}")
+    from .files import atomic_output
+
     try:
-        tmp = f"{args.output}.{os.getpid()}.tmp"
-        try:
-            ds.to_netcdf(tmp)
-            os.replace(tmp, args.output)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        # Checksums, as on sweep results: a damaged file fails to read instead of changing.
+        enc = {v: {"fletcher32": True} for v in ds.variables
+               if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
+        atomic_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
         if args.plot is not None:
             from .plot import regimes as plot_regimes
 
             plot_regimes.boundary_figure(ds, path=args.plot)
     except OSError as exc:
-        raise CliError(f"cannot write: {exc}", EXIT_FAILURE) from None
+        from .files import WriteError
+
+        raise CliError(str(exc) if isinstance(exc, WriteError) else f"cannot write: {exc}",
+                       EXIT_FAILURE) from None
     return EXIT_OK
 
 
@@ -632,7 +667,10 @@ def _plot(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
-        ds = ds.load()
+        try:
+            ds = ds.load()
+        except (OSError, RuntimeError) as exc:
+            raise _read_or_write_failure(exc, args.results, ds, None) from None
         boundary = None
         if args.boundary is not None:
             import xarray as xr

@@ -9,7 +9,45 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
 from typing import Callable
+
+
+class WriteError(OSError):
+    """A file could not be written; the message is one line that names the file and the reason.
+
+    Raised instead of whatever the writer raised (netCDF4 reports a full disk as ``RuntimeError:
+    NetCDF: HDF error``, the operating system as ``OSError``), so callers catch one type.
+    """
+
+
+def write_failure(path, exc: BaseException) -> WriteError:
+    """A :class:`WriteError` for ``exc`` raised while writing ``path``.
+
+    An ``OSError`` says why itself (``No space left on device``); the HDF5 library's errors do
+    not, so for those the free space of the file system is added: it is usually the reason.
+    """
+    path = os.fspath(path)
+    if isinstance(exc, OSError) and exc.strerror:
+        reason = exc.strerror
+    else:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        try:
+            free = shutil.disk_usage(os.path.dirname(os.path.abspath(path)) or ".").free
+            reason += f" (the file system has {_size(free)} free; a full disk is the usual cause)"
+        except OSError:
+            pass
+    err = WriteError(f"cannot write {path!r}: {reason}")
+    err.__cause__ = None
+    return err
+
+
+def _size(n: int) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n < 1000 or unit == "TB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return f"{n} B"
 
 
 def output_problem(path) -> str | None:
@@ -30,17 +68,26 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
 
     ``tmp`` lies in ``tmp_dir`` (default: the directory of ``path``), which must be on the same
     file system so that ``os.replace`` is atomic. The temporary file is removed if ``write``
-    fails or the process is interrupted, and ``path`` keeps whatever it held before.
+    fails or the process is interrupted, and ``path`` keeps whatever it held before. A failure of
+    ``write`` or of the rename (an ``OSError``, or the plain ``RuntimeError`` netCDF4 raises on a
+    full disk) is raised as :class:`WriteError`; interrupts and other errors pass unchanged.
     """
     path = os.fspath(path)
     directory, name = os.path.split(os.path.abspath(path))
     tmp = os.path.join(tmp_dir or directory, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
-        write(tmp)
-        os.replace(tmp, path)
+        try:
+            write(tmp)
+            os.replace(tmp, path)
+        except WriteError:
+            raise
+        except (OSError, RuntimeError) as exc:
+            if not isinstance(exc, OSError) and type(exc) is not RuntimeError:
+                raise  # RecursionError, NotImplementedError: bugs, not write failures
+            raise write_failure(path, exc) from None
     except BaseException:
         try:
             os.unlink(tmp)
-        except FileNotFoundError:
+        except OSError:
             pass
         raise

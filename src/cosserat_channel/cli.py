@@ -410,7 +410,9 @@ def _run(args: argparse.Namespace) -> int:
         spec = load_sweep(args.sweep)
     except SweepError as exc:
         raise CliError(str(exc)) from None
-    output = args.output or spec.output_path
+    if args.output is not None and not args.output.strip():
+        raise CliError("-o: the output file name is empty")
+    output = args.output if args.output is not None else spec.output_path
     if output is None:
         output = os.path.splitext(os.path.basename(args.sweep))[0] + ".nc"
     logger = logging.getLogger("cosserat_channel.sweep")
@@ -530,7 +532,15 @@ def _phase_plane(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def parse_values(text: str, option: str) -> list:
+# boundary: values per list and (A, N) pairs. One pair costs ~80 solves (tens of ms), so the
+# largest accepted run takes about an hour; without a bound 'start:stop:1000000000' built a list
+# of 23 GB before anything was checked.
+MAX_BOUNDARY_VALUES = 100_000
+MAX_BOUNDARY_PAIRS = 100_000
+MAX_COARSE = 10_000
+
+
+def parse_values(text: str, option: str, max_values: int = MAX_BOUNDARY_VALUES) -> list:
     """``"a,b,c"`` (a list) or ``"start:stop:num"`` (linspace) -> list of floats; CliError if bad."""
     try:
         if ":" in text:
@@ -540,10 +550,15 @@ def parse_values(text: str, option: str) -> list:
             start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
             if num < 1:
                 raise ValueError
+            if num > max_values:
+                raise CliError(f"{option}: {num:,} values is more than {max_values:,}; "
+                               "split the run")
             import numpy as np
 
             values = [float(v) for v in np.linspace(start, stop, num)]
         else:
+            if text.count(",") >= max_values:
+                raise CliError(f"{option}: more than {max_values:,} values; split the run")
             values = [float(v) for v in text.split(",")]
     except ValueError:
         raise CliError(f"{option}: expected a list 'a,b,c' or 'start:stop:num'; got {text!r}") \
@@ -569,18 +584,26 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
 @register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
           _boundary_arguments)
 def _boundary(args: argparse.Namespace) -> int:
+    from .parameters import ETA_MIN
+
     A = parse_values(args.A, "--A")
     N = parse_values(args.N, "--N")
     if any(n <= 0.0 for n in N):
         raise CliError(f"--N: values must be > 0; got {args.N!r}")
+    if len(A) * len(N) > MAX_BOUNDARY_PAIRS:
+        raise CliError(f"--A, --N: {len(A) * len(N):,} (A, N) pairs is more than "
+                       f"{MAX_BOUNDARY_PAIRS:,}; split the run")
     try:
         lo, hi = (float(v) for v in args.eta_range.split(":"))
     except ValueError:
         raise CliError(f"--eta-range: expected LO:HI; got {args.eta_range!r}") from None
     if not (0.0 < lo < hi < math.inf):
         raise CliError(f"--eta-range: need 0 < LO < HI < inf; got {args.eta_range!r}")
-    if args.coarse < 2:
-        raise CliError(f"--coarse must be >= 2; got {args.coarse}")
+    if lo < ETA_MIN:
+        raise CliError(f"--eta-range: LO = {lo:g} is below {ETA_MIN:g}, the smallest eps L the "
+                       "solver resolves")
+    if not 2 <= args.coarse <= MAX_COARSE:
+        raise CliError(f"--coarse must be in [2, {MAX_COARSE}]; got {args.coarse}")
     check_output_path(args.output, "-o")
     if args.plot is not None:
         _figure_output(args.plot, "--plot")

@@ -53,6 +53,8 @@ def _size(n: int) -> str:
 def output_problem(path) -> str | None:
     """Why a file cannot be created at ``path`` (one line), or None when it can."""
     path = os.fspath(path)
+    if not path.strip():
+        return "the output file name is empty"
     directory = os.path.dirname(os.path.abspath(path))
     if os.path.isdir(path):
         return f"cannot write {path!r}: it is a directory; give a file name"

@@ -26,7 +26,9 @@ __all__ = [
     "DEFAULT_RTOL",
     "DEFAULT_ATOL",
     "ParameterError",
+    "ETA_MIN",
     "check_point",
+    "check_eta",
     "check_values",
     "check_tolerances",
     "check_material",
@@ -118,11 +120,15 @@ PARAMETERS = {
 
 # The material, for nu and the dimensional stresses: the particle (required) and the
 # critical-state closure sigma_c(nu) of eq:24 with the paper's constants as defaults.
+# Upper bounds are physical (a 10 m boulder, 10x the densest element, 1000 g): they keep the
+# stress scale rho_p g W = rho_p g d_p / eps a finite double for every eps the solver accepts,
+# where unbounded values overflowed it and the stresses in Pa went silently missing.
 MATERIAL = {
-    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 0.0, math.inf),
-    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 0.0, math.inf),
+    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 0.0, 10.0, False, True),
+    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 0.0, 1e5, False,
+                       True),
     "phi": Parameter("phi", "angle of internal friction phi in degrees", "degree", 0.0, 90.0),
-    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 0.0, math.inf, default=9.81),
+    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 0.0, 1e4, False, True, default=9.81),
     # Lambda is a stress in pascals: that reproduces the paper's nu = 0.60 and 0.59 (model.md).
     "Lambda": Parameter("Lambda", "closure constant Lambda in Pa (eq:24)", "Pa", 0.0, math.inf,
                         default=817.0),
@@ -133,17 +139,52 @@ MATERIAL = {
 }
 MATERIAL_REQUIRED = ("d_p", "rho_p", "phi")
 
+# The smallest eps L the solver resolves. Below it the stress path's transitions (the wall
+# layer, ~(eps L)^(2/3) wide, and the jump to D = 0 after xi = N when N < 1, ~eps L wide) come
+# within a few thousand round-offs of xi, the march gives up or, further down, returns a plug
+# edge that double precision cannot place (eps L = 1e-50 gave Delta = 8e7 where the Airy
+# asymptote says 5e16), and at eps L ~ 1e-320 the kernels divide by an underflowed zero. Measured
+# with the stages.py change of issue 13 on 5000 random points (eta log-uniform in [1e-12, 1e-5],
+# rtol in [1e-13, 1e-3]): no integration_failed; between 1e-16 and 1e-12, 135 of 2000 failed.
+ETA_MIN = 1e-12
+
 DEFAULT_RTOL = 1e-8
 DEFAULT_ATOL = 1e-12
+# The ranges in which a point's status does not depend on the tolerances (tests/test_faults.py
+# sweeps both and compares with rtol = 1e-10). The stage-1 state w = delta/xi^2 is O(0.1-10) and
+# stage 2's J is O(1) (its atol is scaled by min(1, eps L)), so atol is an absolute error on
+# O(1) numbers: at atol = 1e-5 points 1e-3 (relative, in eps L) inside the edge of solvability
+# already flip, at 0.1 points far from it do, and at 10 the kernel divided by zero. Measured, at
+# atol <= 1e-6 and rtol <= 1e-3 statuses match the tight ones everywhere except within ~1e-4 of
+# an edge (1e-5 at the defaults, the resolution of D(1) there); at rtol = 0.5 that band grew to
+# 1e-3. atol below 1e-30 buys nothing and at 5e-324 its scaled copy underflows to 0.
 TOLERANCES = {
-    "rtol": Parameter("rtol", "relative tolerance", "1", 1e-13, 1.0, True, default=DEFAULT_RTOL),
-    "atol": Parameter("atol", "absolute tolerance", "1", 0.0, math.inf, default=DEFAULT_ATOL),
+    "rtol": Parameter("rtol", "relative tolerance", "1", 1e-13, 1e-3, True, True,
+                      default=DEFAULT_RTOL),
+    "atol": Parameter("atol", "absolute tolerance", "1", 1e-30, 1e-6, True, True,
+                      default=DEFAULT_ATOL),
 }
 
 
 def check_point(eps, L, K, A, N):
-    """Validate ``(eps, L, K, A, N)``; returns them as floats or raises :class:`ParameterError`."""
-    return tuple(PARAMETERS[d].check(v) for d, v in zip(DIMS, (eps, L, K, A, N)))
+    """Validate ``(eps, L, K, A, N)``; returns them as floats or raises :class:`ParameterError`.
+
+    Besides each parameter's own range, ``eps L`` must be at least :data:`ETA_MIN`.
+    """
+    point = tuple(PARAMETERS[d].check(v) for d, v in zip(DIMS, (eps, L, K, A, N)))
+    check_eta(point[0], point[1])
+    return point
+
+
+def check_eta(eps, L, label: str = "eps L") -> float:
+    """``eps * L``, or :class:`ParameterError` when it is below :data:`ETA_MIN`."""
+    eta = eps * L
+    if not eta >= ETA_MIN:
+        raise ParameterError(
+            f"{label} = {eta:g} (eps = {eps!r}, L = {L!r}) is below {ETA_MIN:g}, the smallest "
+            "eps L the solver resolves; use a larger eps or L"
+        )
+    return eta
 
 
 def check_values(name: str, values, label: str | None = None) -> np.ndarray:

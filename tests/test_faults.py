@@ -405,6 +405,7 @@ FIG2 = (1 / 30, 10.0, 0.5, 1 / 3, 1.0)
 @pytest.mark.parametrize("index, value", [
     (1, True), (1, np.bool_(True)), (0, "0.1"), (1, b"10"), (2, 10**400), (1, 10**400),
     (3, 1 + 2j), (4, None), (4, [1.0]), (1, 1e-320), (0, 5e-324),
+    (1, 1e300), (4, 1e234), (3, 1e4), (3, -1e4),  # overflowing eps L, N^2, A^2 in the kernels
 ])
 def test_solve_point_refuses_bad_parameters(index, value):
     point = list(FIG2)
@@ -419,6 +420,9 @@ def test_solve_point_refuses_bad_parameters(index, value):
     dict(material={"d_p": 1e308, "rho_p": 2940, "phi": 25}),
     dict(material={"d_p": 0.002, "rho_p": 1e300, "phi": 25}),
     dict(material={"d_p": 0.002, "rho_p": 2940, "phi": 25, "g": 1e300}),
+    dict(material={"d_p": 5e-324, "rho_p": 2940, "phi": 25}),  # log(0) in the closure
+    dict(material={"d_p": 0.002, "rho_p": 2940, "phi": 1e-300}),
+    dict(material={"d_p": 0.002, "rho_p": 2940, "phi": 25, "Lambda": 5e-324}),
 ])
 def test_solve_point_refuses_bad_options(kwargs):
     with pytest.raises(ParameterError):
@@ -440,6 +444,7 @@ def test_large_atol_is_refused_by_name(capsys):
     ["point", "--eps", "0.0333", "--L=1e-320", "--K", "0.5", "--A", "0.33", "--N", "1"],
     ["phase-plane", "--eps", "0.0333", "--L=1e-320", "--A", "0.33", "--N", "1", "-o", "pp.png"],
     ["boundary", "--A=1", "--N=1", "--eta-range", "1e-320:1", "-o", "b.nc"],
+    ["boundary", "--A=1", "--N=1", "--eta-range", "1:1e300", "-o", "b.nc"],
     ["boundary", "--A=1:2:1000000000", "--N=1", "-o", "b.nc"],
     ["boundary", "--A=1:2:1000", "--N=1:2:1000", "-o", "b.nc"],
     ["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1",
@@ -460,6 +465,8 @@ def test_tiny_eps_L_in_a_sweep_is_refused_without_numpy_warnings():
     grid = {"eps": [1e-300, 0.1], "L": [1e-20, 10.0], "K": 0.5, "A": 1.0, "N": 1.0}
     with pytest.raises(SweepError, match="grid: eps L"):
         load_sweep({"grid": grid})
+    with pytest.raises(SweepError, match="grid: eps L"):
+        load_sweep({"grid": {**grid, "eps": 0.1, "L": [10.0, 1e300]}})
     import warnings
 
     with warnings.catch_warnings():

@@ -584,7 +584,7 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
 @register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
           _boundary_arguments)
 def _boundary(args: argparse.Namespace) -> int:
-    from .parameters import ETA_MIN
+    from .parameters import ETA_MAX, ETA_MIN
 
     A = parse_values(args.A, "--A")
     N = parse_values(args.N, "--N")
@@ -599,9 +599,9 @@ def _boundary(args: argparse.Namespace) -> int:
         raise CliError(f"--eta-range: expected LO:HI; got {args.eta_range!r}") from None
     if not (0.0 < lo < hi < math.inf):
         raise CliError(f"--eta-range: need 0 < LO < HI < inf; got {args.eta_range!r}")
-    if lo < ETA_MIN:
-        raise CliError(f"--eta-range: LO = {lo:g} is below {ETA_MIN:g}, the smallest eps L the "
-                       "solver resolves")
+    if lo < ETA_MIN or hi > ETA_MAX:
+        raise CliError(f"--eta-range: {args.eta_range!r} is not inside [{ETA_MIN:g}, "
+                       f"{ETA_MAX:g}], the eps L the solver resolves")
     if not 2 <= args.coarse <= MAX_COARSE:
         raise CliError(f"--coarse must be in [2, {MAX_COARSE}]; got {args.coarse}")
     check_output_path(args.output, "-o")
@@ -619,13 +619,13 @@ def _boundary(args: argparse.Namespace) -> int:
             name = "-" if above < 0 else Status(above).name
             print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
                   f"{regimes.EDGE_KINDS[k]:<20} {name}")
-    from .files import atomic_output
+    from .files import netcdf_output
 
     try:
         # Checksums, as on sweep results: a damaged file fails to read instead of changing.
         enc = {v: {"fletcher32": True} for v in ds.variables
                if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
-        atomic_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
+        netcdf_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
         if args.plot is not None:
             from .plot import regimes as plot_regimes
 

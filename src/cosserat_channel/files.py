@@ -16,8 +16,9 @@ from typing import Callable
 class WriteError(OSError):
     """A file could not be written; the message is one line that names the file and the reason.
 
-    Raised instead of whatever the writer raised (netCDF4 reports a full disk as ``RuntimeError:
-    NetCDF: HDF error``, the operating system as ``OSError``), so callers catch one type.
+    Raised by :func:`netcdf_output` instead of whatever the writer raised (netCDF4 reports a full
+    disk as ``RuntimeError: NetCDF: HDF error``, the operating system as ``OSError``), so callers
+    catch one type.
     """
 
 
@@ -70,26 +71,34 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
 
     ``tmp`` lies in ``tmp_dir`` (default: the directory of ``path``), which must be on the same
     file system so that ``os.replace`` is atomic. The temporary file is removed if ``write``
-    fails or the process is interrupted, and ``path`` keeps whatever it held before. A failure of
-    ``write`` or of the rename (an ``OSError``, or the plain ``RuntimeError`` netCDF4 raises on a
-    full disk) is raised as :class:`WriteError`; interrupts and other errors pass unchanged.
+    fails or the process is interrupted, and ``path`` keeps whatever it held before.
     """
     path = os.fspath(path)
     directory, name = os.path.split(os.path.abspath(path))
     tmp = os.path.join(tmp_dir or directory, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
-        try:
-            write(tmp)
-            os.replace(tmp, path)
-        except WriteError:
-            raise
-        except (OSError, RuntimeError) as exc:
-            if not isinstance(exc, OSError) and type(exc) is not RuntimeError:
-                raise  # RecursionError, NotImplementedError: bugs, not write failures
-            raise write_failure(path, exc) from None
+        write(tmp)
+        os.replace(tmp, path)
     except BaseException:
         try:
             os.unlink(tmp)
         except OSError:
             pass
         raise
+
+
+def netcdf_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
+    """:func:`atomic_output` for a NetCDF writer: a failure to write is a :class:`WriteError`.
+
+    netCDF4 reports a full disk (or any failed write of the HDF5 library) as a plain
+    ``RuntimeError: NetCDF: HDF error``, not as an ``OSError``; both become one
+    :class:`WriteError` (an ``OSError``) that names the file. Other errors pass unchanged.
+    """
+    try:
+        atomic_output(path, write, tmp_dir)
+    except WriteError:
+        raise
+    except (OSError, RuntimeError) as exc:
+        if not isinstance(exc, OSError) and type(exc) is not RuntimeError:
+            raise  # RecursionError, NotImplementedError: bugs, not write failures
+        raise write_failure(path, exc) from None

@@ -27,6 +27,7 @@ __all__ = [
     "DEFAULT_ATOL",
     "ParameterError",
     "ETA_MIN",
+    "ETA_MAX",
     "check_point",
     "check_eta",
     "check_values",
@@ -114,24 +115,30 @@ PARAMETERS = {
     "eps": Parameter("eps", "particle diameter / channel half-width, d_p/W", "1", 0.0, 1.0, False, True),
     "L": Parameter("L", "Cosserat length in particle diameters", "1", 0.0, math.inf),
     "K": Parameter("K", "wall roughness in u = eps K omega at the wall", "1", 0.0, math.inf, True),
-    "A": Parameter("A", "yield-surface constant a2/a1", "1"),
-    "N": Parameter("N", "sin(phi)/tan(delta)", "1", 0.0, math.inf),
+    # |A| <= 1e3 and N <= 1e6: beyond them the kernels overflow (N^2, A^2 in D) and divided by
+    # zero or ran out of steps (issue 13: fuzzing found ZeroDivisionError from N ~ 1e140 and
+    # integration_failed from |A| ~ 1e3.5); within them 15,000 random points never failed.
+    "A": Parameter("A", "yield-surface constant a2/a1", "1", -1e3, 1e3, True, True),
+    "N": Parameter("N", "sin(phi)/tan(delta)", "1", 0.0, 1e6, False, True),
 }
 
 # The material, for nu and the dimensional stresses: the particle (required) and the
 # critical-state closure sigma_c(nu) of eq:24 with the paper's constants as defaults.
-# Upper bounds are physical (a 10 m boulder, 10x the densest element, 1000 g): they keep the
-# stress scale rho_p g W = rho_p g d_p / eps a finite double for every eps the solver accepts,
-# where unbounded values overflowed it and the stresses in Pa went silently missing.
+# The bounds are physical (1 nm to a 10 m boulder, aerogel to 4x osmium, 1e-6 to 1000 g, a
+# friction angle of at least 0.001 degree): they keep the stress scale rho_p g W = rho_p g d_p /
+# eps and tan(delta) Lambda finite, non-zero doubles for every eps and N the solver accepts. Unbounded,
+# d_p = 1e308 overflowed the scale and the stresses in Pa went silently missing, and subnormal
+# values made the closure take the logarithm of 0 (issue 13).
 MATERIAL = {
-    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 0.0, 10.0, False, True),
-    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 0.0, 1e5, False,
+    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 1e-9, 10.0, True, True),
+    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 1e-3, 1e5, True,
                        True),
-    "phi": Parameter("phi", "angle of internal friction phi in degrees", "degree", 0.0, 90.0),
-    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 0.0, 1e4, False, True, default=9.81),
+    "phi": Parameter("phi", "angle of internal friction phi in degrees", "degree", 1e-3, 90.0,
+                     True),
+    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 1e-6, 1e4, True, True, default=9.81),
     # Lambda is a stress in pascals: that reproduces the paper's nu = 0.60 and 0.59 (model.md).
-    "Lambda": Parameter("Lambda", "closure constant Lambda in Pa (eq:24)", "Pa", 0.0, math.inf,
-                        default=817.0),
+    "Lambda": Parameter("Lambda", "closure constant Lambda in Pa (eq:24)", "Pa", 1e-9, 1e12,
+                        True, True, default=817.0),
     "nu_min": Parameter("nu_min", "closure nu_min (eq:24)", "1", 0.0, 1.0, True, default=0.5),
     "nu_max": Parameter("nu_max", "closure nu_max (eq:24)", "1", 0.0, 1.0, default=0.65),
     "p": Parameter("p", "closure exponent p (eq:24)", "1", 1.0, math.inf, True, default=2.5),
@@ -147,6 +154,9 @@ MATERIAL_REQUIRED = ("d_p", "rho_p", "phi")
 # with the stages.py change of issue 13 on 5000 random points (eta log-uniform in [1e-12, 1e-5],
 # rtol in [1e-13, 1e-3]): no integration_failed; between 1e-16 and 1e-12, 135 of 2000 failed.
 ETA_MIN = 1e-12
+# ... and the largest: far above it eta^2 overflows in the axis series (eps L ~ 1e150 and up gave
+# integration_failed and ZeroDivisionError); 9,000 random points in [1e2, 1e15] solved cleanly.
+ETA_MAX = 1e12
 
 DEFAULT_RTOL = 1e-8
 DEFAULT_ATOL = 1e-12
@@ -169,7 +179,7 @@ TOLERANCES = {
 def check_point(eps, L, K, A, N):
     """Validate ``(eps, L, K, A, N)``; returns them as floats or raises :class:`ParameterError`.
 
-    Besides each parameter's own range, ``eps L`` must be at least :data:`ETA_MIN`.
+    Besides each parameter's own range, ``eps L`` must lie in ``[ETA_MIN, ETA_MAX]``.
     """
     point = tuple(PARAMETERS[d].check(v) for d, v in zip(DIMS, (eps, L, K, A, N)))
     check_eta(point[0], point[1])
@@ -177,12 +187,12 @@ def check_point(eps, L, K, A, N):
 
 
 def check_eta(eps, L, label: str = "eps L") -> float:
-    """``eps * L``, or :class:`ParameterError` when it is below :data:`ETA_MIN`."""
+    """``eps * L``, or :class:`ParameterError` outside ``[ETA_MIN, ETA_MAX]``."""
     eta = eps * L
-    if not eta >= ETA_MIN:
+    if not ETA_MIN <= eta <= ETA_MAX:
         raise ParameterError(
-            f"{label} = {eta:g} (eps = {eps!r}, L = {L!r}) is below {ETA_MIN:g}, the smallest "
-            "eps L the solver resolves; use a larger eps or L"
+            f"{label} = {eta:g} (eps = {eps!r}, L = {L!r}) is outside [{ETA_MIN:g}, "
+            f"{ETA_MAX:g}], the eps L the solver resolves"
         )
     return eta
 

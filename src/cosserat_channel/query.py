@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from .files import atomic_output
+from .files import atomic_output, netcdf_output
 from .parameters import DIMS, ParameterError
 
 RANGE_SLACK = 1e-9
@@ -77,7 +77,8 @@ def open_results(path) -> xr.Dataset:
         ds = xr.open_dataset(path, chunks={})
     # Any file can arrive here; the backends raise several types for "not NetCDF".
     except (OSError, ValueError, RuntimeError, TypeError, KeyError) as exc:
-        reason = (isinstance(exc, OSError) and exc.strerror) or "not NetCDF"
+        reason = (isinstance(exc, OSError) and exc.strerror) or (
+            "damaged, or not NetCDF" if type(exc) is RuntimeError else "not NetCDF")
         raise QueryError(f"{path}: cannot open as a NetCDF result file ({reason})") from None
     if "status" not in ds.data_vars or not _is_flag(ds["status"]):
         ds.close()
@@ -453,7 +454,7 @@ def write_netcdf(selection: Selection, path: str) -> None:
     # other threads still write, and xarray's file manager reopens the temporary file after
     # atomic_output has removed it, leaving it behind.
     with dask.config.set(scheduler="synchronous"):
-        atomic_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
+        netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
 
 
 def write_text(path: str, writer) -> None:

@@ -203,10 +203,10 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
             raise SweepError(f"{key}: duplicate value(s) {dup}; coordinate values must be unique")
         values.setflags(write=False)
         axes[d] = values
-    # The smallest product is the product of the smallest values (both axes are positive).
-    eps_min, L_min = float(axes["eps"].min()), float(axes["L"].min())
+    # The extreme products are those of the extreme values (both axes are positive).
     try:
-        check_eta(eps_min, L_min, label="grid: eps L")
+        for pick in (np.min, np.max):
+            check_eta(float(pick(axes["eps"])), float(pick(axes["L"])), label="grid: eps L")
     except ParameterError as exc:
         raise SweepError(str(exc)) from None
     return axes

@@ -41,7 +41,7 @@ import shutil
 
 import numpy as np
 
-from ..files import atomic_output, output_problem
+from ..files import atomic_output, netcdf_output, output_problem
 from .spec import SweepError
 
 MANIFEST = "manifest.json"
@@ -238,7 +238,9 @@ class WorkStore:
         """``write(path)`` the result inside the store, then rename it onto ``output``."""
         # The temporary file lives inside the store, so a killed write leaves nothing beside
         # the output and the next run sweeps it away with the store's other leftovers.
-        atomic_output(output, write, tmp_dir=self.directory)
+        # A failed write (netCDF4's RuntimeError on a full disk included) is a WriteError; the
+        # store stays, so the same command writes the file again without solving anything.
+        netcdf_output(output, write, tmp_dir=self.directory)
 
     def remove(self) -> None:
         """Delete the store (after the result is in place)."""

@@ -65,3 +65,82 @@ def test_tolerances_and_material():
         check_material({"d_p": 0.002, "rho_p": 2940, "phi": 25, "nu_min": 0.7})
     with pytest.raises(ParameterError, match="unknown key"):
         check_material({"d_p": 0.002, "rho_p": 2940, "phi": 25, "colour": 1})
+
+
+# ---------------------------------------------------------------------------------------------
+# Issue 13, item 1: a point's status must not depend on the tolerances within their range.
+# ---------------------------------------------------------------------------------------------
+# Every edge of solvability named by (A, N, eta_max) (regimes.trace_edge at rtol 1e-10); points
+# are taken 1e-3 (relative, in eps L) on each side: the status there is decided by D(1), which
+# the solver resolves to ~1e-5 at the defaults and ~1e-4 at the loosest accepted tolerances.
+EDGES = [(1 / 3, 1.0, 3.308860555489726), (0.0, 2.0, 3.741643761878816),
+         (0.9, 0.5, 17.467539553915614), (0.9, 0.5, 0.3975087920526119),
+         (-0.5, 1.0, 0.344410076390575), (3.0, 0.5, 0.2351051210787608)]
+# The corners of the accepted box and the ranges along each axis.
+TOLERANCE_SWEEP = (
+    [(1e-8, a) for a in (1e-30, 1e-20, 1e-14, 1e-9, 1e-7, 1e-6)]
+    + [(r, 1e-12) for r in (1e-13, 1e-12, 1e-11, 1e-9, 1e-7, 1e-5, 1e-4, 1e-3)]
+    + [(1e-13, 1e-30), (1e-13, 1e-6), (1e-3, 1e-30), (1e-3, 1e-6)]
+)
+TIGHT = dict(rtol=1e-10, atol=1e-12)
+
+
+def _tolerance_points(corner: bool):
+    """Random points of the tested domain (model.md), plus the near-edge ones; ``corner``: only
+    those with N < 1 < A and eps L < 1e-5, where issue 13 item 6 lives, else only the others."""
+    rng = np.random.default_rng(13)
+    points = []
+    while len(points) < 60:
+        eps, L = 10 ** rng.uniform(-7, math.log10(0.5)), 10 ** rng.uniform(math.log10(0.5), 2)
+        A, N = rng.uniform(-3, 5), 10 ** rng.uniform(-3 if corner else math.log10(0.3), 1)
+        if corner:
+            eps = min(1.0, 10 ** rng.uniform(-12, -6) / L)
+        in_corner = N < 1 < A and eps * L < 1e-5
+        if in_corner == corner:
+            points.append((eps, L, 0.5, A, N))
+    if not corner:
+        points += [(eta * (1 + s * 1e-3) / 100, 100.0, 0.5, A, N)
+                   for A, N, eta in EDGES for s in (-1, 1)]
+    else:  # the issue's own example: integration_failed at rtol 1e-10
+        points.append((1.610256468145839e-08, 0.002791177180070797, 254990.67731324708,
+                       5.319350767681383, 0.001285971688229784))
+    return points
+
+
+def _status_changes(points):
+    from cosserat_channel import solve_point
+    from cosserat_channel.solve import Workspace
+
+    ws = Workspace()
+    changes = []
+    for p in points:
+        ref = solve_point(*p, **TIGHT, workspace=ws).status
+        if ref.name == "integration_failed":  # "never seen inside the solvable region"
+            changes.append((p, TIGHT["rtol"], TIGHT["atol"], "-", ref.name))
+        for rtol, atol in TOLERANCE_SWEEP:
+            got = solve_point(*p, rtol=rtol, atol=atol, workspace=ws).status
+            if got != ref:
+                changes.append((p, rtol, atol, ref.name, got.name))
+    return changes
+
+
+def test_tolerance_range_bounds():
+    """The accepted box: atol in [1e-30, 1e-6], rtol in [1e-13, 1e-3]; outside is refused."""
+    assert check_tolerances(1e-3, 1e-6) == (1e-3, 1e-6)
+    assert check_tolerances(1e-13, 1e-30) == (1e-13, 1e-30)
+    for rtol, atol, name in ((2e-3, 1e-12, "rtol"), (1e-8, 1.1e-6, "atol"),
+                             (1e-8, 1e-31, "atol"), (1e-8, 0.1, "atol")):
+        with pytest.raises(ParameterError, match=name):
+            check_tolerances(rtol, atol)
+
+
+def test_statuses_do_not_depend_on_the_tolerances():
+    """Over the whole accepted box, every point gets the status of rtol = 1e-10, atol = 1e-12:
+    66 points (60 random in the tested domain, 6 pairs 1e-3 either side of an edge) x 18 pairs."""
+    assert _status_changes(_tolerance_points(corner=False)) == []
+
+
+def test_statuses_do_not_depend_on_the_tolerances_for_N_below_one():
+    """The corner of item 6 (N < 1 < A, small eps L): at tight rtol stage 1 gave up in the jump
+    to D = 0 after xi = N and said integration_failed where the answer is eps_too_large_path."""
+    assert _status_changes(_tolerance_points(corner=True)) == []

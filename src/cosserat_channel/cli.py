@@ -316,9 +316,9 @@ def _query(args: argparse.Namespace) -> int:
             selection = query.select(ds, sel, ranges, where, variables, " ".join(clauses))
         except ParameterError as exc:
             raise CliError(str(exc)) from None
-        if selection.count() == 0:
-            _note("the selection is empty: no point matches")
         try:
+            if selection.count() == 0:
+                _note("the selection is empty: no point matches")
             if args.format == "netcdf":
                 query.write_netcdf(selection, args.output)
             elif args.output is not None:
@@ -328,11 +328,32 @@ def _query(args: argparse.Namespace) -> int:
                 query.write_text(args.output, writer)
             else:
                 sys.stdout.write(query.render(selection, args.format))
-        except OSError as exc:
-            raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
+        except (OSError, RuntimeError) as exc:
+            raise _read_or_write_failure(exc, args.results, ds, args.output) from None
     finally:
         ds.close()
     return EXIT_OK
+
+
+def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | None) -> CliError:
+    """One line for an error met while reading ``results`` or writing ``output``.
+
+    Both raise the same types (netCDF4 reports a damaged chunk and a full disk alike as
+    ``RuntimeError: NetCDF: HDF error``), so the file is read through once more to tell them
+    apart: a damaged result file says so, whatever the output.
+    """
+    from . import query
+    from .files import WriteError
+
+    problem = query.read_problem(ds)
+    if problem:
+        return CliError(f"{results}: {problem}", EXIT_FAILURE)
+    if isinstance(exc, WriteError):
+        return CliError(f"-o: {exc}", EXIT_FAILURE)
+    if isinstance(exc, OSError):
+        where = repr(output) if output is not None else "standard output"
+        return CliError(f"cannot write {where}: {exc.strerror or exc}", EXIT_FAILURE)
+    return CliError(f"{results}: cannot read: {' '.join(str(exc).split())}", EXIT_FAILURE)
 
 
 def _info_arguments(p: argparse.ArgumentParser) -> None:
@@ -348,7 +369,11 @@ def _info(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
-        sys.stdout.write(query.describe(ds, args.results))
+        try:
+            text = query.describe(ds, args.results)
+        except (OSError, RuntimeError) as exc:
+            raise _read_or_write_failure(exc, args.results, ds, None) from None
+        sys.stdout.write(text)
     finally:
         ds.close()
     return EXIT_OK
@@ -385,7 +410,9 @@ def _run(args: argparse.Namespace) -> int:
         spec = load_sweep(args.sweep)
     except SweepError as exc:
         raise CliError(str(exc)) from None
-    output = args.output or spec.output_path
+    if args.output is not None and not args.output.strip():
+        raise CliError("-o: the output file name is empty")
+    output = args.output if args.output is not None else spec.output_path
     if output is None:
         output = os.path.splitext(os.path.basename(args.sweep))[0] + ".nc"
     logger = logging.getLogger("cosserat_channel.sweep")
@@ -399,7 +426,15 @@ def _run(args: argparse.Namespace) -> int:
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
-        raise CliError(f"cannot write {output!r}: {exc}", EXIT_FAILURE) from None
+        from .files import WriteError
+        from .sweep.store import partial_dir
+
+        message = str(exc) if isinstance(exc, WriteError) else \
+            f"cannot write {output!r}: {exc.strerror or exc}"
+        if os.path.isdir(partial_dir(output)):
+            message += (f"; finished blocks are kept in {partial_dir(output)}/, run the same "
+                        "command again to resume")
+        raise CliError(message, EXIT_FAILURE) from None
     except KeyboardInterrupt:
         _error(f"interrupted; finished blocks are kept in {output}.partial/, run the same "
                "command again to resume")
@@ -497,7 +532,15 @@ def _phase_plane(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def parse_values(text: str, option: str) -> list:
+# boundary: values per list and (A, N) pairs. One pair costs ~80 solves (tens of ms), so the
+# largest accepted run takes about an hour; without a bound 'start:stop:1000000000' built a list
+# of 23 GB before anything was checked.
+MAX_BOUNDARY_VALUES = 100_000
+MAX_BOUNDARY_PAIRS = 100_000
+MAX_COARSE = 10_000
+
+
+def parse_values(text: str, option: str, max_values: int = MAX_BOUNDARY_VALUES) -> list:
     """``"a,b,c"`` (a list) or ``"start:stop:num"`` (linspace) -> list of floats; CliError if bad."""
     try:
         if ":" in text:
@@ -507,10 +550,15 @@ def parse_values(text: str, option: str) -> list:
             start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
             if num < 1:
                 raise ValueError
+            if num > max_values:
+                raise CliError(f"{option}: {num:,} values is more than {max_values:,}; "
+                               "split the run")
             import numpy as np
 
             values = [float(v) for v in np.linspace(start, stop, num)]
         else:
+            if text.count(",") >= max_values:
+                raise CliError(f"{option}: more than {max_values:,} values; split the run")
             values = [float(v) for v in text.split(",")]
     except ValueError:
         raise CliError(f"{option}: expected a list 'a,b,c' or 'start:stop:num'; got {text!r}") \
@@ -536,18 +584,26 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
 @register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
           _boundary_arguments)
 def _boundary(args: argparse.Namespace) -> int:
+    from .parameters import ETA_MAX, ETA_MIN
+
     A = parse_values(args.A, "--A")
     N = parse_values(args.N, "--N")
     if any(n <= 0.0 for n in N):
         raise CliError(f"--N: values must be > 0; got {args.N!r}")
+    if len(A) * len(N) > MAX_BOUNDARY_PAIRS:
+        raise CliError(f"--A, --N: {len(A) * len(N):,} (A, N) pairs is more than "
+                       f"{MAX_BOUNDARY_PAIRS:,}; split the run")
     try:
         lo, hi = (float(v) for v in args.eta_range.split(":"))
     except ValueError:
         raise CliError(f"--eta-range: expected LO:HI; got {args.eta_range!r}") from None
     if not (0.0 < lo < hi < math.inf):
         raise CliError(f"--eta-range: need 0 < LO < HI < inf; got {args.eta_range!r}")
-    if args.coarse < 2:
-        raise CliError(f"--coarse must be >= 2; got {args.coarse}")
+    if lo < ETA_MIN or hi > ETA_MAX:
+        raise CliError(f"--eta-range: {args.eta_range!r} is not inside [{ETA_MIN:g}, "
+                       f"{ETA_MAX:g}], the eps L the solver resolves")
+    if not 2 <= args.coarse <= MAX_COARSE:
+        raise CliError(f"--coarse must be in [2, {MAX_COARSE}]; got {args.coarse}")
     check_output_path(args.output, "-o")
     if args.plot is not None:
         _figure_output(args.plot, "--plot")
@@ -563,20 +619,22 @@ def _boundary(args: argparse.Namespace) -> int:
             name = "-" if above < 0 else Status(above).name
             print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
                   f"{regimes.EDGE_KINDS[k]:<20} {name}")
+    from .files import netcdf_output
+
     try:
-        tmp = f"{args.output}.{os.getpid()}.tmp"
-        try:
-            ds.to_netcdf(tmp)
-            os.replace(tmp, args.output)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        # Checksums, as on sweep results: a damaged file fails to read instead of changing.
+        enc = {v: {"fletcher32": True} for v in ds.variables
+               if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
+        netcdf_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
         if args.plot is not None:
             from .plot import regimes as plot_regimes
 
             plot_regimes.boundary_figure(ds, path=args.plot)
     except OSError as exc:
-        raise CliError(f"cannot write: {exc}", EXIT_FAILURE) from None
+        from .files import WriteError
+
+        raise CliError(str(exc) if isinstance(exc, WriteError) else f"cannot write: {exc}",
+                       EXIT_FAILURE) from None
     return EXIT_OK
 
 
@@ -632,7 +690,10 @@ def _plot(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
-        ds = ds.load()
+        try:
+            ds = ds.load()
+        except (OSError, RuntimeError) as exc:
+            raise _read_or_write_failure(exc, args.results, ds, None) from None
         boundary = None
         if args.boundary is not None:
             import xarray as xr

@@ -9,12 +9,53 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
 from typing import Callable
+
+
+class WriteError(OSError):
+    """A file could not be written; the message is one line that names the file and the reason.
+
+    Raised by :func:`netcdf_output` instead of whatever the writer raised (netCDF4 reports a full
+    disk as ``RuntimeError: NetCDF: HDF error``, the operating system as ``OSError``), so callers
+    catch one type.
+    """
+
+
+def write_failure(path, exc: BaseException) -> WriteError:
+    """A :class:`WriteError` for ``exc`` raised while writing ``path``.
+
+    An ``OSError`` says why itself (``No space left on device``); the HDF5 library's errors do
+    not, so for those the free space of the file system is added: it is usually the reason.
+    """
+    path = os.fspath(path)
+    if isinstance(exc, OSError) and exc.strerror:
+        reason = exc.strerror
+    else:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        try:
+            free = shutil.disk_usage(os.path.dirname(os.path.abspath(path)) or ".").free
+            reason += f" (the file system has {_size(free)} free; a full disk is the usual cause)"
+        except OSError:
+            pass
+    err = WriteError(f"cannot write {path!r}: {reason}")
+    err.__cause__ = None
+    return err
+
+
+def _size(n: int) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n < 1000 or unit == "TB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return f"{n} B"
 
 
 def output_problem(path) -> str | None:
     """Why a file cannot be created at ``path`` (one line), or None when it can."""
     path = os.fspath(path)
+    if not path.strip():
+        return "the output file name is empty"
     directory = os.path.dirname(os.path.abspath(path))
     if os.path.isdir(path):
         return f"cannot write {path!r}: it is a directory; give a file name"
@@ -41,6 +82,23 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
     except BaseException:
         try:
             os.unlink(tmp)
-        except FileNotFoundError:
+        except OSError:
             pass
         raise
+
+
+def netcdf_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
+    """:func:`atomic_output` for a NetCDF writer: a failure to write is a :class:`WriteError`.
+
+    netCDF4 reports a full disk (or any failed write of the HDF5 library) as a plain
+    ``RuntimeError: NetCDF: HDF error``, not as an ``OSError``; both become one
+    :class:`WriteError` (an ``OSError``) that names the file. Other errors pass unchanged.
+    """
+    try:
+        atomic_output(path, write, tmp_dir)
+    except WriteError:
+        raise
+    except (OSError, RuntimeError) as exc:
+        if not isinstance(exc, OSError) and type(exc) is not RuntimeError:
+            raise  # RecursionError, NotImplementedError: bugs, not write failures
+        raise write_failure(path, exc) from None

@@ -26,7 +26,10 @@ __all__ = [
     "DEFAULT_RTOL",
     "DEFAULT_ATOL",
     "ParameterError",
+    "ETA_MIN",
+    "ETA_MAX",
     "check_point",
+    "check_eta",
     "check_values",
     "check_tolerances",
     "check_material",
@@ -112,20 +115,30 @@ PARAMETERS = {
     "eps": Parameter("eps", "particle diameter / channel half-width, d_p/W", "1", 0.0, 1.0, False, True),
     "L": Parameter("L", "Cosserat length in particle diameters", "1", 0.0, math.inf),
     "K": Parameter("K", "wall roughness in u = eps K omega at the wall", "1", 0.0, math.inf, True),
-    "A": Parameter("A", "yield-surface constant a2/a1", "1"),
-    "N": Parameter("N", "sin(phi)/tan(delta)", "1", 0.0, math.inf),
+    # |A| <= 1e3 and N <= 1e6: beyond them the kernels overflow (N^2, A^2 in D) and divided by
+    # zero or ran out of steps (issue 13: fuzzing found ZeroDivisionError from N ~ 1e140 and
+    # integration_failed from |A| ~ 1e3.5); within them 15,000 random points never failed.
+    "A": Parameter("A", "yield-surface constant a2/a1", "1", -1e3, 1e3, True, True),
+    "N": Parameter("N", "sin(phi)/tan(delta)", "1", 0.0, 1e6, False, True),
 }
 
 # The material, for nu and the dimensional stresses: the particle (required) and the
 # critical-state closure sigma_c(nu) of eq:24 with the paper's constants as defaults.
+# The bounds are physical (1 nm to a 10 m boulder, aerogel to 4x osmium, 1e-6 to 1000 g, a
+# friction angle of at least 0.001 degree): they keep the stress scale rho_p g W = rho_p g d_p /
+# eps and tan(delta) Lambda finite, non-zero doubles for every eps and N the solver accepts. Unbounded,
+# d_p = 1e308 overflowed the scale and the stresses in Pa went silently missing, and subnormal
+# values made the closure take the logarithm of 0 (issue 13).
 MATERIAL = {
-    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 0.0, math.inf),
-    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 0.0, math.inf),
-    "phi": Parameter("phi", "angle of internal friction phi in degrees", "degree", 0.0, 90.0),
-    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 0.0, math.inf, default=9.81),
+    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 1e-9, 10.0, True, True),
+    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 1e-3, 1e5, True,
+                       True),
+    "phi": Parameter("phi", "angle of internal friction phi in degrees", "degree", 1e-3, 90.0,
+                     True),
+    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 1e-6, 1e4, True, True, default=9.81),
     # Lambda is a stress in pascals: that reproduces the paper's nu = 0.60 and 0.59 (model.md).
-    "Lambda": Parameter("Lambda", "closure constant Lambda in Pa (eq:24)", "Pa", 0.0, math.inf,
-                        default=817.0),
+    "Lambda": Parameter("Lambda", "closure constant Lambda in Pa (eq:24)", "Pa", 1e-9, 1e12,
+                        True, True, default=817.0),
     "nu_min": Parameter("nu_min", "closure nu_min (eq:24)", "1", 0.0, 1.0, True, default=0.5),
     "nu_max": Parameter("nu_max", "closure nu_max (eq:24)", "1", 0.0, 1.0, default=0.65),
     "p": Parameter("p", "closure exponent p (eq:24)", "1", 1.0, math.inf, True, default=2.5),
@@ -133,17 +146,55 @@ MATERIAL = {
 }
 MATERIAL_REQUIRED = ("d_p", "rho_p", "phi")
 
+# The smallest eps L the solver resolves. Below it the stress path's transitions (the wall
+# layer, ~(eps L)^(2/3) wide, and the jump to D = 0 after xi = N when N < 1, ~eps L wide) come
+# within a few thousand round-offs of xi, the march gives up or, further down, returns a plug
+# edge that double precision cannot place (eps L = 1e-50 gave Delta = 8e7 where the Airy
+# asymptote says 5e16), and at eps L ~ 1e-320 the kernels divide by an underflowed zero. Measured
+# with the stages.py change of issue 13 on 5000 random points (eta log-uniform in [1e-12, 1e-5],
+# rtol in [1e-13, 1e-3]): no integration_failed; between 1e-16 and 1e-12, 135 of 2000 failed.
+ETA_MIN = 1e-12
+# ... and the largest: far above it eta^2 overflows in the axis series (eps L ~ 1e150 and up gave
+# integration_failed and ZeroDivisionError); 9,000 random points in [1e2, 1e15] solved cleanly.
+ETA_MAX = 1e12
+
 DEFAULT_RTOL = 1e-8
 DEFAULT_ATOL = 1e-12
+# The ranges in which a point's status does not depend on the tolerances (tests/test_faults.py
+# sweeps both and compares with rtol = 1e-10). The stage-1 state w = delta/xi^2 is O(0.1-10) and
+# stage 2's J is O(1) (its atol is scaled by min(1, eps L)), so atol is an absolute error on
+# O(1) numbers: at atol = 1e-5 points 1e-3 (relative, in eps L) inside the edge of solvability
+# already flip, at 0.1 points far from it do, and at 10 the kernel divided by zero. Measured, at
+# atol <= 1e-6 and rtol <= 1e-3 statuses match the tight ones everywhere except within ~1e-4 of
+# an edge (1e-5 at the defaults, the resolution of D(1) there); at rtol = 0.5 that band grew to
+# 1e-3. atol below 1e-30 buys nothing and at 5e-324 its scaled copy underflows to 0.
 TOLERANCES = {
-    "rtol": Parameter("rtol", "relative tolerance", "1", 1e-13, 1.0, True, default=DEFAULT_RTOL),
-    "atol": Parameter("atol", "absolute tolerance", "1", 0.0, math.inf, default=DEFAULT_ATOL),
+    "rtol": Parameter("rtol", "relative tolerance", "1", 1e-13, 1e-3, True, True,
+                      default=DEFAULT_RTOL),
+    "atol": Parameter("atol", "absolute tolerance", "1", 1e-30, 1e-6, True, True,
+                      default=DEFAULT_ATOL),
 }
 
 
 def check_point(eps, L, K, A, N):
-    """Validate ``(eps, L, K, A, N)``; returns them as floats or raises :class:`ParameterError`."""
-    return tuple(PARAMETERS[d].check(v) for d, v in zip(DIMS, (eps, L, K, A, N)))
+    """Validate ``(eps, L, K, A, N)``; returns them as floats or raises :class:`ParameterError`.
+
+    Besides each parameter's own range, ``eps L`` must lie in ``[ETA_MIN, ETA_MAX]``.
+    """
+    point = tuple(PARAMETERS[d].check(v) for d, v in zip(DIMS, (eps, L, K, A, N)))
+    check_eta(point[0], point[1])
+    return point
+
+
+def check_eta(eps, L, label: str = "eps L") -> float:
+    """``eps * L``, or :class:`ParameterError` outside ``[ETA_MIN, ETA_MAX]``."""
+    eta = eps * L
+    if not ETA_MIN <= eta <= ETA_MAX:
+        raise ParameterError(
+            f"{label} = {eta:g} (eps = {eps!r}, L = {L!r}) is outside [{ETA_MIN:g}, "
+            f"{ETA_MAX:g}], the eps L the solver resolves"
+        )
+    return eta
 
 
 def check_values(name: str, values, label: str | None = None) -> np.ndarray:

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from .files import atomic_output
+from .files import atomic_output, netcdf_output
 from .parameters import DIMS, ParameterError
 
 RANGE_SLACK = 1e-9
@@ -77,7 +77,8 @@ def open_results(path) -> xr.Dataset:
         ds = xr.open_dataset(path, chunks={})
     # Any file can arrive here; the backends raise several types for "not NetCDF".
     except (OSError, ValueError, RuntimeError, TypeError, KeyError) as exc:
-        reason = (isinstance(exc, OSError) and exc.strerror) or "not NetCDF"
+        reason = (isinstance(exc, OSError) and exc.strerror) or (
+            "damaged, or not NetCDF" if type(exc) is RuntimeError else "not NetCDF")
         raise QueryError(f"{path}: cannot open as a NetCDF result file ({reason})") from None
     if "status" not in ds.data_vars or not _is_flag(ds["status"]):
         ds.close()
@@ -86,6 +87,23 @@ def open_results(path) -> xr.Dataset:
             "flag_values/flag_meanings)"
         )
     return ds
+
+
+def read_problem(ds: xr.Dataset) -> str | None:
+    """Read every variable of ``ds`` through (in chunks) and say which one cannot be read, if any.
+
+    Result files carry HDF5 Fletcher-32 checksums (:func:`sweep.dataset.encoding`): a damaged
+    chunk fails to read (netCDF4: ``RuntimeError: NetCDF: HDF error``) instead of returning
+    changed numbers. Used to tell such a file from a failure to write the output.
+    """
+    for name in [*ds.coords, *ds.data_vars]:
+        try:
+            ds[name].count().compute()
+        except (OSError, RuntimeError, ValueError) as exc:
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            return (f"the file is damaged: variable {name!r} cannot be read ({reason}; its "
+                    "checksum or the HDF5 structure does not match); write it again")
+    return None
 
 
 def _is_flag(da: xr.DataArray) -> bool:
@@ -123,6 +141,14 @@ def _check_coordinate(name: str, ds: xr.Dataset, option: str) -> None:
     coords = _coordinate_names(ds)
     if name not in coords:
         raise QueryError(f"{option}: unknown coordinate {name!r}; valid: {', '.join(coords)}")
+    if ds[name].dtype.kind not in "iuf":
+        raise QueryError(f"{option}: coordinate {name!r} is not numeric ({ds[name].dtype}); "
+                         "only numeric coordinates can be selected")
+
+
+def _show(x, limit: int = 24) -> str:
+    s = str(x)
+    return s if len(s) <= limit else s[: limit - 1] + "…"
 
 
 def _float(text: str, what: str) -> float:
@@ -186,6 +212,9 @@ def parse_where(text: str, ds: xr.Dataset) -> Condition:
                 f"--where {name}: unknown {name} name {value!r}; valid: {', '.join(flags)}"
             )
         return Condition(name, op, flags[value], text.strip())
+    if da.dtype.kind not in "iuf":
+        raise QueryError(f"--where: {name!r} is not numeric ({da.dtype}); it cannot be compared "
+                         "with a number")
     return Condition(name, op, _float(value, f"--where {name}"), text.strip())
 
 
@@ -408,6 +437,8 @@ def _encoding(ds: xr.Dataset) -> dict:
             e = {"_FillValue": None}  # status and counters: every value is a real code/count
         if name in ds.data_vars and v.ndim > 0:
             e.update(zlib=True, complevel=1)
+        if v.ndim > 0 and v.dtype.kind in "fiub":
+            e["fletcher32"] = True  # as sweep.dataset.encoding: damage fails to read
         enc[name] = e
     return enc
 
@@ -417,7 +448,13 @@ def write_netcdf(selection: Selection, path: str) -> None:
     ds = subset_dataset(selection)
     for v in ds.variables.values():
         v.encoding = {}
-    atomic_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
+    import dask
+
+    # One thread: with dask's threaded scheduler a failed read (a damaged chunk) raises while
+    # other threads still write, and xarray's file manager reopens the temporary file after
+    # atomic_output has removed it, leaving it behind.
+    with dask.config.set(scheduler="synchronous"):
+        netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
 
 
 def write_text(path: str, writer) -> None:
@@ -464,7 +501,10 @@ def describe(ds: xr.Dataset, path: str = "") -> str:
         if d in ds.coords and n:
             c = np.asarray(ds[d].values)
             unit = ds[d].attrs.get("units", "")
-            rng = f"{np.min(c):.10g} .. {np.max(c):.10g}"
+            if c.dtype.kind in "iuf":
+                rng = f"{np.min(c):.10g} .. {np.max(c):.10g}"
+            else:  # not a file of ours, but describe what is there (strings, dates, ...)
+                rng = _show(c[0]) + (f" .. {_show(c[-1])}" if n > 1 else "")
             text = ds[d].attrs.get("long_name", "")
             lines.append(f"  {d:<8} {n:>8}  {rng:<30} {unit:<10} {text}".rstrip())
         else:

@@ -306,6 +306,46 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
 
 
 @njit(nogil=True, cache=True)
+def _path_end_bound(xi, eta, A, N):
+    """An upper bound on where a stage-1 path that exists at ``xi > N`` meets ``D = 0`` (A > -1).
+
+    Over delta, ``D`` is largest at ``delta = N``: ``D <= (A^2-1) xi^2 + 2(A+1) N^2``, which is
+    below ``((A+1) xi)^2`` exactly when ``xi > N``. There ``eta delta' = (A+1) xi - sqrt(D)`` is at
+    least ``gap(xi) = (A+1) xi - sqrt((A^2-1) xi^2 + 2(A+1) N^2) > 0`` wherever the path exists,
+    and ``gap`` grows with xi; ``D >= 0`` keeps delta in ``N +- sqrt(N^2 + (A-1) xi^2/2)``, a band
+    narrower than ``W = 2 sqrt(N^2 + max(A-1, 0)/2)``. So delta crosses the band, i.e. the path
+    meets D = 0, before ``xi + eta W / gap(xi)``. Returns inf where ``xi <= N`` (no bound).
+    """
+    if not xi > N:
+        return math.inf
+    a1 = A + 1.0
+    gap = a1 * xi - math.sqrt(max((A * A - 1.0) * xi * xi + 2.0 * a1 * N * N, 0.0))
+    if not gap > 0.0:
+        return math.inf
+    W = 2.0 * math.sqrt(N * N + 0.5 * max(A - 1.0, 0.0))
+    return xi + eta * W / gap
+
+
+@njit(nogil=True, cache=True)
+def path_must_end(xi, eta, A, N):
+    """Whether every stage-1 path that reaches ``xi`` meets ``D = 0`` before the wall (A > -1).
+
+    True when :func:`_path_end_bound` is below 1 at ``xi`` or at some ``xi' > max(xi, N)``
+    (tried on 16 points up to the wall): a path that reaches ``xi'`` ends before that bound, and
+    one that does not reach it has ended already. Needs ``N < 1`` and a small enough eta.
+    """
+    if not N < 1.0:
+        return False
+    if _path_end_bound(xi, eta, A, N) < 1.0:
+        return True
+    lo = max(xi, N)
+    for k in range(1, 16):
+        if _path_end_bound(lo + (1.0 - lo) * k / 16.0, eta, A, N) < 1.0:
+            return True
+    return False
+
+
+@njit(nogil=True, cache=True)
 def _wall_D_sensitivity(A, N, delta_wall):
     """``|dD/d delta| delta`` at the wall: what a relative error in delta does to D(1)."""
     return 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
@@ -392,6 +432,16 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         res[R_XI_STOP] = t1
         return st.EPS_TOO_LARGE_PATH, False
     if s1 != rk45.SUCCESS:
+        # The march gave up (step size or budget). For N < 1 and small eta that happens in the
+        # fast jump to D = 0 just after xi = N (or crawling along the sqrt(N^2 - xi^2) kink of
+        # the slow manifold before it, or at a start inside the series' radius ~N), where the
+        # status is certain without the march: see path_must_end.
+        xi_s = T1[n1] if n1 > 0 else xi1
+        if path_must_end(xi_s, eta, A, N):
+            res[R_STATUS] = st.EPS_TOO_LARGE_PATH
+            # Where: within eta W / gap of xi_s when the march got past N, else not resolved.
+            res[R_XI_STOP] = xi_s if _path_end_bound(xi_s, eta, A, N) < 1.0 else math.nan
+            return st.EPS_TOO_LARGE_PATH, False
         res[R_STATUS] = st.INTEGRATION_FAILED
         return st.INTEGRATION_FAILED, False
     # Stage 1 resolves delta to ~rtol1 |delta|, hence D(1) to ~rtol1 * sensitivity: a D(1) well

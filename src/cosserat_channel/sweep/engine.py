@@ -25,7 +25,7 @@ from .. import status as st
 from .dataset import build_dataset, encoding
 from .plan import BlockInputs, Plan
 from .spec import SweepError, SweepSpec, load_sweep
-from .store import FORMAT, WorkStore, check_writable
+from .store import FORMAT, BlockDamaged, WorkStore, check_writable
 
 log = logging.getLogger("cosserat_channel.sweep")
 
@@ -113,7 +113,8 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
             else:
                 _run_distributed(plan, todo, store, args, scheduler, progress)
         t1 = time.perf_counter()
-        ds = assemble(spec, plan, store, xi)
+        ds = assemble(spec, plan, store, xi, recompute=lambda k: store.put(
+            k, _block_task(plan, k, (spec.rtol, spec.atol, xi))))
         t2 = time.perf_counter()
         if output is not None:
             enc = encoding(ds, compress)
@@ -262,15 +263,27 @@ def _run_distributed(plan, todo, store, args, scheduler, progress) -> None:
 # ---------------------------------------------------------------------------------------------
 # Blocks -> grid
 # ---------------------------------------------------------------------------------------------
-def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None):
-    """Gather every block from the store onto the grid and build the Dataset."""
+def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=None):
+    """Gather every block from the store onto the grid and build the Dataset.
+
+    Each block is checked against its digest as it is read (:meth:`WorkStore.get`); one that
+    fails (damaged on disk since the run began) is computed again here by ``recompute(k)`` when
+    given, and otherwise raises :class:`SweepError`.
+    """
     n = plan.n_triples
     per_triple = {"res": np.empty((n, stages.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
     need_one_minus = out_.needs_plug_edge(spec.variables)
     one_minus = np.empty(plan.size) if need_one_minus else None
     profiles = np.empty((n, stages.N_PROF, xi.size)) if xi is not None else None
     for k, triples in enumerate(plan.blocks):
-        b = store.get(k)
+        try:
+            b = store.get(k, triples)
+        except BlockDamaged as exc:
+            if recompute is None:
+                raise SweepError(f"block {k} of {store.directory} is damaged ({exc})") from None
+            store.discard(k, str(exc))
+            recompute(k)
+            b = store.get(k, triples)
         per_triple["res"][triples] = b["res"]
         per_triple["steps"][triples] = b["steps"]
         if profiles is not None:

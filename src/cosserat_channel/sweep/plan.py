@@ -138,7 +138,8 @@ class Plan:
         eta, A, N = self.triple_params(t)
         code = np.empty(t.size, dtype=np.int64)
         _classify_many(eta, A, N, code)
-        cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
+        with np.errstate(over="ignore", divide="ignore"):  # only the order matters (inf is fine)
+            cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
         return cost + COST_PER_ENTRY * self.entries_per_triple(t)
 
     def _default_block_size(self, n_blocks: int) -> int:

@@ -53,6 +53,7 @@ from ..parameters import (
     MATERIAL,
     ParameterError,
     check_material,
+    check_eta,
     check_tolerances,
     check_values,
 )
@@ -202,6 +203,12 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
             raise SweepError(f"{key}: duplicate value(s) {dup}; coordinate values must be unique")
         values.setflags(write=False)
         axes[d] = values
+    # The extreme products are those of the extreme values (both axes are positive).
+    try:
+        for pick in (np.min, np.max):
+            check_eta(float(pick(axes["eps"])), float(pick(axes["L"])), label="grid: eps L")
+    except ParameterError as exc:
+        raise SweepError(str(exc)) from None
     return axes
 
 
@@ -373,9 +380,12 @@ def _read_text(path: str) -> str:
     except OSError as exc:
         raise SweepError(f"{path}: cannot read: {exc.strerror or exc}") from None
     try:
-        return raw.decode("utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SweepError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    # A byte-order mark (Windows editors write one) is not TOML: tomllib calls it an "Invalid
+    # statement" at line 1, column 1.
+    return text[1:] if text.startswith("\ufeff") else text
 
 
 def _json_default(x):

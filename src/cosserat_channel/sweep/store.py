@@ -5,12 +5,21 @@ A run writing ``OUT.nc`` keeps its finished work in ``OUT.nc.partial/``::
     OUT.nc.partial/
       manifest.json        sweep sha256, grid shape, reduction, block size, plan digest, version
       lock                 flock'ed by the live run: two runs never share a store
-      block_00000.npz      one file per finished block: triples, res, steps, one_minus[, profiles]
-      ...
+      block_00000.npz      one file per finished block: triples, res, steps, one_minus[, profiles],
+      ...                  and the sha256 digest of all of them (see below)
 
 Every file is written under a temporary name and ``os.replace``'d, so a block file is either
 complete or absent, whatever kills the process (``kill -9`` included; the files are not fsync'ed,
-so a power cut may still lose the last blocks, which are then simply recomputed). Running the
+so a power cut may still lose the last blocks, which are then simply recomputed).
+
+A block is trusted only if its ``digest`` field is the sha256 of its arrays *and* of the store's
+identity (format, sweep sha256, plan sha256, package version) and its index: a block damaged on
+disk (flipped bytes, truncation), edited (``res * 1.5`` saved back), moved to another index or
+copied from another sweep's store fails the check, is logged as a warning, deleted and computed
+again, on resume and at assembly alike; it never reaches the result and never raises. This guards
+against damage and accidents, not against someone who recomputes the digest on purpose. Because
+the digest binds each block to its sweep and plan, an unreadable manifest is not fatal either: it
+is written anew and every block that still checks out is reused. Running the
 same command again finds the finished blocks and computes only the rest; the plan is a function of
 the sweep file and the manifest's options, so the result is the one an uninterrupted run gives.
 A store made by another sweep file (or other options, or another package version) is never
@@ -24,20 +33,30 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import hashlib
 import json
+import logging
 import os
 import shutil
-import zipfile
 
 import numpy as np
 
-from ..files import atomic_output, output_problem
+from ..files import atomic_output, netcdf_output, output_problem
 from .spec import SweepError
 
 MANIFEST = "manifest.json"
 LOCK = "lock"
 FORMAT = 1
 BLOCK_FIELDS = ("triples", "res", "steps", "one_minus")
+DIGEST = "digest"
+# The manifest entries a block's digest binds it to.
+IDENTITY = ("format", "sweep_sha256", "plan_sha256", "cosserat_channel_version")
+
+log = logging.getLogger("cosserat_channel.sweep")
+
+
+class BlockDamaged(Exception):
+    """A block file that is missing, unreadable, or whose digest does not match its content."""
 
 
 def partial_dir(output: str) -> str:
@@ -63,6 +82,20 @@ def _save_block(tmp: str, result: dict) -> None:
         np.savez(f, **result)
 
 
+def block_digest(identity: dict, k: int, arrays: dict) -> str:
+    """sha256 of a block: the store's identity, its index, and every array (name, type, shape,
+    bytes) in name order."""
+    h = hashlib.sha256()
+    h.update(json.dumps([identity.get(key) for key in IDENTITY] + [int(k)]).encode())
+    for name in sorted(arrays):
+        if name == DIGEST:
+            continue
+        a = np.ascontiguousarray(arrays[name])
+        h.update(json.dumps([name, a.dtype.str, list(a.shape)]).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
 class WorkStore:
     """Finished blocks of one run: on disk under ``OUT.nc.partial/``, or in memory (no output).
 
@@ -86,15 +119,23 @@ class WorkStore:
         if output is None:
             return cls(None, manifest)
         d = partial_dir(output)
+        rewrite = False
         if os.path.isdir(d):
-            old = _read_manifest(d, output)
-            manifest = _reconcile(old, manifest, output, d, given_block_size)
+            old = _read_manifest(d)
+            if old is None:
+                # Every block is bound to its sweep and plan by its digest (see the module
+                # docstring), so a new manifest cannot let a foreign block through.
+                log.warning("working store %s has no readable %s; writing it anew (blocks that "
+                            "check out are kept, the rest are recomputed)", d, MANIFEST)
+                rewrite = True
+            else:
+                manifest = _reconcile(old, manifest, output, d, given_block_size)
         store = cls(d, manifest)
         try:
             os.makedirs(d, exist_ok=True)
             store._take_lock(output)
             path = os.path.join(d, MANIFEST)
-            if not os.path.exists(path):
+            if rewrite or not os.path.exists(path):
                 text = json.dumps(manifest, indent=1, sort_keys=True).encode()
                 atomic_output(path, lambda tmp: _write_bytes(tmp, text))
             for name in os.listdir(d):
@@ -129,46 +170,77 @@ class WorkStore:
         return os.path.join(self.directory, f"block_{k:05d}.npz")
 
     def done(self, blocks: list[np.ndarray]) -> set[int]:
-        """Indices of the blocks already finished (and matching the plan's triples)."""
+        """Indices of the blocks already finished whose digest checks out.
+
+        Every block file is read whole and checked (:meth:`get`); one that fails is logged,
+        deleted and left to be computed again.
+        """
         if self.directory is None:
             return set(self._memory)
         finished = set()
         for k, triples in enumerate(blocks):
-            path = self._block_path(k)
-            if not os.path.exists(path):
+            if not os.path.exists(self._block_path(k)):
                 continue
             try:
-                with np.load(path) as z:
-                    ok = all(f in z.files for f in BLOCK_FIELDS)
-                    ok = ok and np.array_equal(z["triples"], triples)
-            except (OSError, ValueError, zipfile.BadZipFile, EOFError):
-                ok = False
-            if ok:
-                finished.add(k)
-            else:  # cannot happen with atomic renames; recompute rather than trust it
-                os.unlink(path)
+                self.get(k, triples)
+            except BlockDamaged as exc:
+                self.discard(k, str(exc))
+                continue
+            finished.add(k)
         return finished
 
     def put(self, k: int, result: dict) -> None:
-        """Keep block ``k``'s result (atomically on disk)."""
+        """Keep block ``k``'s result (atomically on disk, with its digest)."""
         if self.directory is None:
             self._memory[k] = result
             return
-        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, result))
+        arrays = {f: v for f, v in result.items() if f != DIGEST}
+        arrays[DIGEST] = np.array(block_digest(self.manifest, k, arrays))
+        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, arrays))
 
-    def get(self, k: int) -> dict:
-        """Block ``k``'s result."""
+    def get(self, k: int, triples: np.ndarray | None = None) -> dict:
+        """Block ``k``'s result; :class:`BlockDamaged` unless it is complete, its digest matches
+        and (when given) its triples are ``triples``."""
         if self.directory is None:
             return self._memory[k]
-        with np.load(self._block_path(k)) as z:
-            return {f: z[f] for f in z.files}
+        path = self._block_path(k)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                arrays = {f: z[f] for f in z.files}
+        except FileNotFoundError:
+            raise BlockDamaged("missing") from None
+        # Whatever a damaged file makes the zip and npy readers raise (BadZipFile on a CRC
+        # error, ValueError, OSError, EOFError, zlib.error, ...): the block is not usable.
+        except Exception as exc:  # noqa: BLE001
+            raise BlockDamaged(f"unreadable ({type(exc).__name__}: {exc})") from None
+        missing = [f for f in (*BLOCK_FIELDS, DIGEST) if f not in arrays]
+        if missing:
+            raise BlockDamaged(f"field(s) {', '.join(missing)} missing")
+        stored = arrays.pop(DIGEST)
+        if stored.shape != () or stored.dtype.kind != "U" or \
+                str(stored) != block_digest(self.manifest, k, arrays):
+            raise BlockDamaged("digest does not match the content")
+        if triples is not None and not np.array_equal(arrays["triples"], triples):
+            raise BlockDamaged("holds other triples than the plan's")
+        return arrays
+
+    def discard(self, k: int, why: str) -> None:
+        """Delete a damaged block (with a warning) so that it is computed again."""
+        log.warning("block %d of working store %s is damaged (%s); computing it again", k,
+                    self.directory, why)
+        try:
+            os.unlink(self._block_path(k))
+        except FileNotFoundError:
+            pass
 
     # -- the result ---------------------------------------------------------------------------
     def publish(self, output: str, write) -> None:
         """``write(path)`` the result inside the store, then rename it onto ``output``."""
         # The temporary file lives inside the store, so a killed write leaves nothing beside
         # the output and the next run sweeps it away with the store's other leftovers.
-        atomic_output(output, write, tmp_dir=self.directory)
+        # A failed write (netCDF4's RuntimeError on a full disk included) is a WriteError; the
+        # store stays, so the same command writes the file again without solving anything.
+        netcdf_output(output, write, tmp_dir=self.directory)
 
     def remove(self) -> None:
         """Delete the store (after the result is in place)."""
@@ -177,15 +249,19 @@ class WorkStore:
             shutil.rmtree(self.directory, ignore_errors=True)
 
 
-def _read_manifest(d: str, output: str) -> dict:
+def _read_manifest(d: str) -> dict | None:
+    """The store's manifest, or None when it is missing or damaged (see :meth:`WorkStore.open`)."""
     try:
-        with open(os.path.join(d, MANIFEST)) as f:
-            return json.load(f)
+        with open(os.path.join(d, MANIFEST), "rb") as f:
+            manifest = json.loads(f.read().decode("utf-8"))
     except (OSError, ValueError):
-        raise SweepError(
-            f"{d!r} is not a readable working store of {output!r} (no valid {MANIFEST}); "
-            "delete it to start over, or choose another -o"
-        ) from None
+        return None
+    if not isinstance(manifest, dict):
+        return None
+    if not isinstance(manifest.get("block_size"), int) or isinstance(manifest["block_size"], bool) \
+            or manifest["block_size"] < 1:
+        return None
+    return manifest
 
 
 def _reconcile(old: dict, new: dict, output: str, d: str, given_block_size: bool) -> dict:

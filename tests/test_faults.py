@@ -1,0 +1,501 @@
+"""Faults made on purpose (issue 13): every run ends identical to an uninterrupted one, or with one
+line on stderr, a non-zero exit and nothing finished lost.
+
+* kill -9 (and SIGTERM) at several moments: right after the store is opened, after some blocks,
+  while the result file is being written (complete but not yet renamed); SIGINT mid-run;
+* an injected write failure standing in for a full disk: the file-size limit (RLIMIT_FSIZE, so
+  the write really fails in the C library, as netCDF4/HDF5 see a full disk) on the final NetCDF
+  write of ``run`` and of ``query --format netcdf``, and ENOSPC on a block write;
+* damaged working-store blocks (flipped bytes, truncated, edited and saved back, swapped, taken
+  from another sweep, empty) and a damaged manifest, found on resume or only at assembly;
+* a damaged result file (flipped bytes in one variable's chunk);
+* a lost dask.distributed worker;
+* the bad input of issue 13 (items 4 and 8-12).
+
+Subprocess runs pause at a named point of the pipeline through ``HARNESS`` (a wrapper around
+``cli.main`` that patches one method), so every kill lands where it is meant to, not by timing.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from cosserat_channel import cli, solve_point
+from cosserat_channel import status as st
+from cosserat_channel.parameters import ETA_MIN, ParameterError
+from cosserat_channel.sweep import engine, run_sweep
+from cosserat_channel.sweep.plan import Plan
+from cosserat_channel.sweep.spec import SweepError, load_sweep
+from cosserat_channel.sweep.store import partial_dir
+
+# 72 points, 28 integrations (eps L products repeat); with --block-size 4, 7 blocks. About a second.
+SWEEP = """\
+[grid]
+eps = [0.01, 0.02, 0.05]
+L = [5.0, 10.0, 20.0]
+K = [0.5, 5.0]
+A = [0.3333333333333333, 1.0]
+N = [1.0, 1.5]
+[output]
+variables = ["Delta", "slip", "sigma_yx_wall", "xi_stop", "stage1_steps"]
+"""
+BLOCKS = 7
+RUN = ("--workers", "1", "--block-size", "4")
+SENTINEL = b"an earlier result, to be replaced whole or left alone"
+
+HARNESS = r'''
+import errno, os, sys, threading, time
+mode, marker, release = sys.argv[1:4]
+from cosserat_channel import cli
+from cosserat_channel.sweep import store
+
+def pause():
+    open(marker, "w").close()
+    deadline = time.monotonic() + 60
+    while not os.path.exists(release) and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+kind, _, n = mode.partition(":")
+if kind == "open":
+    orig_open = store.WorkStore.open.__func__
+    def open_(cls, *a, **k):
+        s = orig_open(cls, *a, **k)
+        pause()
+        return s
+    store.WorkStore.open = classmethod(open_)
+elif kind in ("block", "enospc"):
+    orig_put = store.WorkStore.put
+    count = [0]
+    lock = threading.Lock()
+    def put(self, k, result):
+        with lock:
+            count[0] += 1
+            c = count[0]
+        if kind == "enospc" and c > int(n):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        orig_put(self, k, result)
+        if kind == "block" and c == int(n):
+            pause()
+    store.WorkStore.put = put
+elif kind == "publish":
+    orig_publish = store.WorkStore.publish
+    def publish(self, output, write):
+        def slow(path):
+            write(path)
+            pause()  # the file is complete, not yet renamed onto the output
+        orig_publish(self, output, slow)
+    store.WorkStore.publish = publish
+sys.exit(cli.main(sys.argv[4:]))
+'''
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """The uninterrupted result, in memory."""
+    return run_sweep(load_sweep(_mapping()), workers=1)
+
+
+def _mapping():
+    import tomllib
+
+    return tomllib.loads(SWEEP)
+
+
+@pytest.fixture
+def sweep_file(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(SWEEP)
+    return path
+
+
+def harness(tmp_path, mode, *argv, limit=None):
+    """Start the CLI under HARNESS in a subprocess; returns (process, marker, release)."""
+    script = tmp_path / "harness.py"
+    script.write_text(HARNESS)
+    marker, release = tmp_path / f"marker-{mode}", tmp_path / f"release-{mode}"
+    for f in (marker, release):
+        f.unlink(missing_ok=True)
+
+    def limits():
+        if limit is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    proc = subprocess.Popen(
+        [sys.executable, str(script), mode, str(marker), str(release), *map(str, argv)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=limits,
+    )
+    return proc, marker, release
+
+
+def wait_for(proc, marker, timeout=120):
+    deadline = time.monotonic() + timeout
+    while not marker.exists():
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended before the pause point: {proc.communicate()}")
+        if time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail("the pause point was never reached")
+        time.sleep(0.01)
+
+
+def one_line_error(stderr: str) -> str:
+    errors = [line for line in stderr.splitlines() if "error:" in line]
+    assert len(errors) == 1, stderr
+    assert "Traceback" not in stderr, stderr
+    return errors[0]
+
+
+def assert_identical(path, ds):
+    with xr.open_dataset(path) as f:
+        f.load()
+        assert set(f.data_vars) == set(ds.data_vars)
+        for v in ds.data_vars:
+            assert np.array_equal(f[v].values, ds[v].values, equal_nan=True), v
+
+
+def rerun(sweep_file, out, capsys):
+    """The same command again, in-process: it must finish and resume what was kept."""
+    assert cli.main(["run", str(sweep_file), "-o", str(out), *RUN]) == 0
+    return capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------------
+# Signals
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("mode, sig", [
+    ("open", signal.SIGKILL),  # store and manifest made, nothing computed
+    ("block:3", signal.SIGKILL),  # three blocks stored
+    ("publish", signal.SIGKILL),  # every block stored, result written under its temporary name
+    ("block:5", signal.SIGTERM),
+])
+def test_kill_at_several_moments_then_rerun_is_identical(tmp_path, sweep_file, reference,
+                                                         capsys, mode, sig):
+    out = tmp_path / "out.nc"
+    out.write_bytes(SENTINEL)
+    proc, marker, _ = harness(tmp_path, mode, "run", sweep_file, "-o", out, *RUN)
+    wait_for(proc, marker)
+    proc.send_signal(sig)
+    proc.communicate(timeout=60)
+    assert proc.returncode == -sig
+    assert out.read_bytes() == SENTINEL  # the old result is untouched
+    kept = len(list(Path(partial_dir(out)).glob("block_*.npz")))
+    err = rerun(sweep_file, out, capsys)
+    assert f"{kept} done before, {BLOCKS - kept} to compute" in err
+    assert "WARNING" not in err.upper() and "damaged" not in err
+    assert_identical(out, reference)
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(("marker", "harness"))) \
+        == ["out.nc", "s.toml"]
+
+
+def test_sigint_is_one_line_and_resumes(tmp_path, sweep_file, reference, capsys):
+    out = tmp_path / "out.nc"
+    proc, marker, release = harness(tmp_path, "block:2", "run", sweep_file, "-o", out, *RUN)
+    wait_for(proc, marker)
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.2)
+    release.touch()  # let the paused worker thread finish so the process can exit
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert "run the same command again to resume" in one_line_error(stderr)
+    assert not out.exists()
+    err = rerun(sweep_file, out, capsys)
+    assert "0 done before" not in err
+    assert_identical(out, reference)
+
+
+# ---------------------------------------------------------------------------------------------
+# A full disk
+# ---------------------------------------------------------------------------------------------
+def test_final_write_fails_keeps_blocks_then_resumes(tmp_path, sweep_file, reference, capsys):
+    """The file-size limit lets the blocks (a few kB each) through, not the result (~100 kB)."""
+    out = tmp_path / "out.nc"
+    out.write_bytes(SENTINEL)
+    proc, _, _ = harness(tmp_path, "none", "run", sweep_file, "-o", out, *RUN, limit=40_000)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 1
+    line = one_line_error(stderr)
+    assert "cannot write" in line and "HDF error" in line and "resume" in line
+    assert out.read_bytes() == SENTINEL
+    assert len(list(Path(partial_dir(out)).glob("block_*.npz"))) == BLOCKS
+    assert not list(Path(partial_dir(out)).glob("*.tmp")) and not list(tmp_path.glob(".*.tmp"))
+    err = rerun(sweep_file, out, capsys)
+    assert f"{BLOCKS} done before, 0 to compute" in err
+    assert_identical(out, reference)
+
+
+def test_block_write_fails_keeps_finished_blocks(tmp_path, sweep_file, reference, capsys):
+    out = tmp_path / "out.nc"
+    proc, _, _ = harness(tmp_path, "enospc:4", "run", sweep_file, "-o", out, *RUN)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 1
+    assert "No space left on device" in one_line_error(stderr)
+    assert len(list(Path(partial_dir(out)).glob("block_*.npz"))) == 4
+    err = rerun(sweep_file, out, capsys)
+    assert f"4 done before, {BLOCKS - 4} to compute" in err
+    assert_identical(out, reference)
+
+
+def test_query_netcdf_write_fails_in_one_line(tmp_path, sweep_file, reference):
+    out = tmp_path / "out.nc"
+    run_sweep(str(sweep_file), str(out), workers=1)
+    sub = tmp_path / "sub.nc"
+    proc, _, _ = harness(tmp_path, "none", "query", out, "--format", "netcdf", "-o", sub,
+                         limit=20_000)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 1
+    line = one_line_error(stderr)
+    assert "-o: cannot write" in line and "HDF error" in line
+    assert not sub.exists() and not list(tmp_path.glob(".*.tmp"))
+
+
+# ---------------------------------------------------------------------------------------------
+# Damaged working stores
+# ---------------------------------------------------------------------------------------------
+def leave_store(sweep_file, out, monkeypatch, block_size=4):
+    """Run until every block is stored, then stop before the result is assembled."""
+    with monkeypatch.context() as m:
+        m.setattr(engine, "assemble", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("stop")))
+        with pytest.raises(RuntimeError, match="stop"):
+            run_sweep(str(sweep_file), str(out), workers=1, block_size=block_size)
+    return Path(partial_dir(out))
+
+
+def flip(path: Path, start: int, n: int = 64) -> None:
+    data = bytearray(path.read_bytes())
+    for i in range(start, min(start + n, len(data))):
+        data[i] ^= 0xA5
+    path.write_bytes(bytes(data))
+
+
+def test_damaged_blocks_are_recomputed_with_a_warning(tmp_path, sweep_file, reference,
+                                                      monkeypatch, caplog):
+    """Items 2 and 3: each kind of damage is found, warned about and recomputed."""
+    out = tmp_path / "out.nc"
+    store = leave_store(sweep_file, out, monkeypatch)
+    b = [store / f"block_{k:05d}.npz" for k in range(BLOCKS)]
+    flip(b[0], len(b[0].read_bytes()) // 2)  # flipped bytes inside the data
+    b[1].write_bytes(b[1].read_bytes()[:-100])  # truncated
+    z = dict(np.load(b[2]))  # edited and saved back, digest field and all
+    z["res"] = z["res"] * 1.5
+    with open(b[2], "wb") as f:
+        np.savez(f, **z)
+    tmp = store / "swap"
+    b[3].rename(tmp)  # two blocks swapped
+    b[4].rename(b[3])
+    tmp.rename(b[4])
+    b[5].write_bytes(b"")  # empty
+    # a block of another sweep's store, same grid shape and plan, other values
+    other = tmp_path / "other.toml"
+    other.write_text(SWEEP.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
+    other_store = leave_store(other, tmp_path / "other.nc", monkeypatch)
+    (other_store / "block_00006.npz").replace(b[6])
+    with caplog.at_level(logging.WARNING, logger="cosserat_channel.sweep"):
+        run_sweep(str(sweep_file), str(out), workers=1)
+    damaged = sorted(int(r.getMessage().split()[1]) for r in caplog.records
+                     if "is damaged" in r.getMessage())
+    assert damaged == [0, 1, 2, 3, 4, 5, 6]
+    assert_identical(out, reference)
+    assert not store.exists()
+
+
+def test_damaged_manifest_is_rewritten_and_good_blocks_reused(tmp_path, sweep_file, reference,
+                                                              monkeypatch, capsys):
+    out = tmp_path / "out.nc"
+    store = leave_store(sweep_file, out, monkeypatch)
+    (store / "manifest.json").write_bytes(b"\x00{ not json")
+    err = rerun(sweep_file, out, capsys)
+    assert "manifest.json" in err and f"{BLOCKS} done before, 0 to compute" in err
+    assert_identical(out, reference)
+
+
+def test_block_damaged_after_the_resume_check_is_recomputed_at_assembly(
+        tmp_path, sweep_file, reference, monkeypatch, caplog):
+    out = tmp_path / "out.nc"
+    store = leave_store(sweep_file, out, monkeypatch)
+    original = engine.WorkStore.done
+
+    def done_then_damage(self, blocks):
+        finished = original(self, blocks)
+        flip(store / "block_00004.npz", 200)
+        return finished
+
+    monkeypatch.setattr(engine.WorkStore, "done", done_then_damage)
+    with caplog.at_level(logging.WARNING, logger="cosserat_channel.sweep"):
+        run_sweep(str(sweep_file), str(out), workers=1)
+    assert [r.getMessage().split()[1] for r in caplog.records if "damaged" in r.getMessage()] \
+        == ["4"]
+    assert_identical(out, reference)
+
+
+# ---------------------------------------------------------------------------------------------
+# A damaged result file
+# ---------------------------------------------------------------------------------------------
+def test_damaged_result_file_fails_to_read_never_changes(tmp_path, sweep_file, capsys):
+    out = tmp_path / "out.nc"
+    ds = run_sweep(str(sweep_file), str(out), workers=1)
+    raw = out.read_bytes()
+    chunk = np.ascontiguousarray(ds["sigma_yx_wall"].values).tobytes()  # stored uncompressed
+    at = raw.find(chunk)
+    assert at > 0
+    bad = tmp_path / "bad.nc"
+    bad.write_bytes(raw)
+    flip(bad, at + 8, 64)
+    with xr.open_dataset(bad) as f:
+        with pytest.raises(RuntimeError, match="HDF error"):
+            f["sigma_yx_wall"].values
+        assert np.array_equal(f["Delta"].values, ds["Delta"].values, equal_nan=True)
+    for argv in (["query", str(bad)], ["query", str(bad), "--where", "sigma_yx_wall < 0"],
+                 ["query", str(bad), "--format", "netcdf", "-o", str(tmp_path / "sub.nc")],
+                 ["plot", str(bad), "--x", "eps", "--y", "sigma_yx_wall", "-o",
+                  str(tmp_path / "p.png")]):
+        assert cli.main(argv) == 1, argv
+        line = one_line_error(capsys.readouterr().err)
+        assert "damaged" in line and "sigma_yx_wall" in line
+    assert not (tmp_path / "sub.nc").exists() and not (tmp_path / "p.png").exists()
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+# ---------------------------------------------------------------------------------------------
+# A lost worker
+# ---------------------------------------------------------------------------------------------
+def test_lost_distributed_worker_gives_identical_result(tmp_path, sweep_file, reference):
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        victim = next(iter(client.scheduler_info()["workers"]))
+        pid = client.run(os.getpid, workers=[victim])[victim]
+        out = tmp_path / "out.nc"
+        spec = load_sweep(str(sweep_file))
+        orig = engine.WorkStore.put
+        lost = []
+
+        def put(self, k, result):  # the first block home: kill a worker that holds others
+            orig(self, k, result)
+            if not lost:
+                os.kill(pid, signal.SIGKILL)
+                lost.append(k)
+
+        engine.WorkStore.put = put
+        try:
+            run_sweep(spec, str(out), scheduler=client, block_size=1)
+        finally:
+            engine.WorkStore.put = orig
+        assert lost
+    assert_identical(out, reference)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input (issue 13, items 4 and 8-12)
+# ---------------------------------------------------------------------------------------------
+FIG2 = (1 / 30, 10.0, 0.5, 1 / 3, 1.0)
+
+
+@pytest.mark.parametrize("index, value", [
+    (1, True), (1, np.bool_(True)), (0, "0.1"), (1, b"10"), (2, 10**400), (1, 10**400),
+    (3, 1 + 2j), (4, None), (4, [1.0]), (1, 1e-320), (0, 5e-324),
+    (1, 1e300), (4, 1e234), (3, 1e4), (3, -1e4),  # overflowing eps L, N^2, A^2 in the kernels
+])
+def test_solve_point_refuses_bad_parameters(index, value):
+    point = list(FIG2)
+    point[index] = value
+    with pytest.raises(ParameterError):
+        solve_point(*point)
+
+
+@pytest.mark.parametrize("kwargs", [
+    dict(profile="abc"), dict(profile=[0.5 + 1j]), dict(profile=[[0.5]]), dict(profile=[2.0]),
+    dict(rtol=1.0), dict(rtol=True), dict(atol=0.1), dict(atol=1.0), dict(atol=5e-324),
+    dict(material={"d_p": 1e308, "rho_p": 2940, "phi": 25}),
+    dict(material={"d_p": 0.002, "rho_p": 1e300, "phi": 25}),
+    dict(material={"d_p": 0.002, "rho_p": 2940, "phi": 25, "g": 1e300}),
+    dict(material={"d_p": 5e-324, "rho_p": 2940, "phi": 25}),  # log(0) in the closure
+    dict(material={"d_p": 0.002, "rho_p": 2940, "phi": 1e-300}),
+    dict(material={"d_p": 0.002, "rho_p": 2940, "phi": 25, "Lambda": 5e-324}),
+])
+def test_solve_point_refuses_bad_options(kwargs):
+    with pytest.raises(ParameterError):
+        solve_point(*FIG2, **kwargs)
+
+
+def test_large_atol_is_refused_by_name(capsys):
+    """Item 1: atol = 0.1 said eps_too_large_path, atol = 1 integration_failed."""
+    for atol in ("0.1", "1", "1e-5"):
+        argv = ["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1",
+                "--atol", atol]
+        assert cli.main(argv) == 2
+        assert "atol" in one_line_error(capsys.readouterr().err)
+    assert cli.main(argv[:-2] + ["--atol", "1e-6"]) == 0
+    assert "status  ok" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv", [
+    ["point", "--eps", "0.0333", "--L=1e-320", "--K", "0.5", "--A", "0.33", "--N", "1"],
+    ["phase-plane", "--eps", "0.0333", "--L=1e-320", "--A", "0.33", "--N", "1", "-o", "pp.png"],
+    ["boundary", "--A=1", "--N=1", "--eta-range", "1e-320:1", "-o", "b.nc"],
+    ["boundary", "--A=1", "--N=1", "--eta-range", "1:1e300", "-o", "b.nc"],
+    ["boundary", "--A=1:2:1000000000", "--N=1", "-o", "b.nc"],
+    ["boundary", "--A=1:2:1000", "--N=1:2:1000", "-o", "b.nc"],
+    ["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1",
+     "--d-p", "1e308", "--rho-p", "2940", "--phi", "25"],
+])
+def test_bad_input_is_one_line_exit_2(tmp_path, monkeypatch, capsys, argv):
+    """Items 8, 11, 12: one line, exit 2, at once (no 23 GB list, no ZeroDivisionError)."""
+    monkeypatch.chdir(tmp_path)
+    t0 = time.perf_counter()
+    assert cli.main(argv) == 2
+    assert time.perf_counter() - t0 < 5
+    one_line_error(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_tiny_eps_L_in_a_sweep_is_refused_without_numpy_warnings():
+    """Item 8: eps L below ETA_MIN is a SweepError; planning such a grid warns nothing."""
+    grid = {"eps": [1e-300, 0.1], "L": [1e-20, 10.0], "K": 0.5, "A": 1.0, "N": 1.0}
+    with pytest.raises(SweepError, match="grid: eps L"):
+        load_sweep({"grid": grid})
+    with pytest.raises(SweepError, match="grid: eps L"):
+        load_sweep({"grid": {**grid, "eps": 0.1, "L": [10.0, 1e300]}})
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Plan({d: np.atleast_1d(np.asarray(v, dtype=float)) for d, v in grid.items()})
+    assert ETA_MIN <= 1e-12
+
+
+def test_info_and_query_on_a_string_coordinate(tmp_path, capsys):
+    """Item 9: a flagged status next to a string coordinate: info answers, query says why not."""
+    path = tmp_path / "s.nc"
+    xr.Dataset({"status": (("eps", "A"), np.zeros((2, 2), np.int8), st.cf_flag_attrs()),
+                "Delta": (("eps", "A"), np.ones((2, 2)))},
+               coords={"eps": ["a", "b"], "A": [1.0, 2.0]}).to_netcdf(path)
+    assert cli.main(["info", str(path)]) == 0
+    assert "eps" in capsys.readouterr().out
+    assert cli.main(["query", str(path)]) == 0
+    capsys.readouterr()
+    for extra in (["--sel", "eps=1"], ["--where", "eps > 1"], ["--range", "eps=0:1"]):
+        assert cli.main(["query", str(path), *extra]) == 2
+        assert "not numeric" in one_line_error(capsys.readouterr().err)
+
+
+def test_byte_order_mark_and_empty_output(tmp_path, sweep_file, reference, capsys):
+    """Item 12: a TOML file with a BOM runs; -o '' is refused instead of writing elsewhere."""
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + sweep_file.read_bytes())
+    assert load_sweep(str(bom)).sha256 == load_sweep(str(sweep_file)).sha256
+    for argv in (["run", str(sweep_file), "-o", ""], ["run", str(sweep_file), "-o", " "]):
+        assert cli.main(argv) == 2
+        assert "empty" in one_line_error(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bom.toml", "s.toml"]

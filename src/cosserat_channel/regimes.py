@@ -328,13 +328,44 @@ class Edge:
         return self.transitions.size <= 1
 
 
-def _bisect(feasible_at, lo, hi, f_lo, xtol):
-    """Shrink ``[lo, hi]`` (feasibility ``f_lo`` at lo, the opposite at hi) to relative width xtol."""
-    while hi - lo > xtol * hi:
-        mid = math.sqrt(lo * hi) if hi / lo > 4.0 else 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
+def bisect_edge(feasible, lo, hi, xtol, *, feasible_lo=True):
+    """Narrow a bracket of a change of feasibility in ``eta`` by bisection in ``log eta``.
+
+    The one bisection of the solvability edge: :func:`trace_edge`, the stability report's
+    ``feasible_eta_max`` and the edge stratum of the work-precision validation set all call it,
+    each with its own feasibility predicate. The validation set's points depend on where this
+    stops (``measure/validation.py``): a change here that moves an edge by more than the rounding
+    there needs a bump of its ``GENERATOR_VERSION``.
+
+    Parameters
+    ----------
+    feasible : callable
+        ``feasible(eta) -> bool``.
+    lo, hi : float
+        The bracket, ``0 < lo < hi``: ``feasible(lo) == feasible_lo`` and ``feasible(hi)`` is the
+        opposite (the caller has evaluated both ends; they are not evaluated again).
+    xtol : float
+        Relative width at which to stop: ``hi / lo - 1 <= xtol``.
+    feasible_lo : bool, optional
+        Feasibility at ``lo``: True for an upper edge (feasible below), False for a lower edge.
+
+    Returns
+    -------
+    lo, hi : float
+        The narrowed bracket, with the feasibility of the input ends.
+
+    Notes
+    -----
+    The midpoint is geometric: the bracket can span decades of ``eta`` (1e-3 to 50), and a
+    geometric midpoint halves ``log(hi/lo)``, so the number of predicate calls is
+    ``log2(log(hi/lo) / xtol)`` whatever the span. It stops early should round-off leave no
+    float strictly inside the bracket.
+    """
+    while hi - lo > xtol * lo:
+        mid = math.sqrt(lo * hi)
+        if not lo < mid < hi:
             break
-        if feasible_at(mid)[0] == f_lo:
+        if feasible(mid) == feasible_lo:
             lo = mid
         else:
             hi = mid
@@ -406,7 +437,8 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     transitions = []
     hi = math.nan
     for i in np.flatnonzero(ok[1:] != ok[:-1]):
-        lo, hi = _bisect(feasible_at, etas[i], etas[i + 1], bool(ok[i]), xtol)
+        lo, hi = bisect_edge(lambda eta: feasible_at(eta)[0], etas[i], etas[i + 1], xtol,
+                             feasible_lo=bool(ok[i]))
         transitions.append(lo if ok[i] else hi)
     transitions = np.array(transitions)
     eta_min = lo_e if ok[0] else float(transitions[0])

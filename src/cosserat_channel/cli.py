@@ -645,6 +645,14 @@ def _plot(args: argparse.Namespace) -> int:
                 raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")
         try:
             if args.regime:
+                if boundary is None:
+                    # The figure only draws data: the traced edge is computed here, on the
+                    # coarse (A, N) grid the map asks for.
+                    grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at)
+                    if grid is not None:
+                        from . import regimes
+
+                        boundary = regimes.trace_boundary(*grid)
                 plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
                                         path=args.output)
             else:

@@ -21,7 +21,9 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
   sampled change of feasibility; :func:`trace_boundary` does that on a grid of ``(A, N)`` and returns
   an :class:`xarray.Dataset`.
 
-Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`).
+Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
+reads the codes of this data from :mod:`cosserat_channel.regime_codes` and never solves).
+:func:`bisect_edge` is the one bisection of a solvability edge in the package.
 """
 
 from __future__ import annotations
@@ -34,11 +36,23 @@ import numpy as np
 from . import model
 from . import status as st
 from .parameters import PARAMETERS, ParameterError, check_point
+# The codes of the data this module produces live in regime_codes (the figures read them from
+# there without importing the solver); imported here under their old names, for callers.
+from .regime_codes import (  # noqa: F401
+    EDGE_BOUNDED,
+    EDGE_KINDS,
+    EDGE_NONE,
+    EDGE_UNBOUNDED,
+    ETA_SEARCH_MAX,
+    ETA_SEARCH_MIN,
+    REGION_D_NEGATIVE,
+    REGION_EM_POS,
+    REGION_EP_NEG,
+    REGION_EP_POS_EM_NEG,
+    REGION_LABELS,
+)
 from .solve import Workspace
 
-# Search range of eta = eps L: eps <= 1 and L up to ~100 (model.md's ranges of interest).
-ETA_SEARCH_MIN = 1e-3
-ETA_SEARCH_MAX = 100.0
 ETA_COARSE = 48  # log-spaced samples of the coarse pass
 ETA_XTOL = 1e-10  # relative width of the final bracket
 # Tolerances of the solves inside the bisection. Near the edge the path meets D = 0 just before
@@ -53,12 +67,6 @@ EDGE_ATOL = 1e-14
 # a path crawling into the sqrt(D) kink just past the edge would spend the solver's default
 # 200,000 before it is called integration_failed (not ok either way), which made tracing slow.
 EDGE_MAX_STEPS = 20_000
-
-# Kinds of a traced edge (int8 flag in the boundary Dataset).
-EDGE_BOUNDED = 0  # ok just below eta_max, not ok just above: a true edge inside the range
-EDGE_UNBOUNDED = 1  # ok at the upper end of the range: eta_max is that end, a lower bound only
-EDGE_NONE = 2  # no ok point anywhere in the range
-EDGE_KINDS = ("bounded", "unbounded_in_range", "no_solution")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -110,19 +118,6 @@ def nullcline_curve(xi, L, N):
 # ---------------------------------------------------------------------------------------------
 # Phase plane
 # ---------------------------------------------------------------------------------------------
-# Sign regions of the phase plane (values of PhasePlane.region).
-REGION_D_NEGATIVE = 0
-REGION_EP_POS_EM_NEG = 1
-REGION_EM_POS = 2  # then E+ > 0 too (E+ >= E-)
-REGION_EP_NEG = 3  # then E- < 0 too; only for A < -1
-REGION_LABELS = {
-    REGION_D_NEGATIVE: r"$D<0$",
-    REGION_EP_POS_EM_NEG: r"$E_{+}>0,\ E_{-}<0$",
-    REGION_EM_POS: r"$E_{-}>0$ (and $E_{+}>0$)",
-    REGION_EP_NEG: r"$E_{+}<0$ (and $E_{-}<0$)",
-}
-
-
 @dataclass
 class Trajectory:
     """One solution of eq:a1 (``root = "+"``) or eq:a2 (``"-"``) from ``m(0) = start`` (m over nu).

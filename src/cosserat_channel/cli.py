@@ -427,7 +427,7 @@ def _stability_arguments(p: argparse.ArgumentParser) -> None:
 def _stability(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise CliError(f"--repeats must be a positive integer; got {args.repeats}")
-    from .stability import directory_problem, write_report
+    from .measure.stability import directory_problem, write_report
 
     problem = directory_problem(args.output_dir)
     if problem:
@@ -552,6 +552,7 @@ def _boundary(args: argparse.Namespace) -> int:
     if args.plot is not None:
         _figure_output(args.plot, "--plot")
     from . import regimes
+    from .files import atomic_output
     from .status import Status
 
     ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse)
@@ -564,13 +565,7 @@ def _boundary(args: argparse.Namespace) -> int:
             print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
                   f"{regimes.EDGE_KINDS[k]:<20} {name}")
     try:
-        tmp = f"{args.output}.{os.getpid()}.tmp"
-        try:
-            ds.to_netcdf(tmp)
-            os.replace(tmp, args.output)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        atomic_output(args.output, ds.to_netcdf)
         if args.plot is not None:
             from .plot import regimes as plot_regimes
 
@@ -668,9 +663,10 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------------------------
-# bench (the report lives in workprecision/)
+# bench (the report lives in measure/workprecision.py)
 # ---------------------------------------------------------------------------------------------
-_BENCH_OUTPUT = "bench-report"  # = workprecision.DEFAULT_OUTPUT (not imported: --help stays light)
+# = measure.workprecision.DEFAULT_OUTPUT, not imported: --help stays light.
+_BENCH_OUTPUT = "bench-report"
 
 
 def _bench_arguments(p: argparse.ArgumentParser) -> None:
@@ -696,7 +692,7 @@ def _bench(args: argparse.Namespace) -> int:
         [PROG, "bench"] + (["--quick"] if args.quick else []) + ["-o", output]
         + ([f"--scipy-points {args.scipy_points}"] if args.scipy_points is not None else [])
     )
-    from . import workprecision
+    from .measure import workprecision
 
     def log(message):
         print(f"{PROG}: bench: {message}", file=sys.stderr, flush=True)

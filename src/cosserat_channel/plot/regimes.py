@@ -55,7 +55,7 @@ REGION_COLORS = {
 # ---------------------------------------------------------------------------------------------
 # Phase plane (figure 12)
 # ---------------------------------------------------------------------------------------------
-def phase_plane_figure(pp: "regimes.PhasePlane", nu=None, path=None):
+def phase_plane_figure(pp, nu=None, path=None):
     """Figure 12 for any ``(eps, L, A, N)``: sign regions, ``D = 0``, nullcline, trajectories.
 
     Parameters

@@ -14,17 +14,15 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import platform
 import time
 
 import numba
 import numpy as np
-import scipy
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from cosserat_channel import model, rk45, solve, stages
+from cosserat_channel.measure import machine
 
 RTOL = 1e-8
 ATOL = 1e-12
@@ -65,7 +63,7 @@ def _scipy_stage1_run(eps, L, A, N, method, dense):
         return None
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1 = stages.start_xi(ax)
+    xi1, w0 = stages.stage1_start(ax)
 
     def f1(xi, w):
         return [model.dw_dxi(xi, w[0], eta, A, N, ax)]
@@ -74,7 +72,6 @@ def _scipy_stage1_run(eps, L, A, N, method, dense):
         return model.yield_D(xi, xi * xi * w[0], A, N, ax)
 
     hit.terminal = True
-    w0 = model.delta_axis_series(xi1, ax) / xi1**2
     s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=RTOL, atol=ATOL, events=hit,
                    dense_output=dense)
     return s1, ax, xi1
@@ -161,8 +158,8 @@ def main():
 
     print(f"# bench_point: {n} points, eps in [1/600, 0.2] x L in [2, 20], A = 1/3, N = 1, "
           f"rtol = {RTOL:g}, one core")
-    print(f"# machine: {platform.machine()}, {os.cpu_count()} cores; python {platform.python_version()}, "
-          f"numba {numba.__version__}, numpy {np.__version__}, scipy {scipy.__version__}")
+    print(f"# machine: {machine.machine()}")
+    print(f"# versions: {machine.versions()}")
     print(f"# statuses over the grid: "
           + ", ".join(f"{s.name} {int(np.sum(res[:, stages.R_STATUS] == s.value))}"
                       for s in solve.st.Status if np.any(res[:, stages.R_STATUS] == s.value)))

@@ -4,10 +4,11 @@
   whole set in one kernel call, on one thread, warmed up, best of ``repeat`` calls;
 - scipy ``solve_ivp`` (RK45, DOP853, LSODA, Radau): stage 1 alone, point by point in a Python
   loop, in the formulation of ``benchmarks/bench_point.py``'s ``scipy_stage1`` (state
-  ``w = delta / xi^2`` from the axis series of :func:`stages.stage1_start`, the ``D = 0`` event); Radau and LSODA get the exact
-  Jacobian. One pass (a loop over many points averages the noise). A point that needs more than
-  ``max_nfev`` right-hand-side evaluations is abandoned (explicit methods need O(1/eta) steps on
-  the stiff points) and counted as failed; the time spent on it counts;
+  ``w = delta / xi^2`` from the axis series of :func:`stages.stage1_start`, the ``D = 0``
+  event); Radau and LSODA get the exact Jacobian. One pass (a loop over many points averages
+  the noise). A point that needs more than ``max_nfev`` right-hand-side evaluations is abandoned
+  (explicit methods need O(1/eta) steps on the stiff points) and counted as failed; the time
+  spent on it counts;
 - numbalsoda (optional extra ``bench``) LSODA and DOP853: stage 1 alone in a Numba loop through
   numbalsoda's cfunc interface, best of ``repeat``; ``mxstep`` bounds the work per point.
 

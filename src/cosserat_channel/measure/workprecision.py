@@ -181,7 +181,8 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
     wp_plot.save_figure(fig_tol, paths["tolerance_png"])
     elapsed = (datetime.datetime.now().astimezone() - started).total_seconds()
     meta = {
-        "command": f"`{command}`" if command else "`cosserat_channel.measure.workprecision.run()`",
+        "command": (f"`{command}`" if command
+                    else "`cosserat_channel.measure.workprecision.run()`"),
         "date": date,
         "machine": machine.machine() + "; one thread (numba.set_num_threads(1)); shared, so compare "
                    "ratios within this run, not absolute times across runs",

@@ -14,12 +14,12 @@ trace_edge ratio <= 0.5 with identical eta_max to 1e-10 (relative).
 from __future__ import annotations
 
 import argparse
-import platform
 import time
 
 import numpy as np
 
 from cosserat_channel import regimes, run_sweep
+from cosserat_channel.measure.machine import cpu_model
 from cosserat_channel.solve import Workspace
 
 EDGE_CASES = ((1 / 3, 1.0), (0.0, 2.0), (-0.5, 1.0), (3.0, 0.5), (1.0, 1.0), (2.0, 3.0))
@@ -30,17 +30,6 @@ class FullSolveWorkspace(Workspace):
 
     def status(self, eta, A, N, rtol, atol):
         return self.run(eta, A, N, rtol, atol)
-
-
-def cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def sweep_mapping(n_eps, n_L, variables=None):

@@ -16,7 +16,6 @@ Run:  .venv/bin/python benchmarks/bench_sweep.py [--points 20000] [--repeat 2]
 from __future__ import annotations
 
 import argparse
-import os
 import platform
 import re
 import resource
@@ -27,9 +26,9 @@ import time
 from pathlib import Path
 
 import dask
-import numba
 import numpy as np
 
+from cosserat_channel.measure import machine
 from cosserat_channel.sweep import engine
 from cosserat_channel.sweep.plan import COST_FIXED, COST_PER_INV_ETA, BlockInputs, block_plan
 from cosserat_channel.sweep.spec import load_sweep
@@ -97,9 +96,8 @@ def main() -> None:
     args = ap.parse_args()
 
     print("command:  " + " ".join([sys.executable, *sys.argv]))
-    print(f"machine:  {platform.node()}  nproc={os.cpu_count()}  {platform.machine()}  "
-          f"python {platform.python_version()}  numba {numba.__version__}  numpy {np.__version__}  "
-          f"dask {dask.__version__}")
+    print(f"machine:  {platform.node()}: {machine.machine()}")
+    print(f"versions: {machine.versions(dask=dask.__version__)}")
     engine.warm_up()  # compile (or load) the kernels here, not inside a timing
     with tempfile.TemporaryDirectory(dir=ROOT / "benchmarks") as tmp:
         # A tiny run first so that (a) measures a warm Numba cache, as every run but the first does.

@@ -145,3 +145,19 @@ def test_result_without_profile_is_refused():
     r = solve_point(0.4, 10, 0.5, 1 / 3, 1, profile=np.linspace(0, 1, 11))
     with pytest.raises(ValueError, match="eps_too_large_axis"):
         plot.point_profiles(r)
+
+
+def test_plot_imports_no_solver_module():
+    """Figures take data: importing every plot module loads neither numba nor a solver module."""
+    import subprocess
+    import sys
+
+    code = ("import sys; import cosserat_channel.plot.lines, cosserat_channel.plot.regimes, "
+            "cosserat_channel.plot.stability, cosserat_channel.plot.workprecision; "
+            "print(sorted(m for m in sys.modules if m == 'numba' or m in "
+            "{'cosserat_channel.' + s for s in ('model', 'rk45', 'rosenbrock', 'stages', 'solve', "
+            "'regimes', 'reference', 'measure')}))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=dict(os.environ, MPLBACKEND="Agg"))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"

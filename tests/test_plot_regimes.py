@@ -57,9 +57,20 @@ def test_regime_map_needs_at_for_varying_dims(regime_ds):
     ds = run_sweep({"grid": {"eps": [0.01, 0.02], "L": 10, "K": 0.5, "A": [0.0, 1.0],
                              "N": [1.0, 2.0]}}, workers=1)
     with pytest.raises(ValueError, match="eps"):
-        pr.regime_map(ds, "A", "N", trace=False)
-    fig = pr.regime_map(ds, "A", "N", at={"eps": 0.02}, trace=False)
+        pr.regime_map(ds, "A", "N")
+    fig = pr.regime_map(ds, "A", "N", at={"eps": 0.02})
     assert "0.02" in fig.axes[0].get_title()
+
+
+def test_regime_trace_grid_spans_the_plotted_range(regime_ds):
+    """n values over each plotted one of A, N; None when neither is plotted or a side is flat."""
+    A, N = pr.regime_trace_grid(regime_ds, "A", "N", n=5)
+    assert np.allclose(A, np.linspace(-3, 5, 5)) and np.allclose(N, np.linspace(0.3, 3, 5))
+    A, N = pr.regime_trace_grid(regime_ds.isel(N=[0, 4]), "A", "N")
+    assert A.size == 12 and N.size == 12 and N[-1] == pytest.approx(regime_ds["N"].values[4])
+    assert pr.regime_trace_grid(regime_ds.isel(N=[3]), "A", "N") is None
+    with pytest.raises(ValueError, match="different dimensions"):
+        pr.regime_trace_grid(regime_ds, "A", "A")
 
 
 def test_phase_plane_figure_artists():

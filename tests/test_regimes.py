@@ -60,6 +60,22 @@ def test_bisection_bracket_width():
     assert abs(a.eta_max - b.eta_max) <= 1e-9 * a.eta_max
 
 
+def test_bisect_edge_on_a_known_predicate():
+    """The bracket holds the change, is xtol wide, and keeps the ends' sides (upper and lower edge)."""
+    calls = []
+
+    def below_pi(eta):
+        calls.append(eta)
+        return eta < math.pi
+
+    lo, hi = regimes.bisect_edge(below_pi, 1e-3, 50.0, 1e-12)
+    assert lo < math.pi <= hi and hi / lo - 1 <= 1e-12
+    # Log-space halving: log2(log(5e4) / 1e-12) ~ 43 calls, whatever the span in decades.
+    assert len(calls) <= math.ceil(math.log2(math.log(5e4) / 1e-12)) + 1
+    lo, hi = regimes.bisect_edge(lambda eta: eta > 0.5, 0.01, 10.0, 1e-10, feasible_lo=False)
+    assert lo <= 0.5 < hi and hi / lo - 1 <= 1e-10
+
+
 @pytest.mark.parametrize("A,N,kind", [
     (-2.0, 1.0, regimes.EDGE_NONE),  # A < 1 - 2N^2: wall inadmissible
     (-1.5, 2.0, regimes.EDGE_NONE),  # 1 - 2N^2 <= A < -1: axis spin unbounded

@@ -462,7 +462,7 @@ def _stability_arguments(p: argparse.ArgumentParser) -> None:
 def _stability(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise CliError(f"--repeats must be a positive integer; got {args.repeats}")
-    from .stability import directory_problem, write_report
+    from .measure.stability import directory_problem, write_report
 
     problem = directory_problem(args.output_dir)
     if problem:
@@ -706,6 +706,14 @@ def _plot(args: argparse.Namespace) -> int:
                 raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")
         try:
             if args.regime:
+                if boundary is None:
+                    # The figure only draws data: the traced edge is computed here, on the
+                    # coarse (A, N) grid the map asks for.
+                    grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at)
+                    if grid is not None:
+                        from . import regimes
+
+                        boundary = regimes.trace_boundary(*grid)
                 plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
                                         path=args.output)
             else:
@@ -721,9 +729,10 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------------------------
-# bench (the report lives in workprecision/)
+# bench (the report lives in measure/workprecision.py)
 # ---------------------------------------------------------------------------------------------
-_BENCH_OUTPUT = "bench-report"  # = workprecision.DEFAULT_OUTPUT (not imported: --help stays light)
+# = measure.workprecision.DEFAULT_OUTPUT, not imported: --help stays light.
+_BENCH_OUTPUT = "bench-report"
 
 
 def _bench_arguments(p: argparse.ArgumentParser) -> None:
@@ -749,7 +758,7 @@ def _bench(args: argparse.Namespace) -> int:
         [PROG, "bench"] + (["--quick"] if args.quick else []) + ["-o", output]
         + ([f"--scipy-points {args.scipy_points}"] if args.scipy_points is not None else [])
     )
-    from . import workprecision
+    from .measure import workprecision
 
     def log(message):
         print(f"{PROG}: bench: {message}", file=sys.stderr, flush=True)

@@ -21,7 +21,9 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
   sampled change of feasibility; :func:`trace_boundary` does that on a grid of ``(A, N)`` and returns
   an :class:`xarray.Dataset`.
 
-Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`).
+Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
+reads the codes of this data from :mod:`cosserat_channel.regime_codes` and never solves).
+:func:`bisect_edge` is the one bisection of a solvability edge in the package.
 """
 
 from __future__ import annotations
@@ -34,11 +36,23 @@ import numpy as np
 from . import model
 from . import status as st
 from .parameters import PARAMETERS, ParameterError, check_point
+# The codes of the data this module produces live in regime_codes (the figures read them from
+# there without importing the solver); imported here under their old names, for callers.
+from .regime_codes import (  # noqa: F401
+    EDGE_BOUNDED,
+    EDGE_KINDS,
+    EDGE_NONE,
+    EDGE_UNBOUNDED,
+    ETA_SEARCH_MAX,
+    ETA_SEARCH_MIN,
+    REGION_D_NEGATIVE,
+    REGION_EM_POS,
+    REGION_EP_NEG,
+    REGION_EP_POS_EM_NEG,
+    REGION_LABELS,
+)
 from .solve import Workspace
 
-# Search range of eta = eps L: eps <= 1 and L up to ~100 (model.md's ranges of interest).
-ETA_SEARCH_MIN = 1e-3
-ETA_SEARCH_MAX = 100.0
 ETA_COARSE = 48  # log-spaced samples of the coarse pass
 ETA_XTOL = 1e-10  # relative width of the final bracket
 # Tolerances of the solves inside the bisection. Near the edge the path meets D = 0 just before
@@ -53,12 +67,6 @@ EDGE_ATOL = 1e-14
 # a path crawling into the sqrt(D) kink just past the edge would spend the solver's default
 # 200,000 before it is called integration_failed (not ok either way), which made tracing slow.
 EDGE_MAX_STEPS = 20_000
-
-# Kinds of a traced edge (int8 flag in the boundary Dataset).
-EDGE_BOUNDED = 0  # ok just below eta_max, not ok just above: a true edge inside the range
-EDGE_UNBOUNDED = 1  # ok at the upper end of the range: eta_max is that end, a lower bound only
-EDGE_NONE = 2  # no ok point anywhere in the range
-EDGE_KINDS = ("bounded", "unbounded_in_range", "no_solution")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -110,19 +118,6 @@ def nullcline_curve(xi, L, N):
 # ---------------------------------------------------------------------------------------------
 # Phase plane
 # ---------------------------------------------------------------------------------------------
-# Sign regions of the phase plane (values of PhasePlane.region).
-REGION_D_NEGATIVE = 0
-REGION_EP_POS_EM_NEG = 1
-REGION_EM_POS = 2  # then E+ > 0 too (E+ >= E-)
-REGION_EP_NEG = 3  # then E- < 0 too; only for A < -1
-REGION_LABELS = {
-    REGION_D_NEGATIVE: r"$D<0$",
-    REGION_EP_POS_EM_NEG: r"$E_{+}>0,\ E_{-}<0$",
-    REGION_EM_POS: r"$E_{-}>0$ (and $E_{+}>0$)",
-    REGION_EP_NEG: r"$E_{+}<0$ (and $E_{-}<0$)",
-}
-
-
 @dataclass
 class Trajectory:
     """One solution of eq:a1 (``root = "+"``) or eq:a2 (``"-"``) from ``m(0) = start`` (m over nu).
@@ -328,13 +323,44 @@ class Edge:
         return self.transitions.size <= 1
 
 
-def _bisect(feasible_at, lo, hi, f_lo, xtol):
-    """Shrink ``[lo, hi]`` (feasibility ``f_lo`` at lo, the opposite at hi) to relative width xtol."""
-    while hi - lo > xtol * hi:
-        mid = math.sqrt(lo * hi) if hi / lo > 4.0 else 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
+def bisect_edge(feasible, lo, hi, xtol, *, feasible_lo=True):
+    """Narrow a bracket of a change of feasibility in ``eta`` by bisection in ``log eta``.
+
+    The one bisection of the solvability edge: :func:`trace_edge`, the stability report's
+    ``feasible_eta_max`` and the edge stratum of the work-precision validation set all call it,
+    each with its own feasibility predicate. The validation set's points depend on where this
+    stops (``measure/validation.py``): a change here that moves an edge by more than the rounding
+    there needs a bump of its ``GENERATOR_VERSION``.
+
+    Parameters
+    ----------
+    feasible : callable
+        ``feasible(eta) -> bool``.
+    lo, hi : float
+        The bracket, ``0 < lo < hi``: ``feasible(lo) == feasible_lo`` and ``feasible(hi)`` is the
+        opposite (the caller has evaluated both ends; they are not evaluated again).
+    xtol : float
+        Relative width at which to stop: ``hi / lo - 1 <= xtol``.
+    feasible_lo : bool, optional
+        Feasibility at ``lo``: True for an upper edge (feasible below), False for a lower edge.
+
+    Returns
+    -------
+    lo, hi : float
+        The narrowed bracket, with the feasibility of the input ends.
+
+    Notes
+    -----
+    The midpoint is geometric: the bracket can span decades of ``eta`` (1e-3 to 50), and a
+    geometric midpoint halves ``log(hi/lo)``, so the number of predicate calls is
+    ``log2(log(hi/lo) / xtol)`` whatever the span. It stops early should round-off leave no
+    float strictly inside the bracket.
+    """
+    while hi - lo > xtol * lo:
+        mid = math.sqrt(lo * hi)
+        if not lo < mid < hi:
             break
-        if feasible_at(mid)[0] == f_lo:
+        if feasible(mid) == feasible_lo:
             lo = mid
         else:
             hi = mid
@@ -406,7 +432,8 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     transitions = []
     hi = math.nan
     for i in np.flatnonzero(ok[1:] != ok[:-1]):
-        lo, hi = _bisect(feasible_at, etas[i], etas[i + 1], bool(ok[i]), xtol)
+        lo, hi = bisect_edge(lambda eta: feasible_at(eta)[0], etas[i], etas[i + 1], xtol,
+                             feasible_lo=bool(ok[i]))
         transitions.append(lo if ok[i] else hi)
     transitions = np.array(transitions)
     eta_min = lo_e if ok[0] else float(transitions[0])

@@ -1,7 +1,9 @@
 """Figures of where the model has a solution: the phase plane (figure 12), regime maps over a
 2-D slice of a sweep, and the traced edge ``eta_max(A, N)``.
 
-The data come from :mod:`cosserat_channel.regimes` and from sweep Datasets; every figure has axis
+The data come from :mod:`cosserat_channel.regimes` and from sweep Datasets, computed by the caller:
+nothing here solves (the traced edge of a regime map is passed in as a boundary Dataset;
+:func:`regime_trace_grid` says on which ``(A, N)`` to trace it). Every figure has axis
 labels in the paper's symbols, a title naming the fixed parameters, and one legend entry per
 status, region or boundary drawn (contour lines get proxy handles so that they appear there).
 """
@@ -13,7 +15,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from .. import regimes
+from .. import regime_codes as rc
 from .. import status as st
 from ..parameters import DIMS
 from . import new_figure, parameter_title, save_figure
@@ -43,17 +45,17 @@ BOUNDARY_LABELS = {
     "traced_min": r"traced lower edge $\varepsilon L = \eta_{\min}(A, N)$",
 }
 REGION_COLORS = {
-    regimes.REGION_D_NEGATIVE: "#d9d9d9",
-    regimes.REGION_EP_POS_EM_NEG: "#fff2b3",
-    regimes.REGION_EM_POS: "#c6e2ff",
-    regimes.REGION_EP_NEG: "#f4c2c2",
+    rc.REGION_D_NEGATIVE: "#d9d9d9",
+    rc.REGION_EP_POS_EM_NEG: "#fff2b3",
+    rc.REGION_EM_POS: "#c6e2ff",
+    rc.REGION_EP_NEG: "#f4c2c2",
 }
 
 
 # ---------------------------------------------------------------------------------------------
 # Phase plane (figure 12)
 # ---------------------------------------------------------------------------------------------
-def phase_plane_figure(pp: "regimes.PhasePlane", nu=None, path=None):
+def phase_plane_figure(pp, nu=None, path=None):
     """Figure 12 for any ``(eps, L, A, N)``: sign regions, ``D = 0``, nullcline, trajectories.
 
     Parameters
@@ -74,7 +76,7 @@ def phase_plane_figure(pp: "regimes.PhasePlane", nu=None, path=None):
     norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, cmap.N)
     ax.pcolormesh(pp.xi, scale * pp.m, pp.region, cmap=cmap, norm=norm, shading="nearest",
                   rasterized=True)
-    handles = [Patch(facecolor=REGION_COLORS[c], edgecolor="0.5", label=regimes.REGION_LABELS[c])
+    handles = [Patch(facecolor=REGION_COLORS[c], edgecolor="0.5", label=rc.REGION_LABELS[c])
                for c in codes if np.any(pp.region == c)]
     for sgn, lab in ((1, r"$D = 0$"), (-1, None)):
         (ln,) = ax.plot(pp.xi, sgn * scale * pp.D_zero, color="k", lw=2.0, label=lab)
@@ -168,24 +170,50 @@ def _boundary_fields(x, y, X, Y, fixed, traced):
     return out
 
 
-def _traced_on_grid(x, y, xv, yv, fixed, boundary, n_trace):
-    """``eta_max`` and ``eta_min`` (where bounded) on the plot grid, from ``boundary`` or traced."""
-    an = [d for d in (x, y) if d in ("A", "N")]
-    if not an:
+def regime_trace_grid(ds, x="A", y="N", at=None, n=12):
+    """The ``(A, N)`` values on which :func:`regime_map` wants the traced edge of this slice.
+
+    ``n`` evenly spaced values over the range of each of A and N that is plotted, the fixed value
+    of the other. The edge is smooth in A and N and is interpolated onto the figure's grid, so a
+    coarse trace is enough (tracing is ~1 s per (A, N)). Nothing is traced here: pass the values
+    to :func:`cosserat_channel.regimes.trace_boundary` and its Dataset to :func:`regime_map`.
+
+    Returns
+    -------
+    (ndarray, ndarray) or None
+        ``(A, N)``; None when neither A nor N is plotted or the slice is a single row or column
+        (the map then draws no boundary lines). Raises ValueError as :func:`regime_map` does.
+    """
+    sub, fixed = _map_slice(ds, x, y, at)
+    if not {"A", "N"} & {x, y} or sub.sizes[x] < 2 or sub.sizes[y] < 2:
         return None
-    if boundary is None:
-        vals = {}
-        for d, v in ((x, xv), (y, yv)):
-            if d in ("A", "N"):
-                v = np.asarray(v, float)
-                vals[d] = np.linspace(v.min(), v.max(), min(v.size, n_trace))
-        A = vals["A"] if "A" in vals else np.array([fixed["A"]])
-        N = vals["N"] if "N" in vals else np.array([fixed["N"]])
-        boundary = regimes.trace_boundary(A, N)
+    values = {}
+    for d in ("A", "N"):
+        if d in (x, y):
+            v = np.asarray(sub[d].values, float)
+            values[d] = np.linspace(v.min(), v.max(), n)
+        else:
+            values[d] = np.array([fixed[d]])
+    return values["A"], values["N"]
+
+
+def _map_slice(ds, x, y, at):
+    """The checked 2-D slice of a regime map and its fixed values (see :func:`select_slice`)."""
+    if x == y or x not in DIMS or y not in DIMS:
+        raise ValueError(f"--x and --y must be two different dimensions of {DIMS}; got {x!r}, {y!r}")
+    if "status" not in ds:
+        raise ValueError("the result has no 'status' variable")
+    return select_slice(ds, (x, y), at)
+
+
+def _traced_on_grid(x, y, xv, yv, fixed, boundary):
+    """``eta_max`` and ``eta_min`` (where bounded) of ``boundary`` interpolated on the plot grid."""
+    if not [d for d in (x, y) if d in ("A", "N")]:
+        return None
     kind = boundary["edge_kind"]
-    eta_max = boundary["eta_max"].where(kind == regimes.EDGE_BOUNDED)
-    first_ok = boundary["eta_min"] > boundary.attrs.get("eta_search_min", regimes.ETA_SEARCH_MIN)
-    eta_min = boundary["eta_min"].where((kind != regimes.EDGE_NONE) & first_ok)
+    eta_max = boundary["eta_max"].where(kind == rc.EDGE_BOUNDED)
+    first_ok = boundary["eta_min"] > boundary.attrs.get("eta_search_min", rc.ETA_SEARCH_MIN)
+    eta_min = boundary["eta_min"].where((kind != rc.EDGE_NONE) & first_ok)
     X, Y = np.meshgrid(xv, yv)
     out = {}
     for name, field in (("eta_max", eta_max), ("eta_min", eta_min)):
@@ -208,13 +236,13 @@ def _traced_on_grid(x, y, xv, yv, fixed, boundary, n_trace):
     return out
 
 
-def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=12, path=None):
+def regime_map(ds, x="A", y="N", at=None, *, boundary=None, path=None):
     """Status over a 2-D slice of a sweep, one colour and legend entry per status present.
 
     Overlays, where the other parameters are fixed: ``A = 1 - 2N^2``, the axis condition
-    ``(A-1) eps L + 2(A+1) N = 0`` (for ``A > -1``), ``A = -1`` and the traced edge
-    ``eps L = eta_max(A, N)`` (and the lower edge ``eta_min`` where one exists), each in the legend
-    when it crosses the plotted range.
+    ``(A-1) eps L + 2(A+1) N = 0`` (for ``A > -1``), ``A = -1`` and, when ``boundary`` is given,
+    the traced edge ``eps L = eta_max(A, N)`` (and the lower edge ``eta_min`` where one exists),
+    each in the legend when it crosses the plotted range.
 
     Parameters
     ----------
@@ -225,14 +253,13 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=
     at : dict, optional
         Values (nearest) of the other dimensions that have more than one value.
     boundary : xarray.Dataset, optional
-        From :func:`regimes.trace_boundary`; default: traced here on at most ``n_trace`` values of
-        A and N over the plotted range (only when ``trace`` is true and A or N is plotted).
+        From :func:`cosserat_channel.regimes.trace_boundary`, e.g. on the values
+        :func:`regime_trace_grid` gives; interpolated onto the plot. Without it no traced edge is
+        drawn (this function never solves).
+    path : path-like, optional
+        Where to save the figure.
     """
-    if x == y or x not in DIMS or y not in DIMS:
-        raise ValueError(f"--x and --y must be two different dimensions of {DIMS}; got {x!r}, {y!r}")
-    if "status" not in ds:
-        raise ValueError("the result has no 'status' variable")
-    sub, fixed = select_slice(ds, (x, y), at)
+    sub, fixed = _map_slice(ds, x, y, at)
     status = sub["status"].transpose(y, x).values.astype(int)
     xv, yv = sub[x].values.astype(float), sub[y].values.astype(float)
     fig = new_figure()
@@ -248,9 +275,7 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=
     xf = np.linspace(xv.min(), xv.max(), 400) if xv.size > 1 else xv
     yf = np.linspace(yv.min(), yv.max(), 400) if yv.size > 1 else yv
     if xv.size > 1 and yv.size > 1:
-        traced = None
-        if trace or boundary is not None:
-            traced = _traced_on_grid(x, y, xf, yf, fixed, boundary, n_trace)
+        traced = None if boundary is None else _traced_on_grid(x, y, xf, yf, fixed, boundary)
         X, Y = np.meshgrid(xf, yf)
         for name, F in _boundary_fields(x, y, X, Y, fixed, traced).items():
             F = np.asarray(F, float)
@@ -279,16 +304,16 @@ def boundary_figure(bds, path=None):
     fig = new_figure()
     ax = fig.subplots()
     A = bds["A"].values
-    top = bds.attrs.get("eta_search_max", regimes.ETA_SEARCH_MAX)
+    top = bds.attrs.get("eta_search_max", rc.ETA_SEARCH_MAX)
     flagged = False
     for j, n in enumerate(bds["N"].values):
         color = f"C{j % 10}"
         kind = bds["edge_kind"].values[:, j]
         em = bds["eta_max"].values[:, j]
-        bounded = np.where(kind == regimes.EDGE_BOUNDED, em, np.nan)
+        bounded = np.where(kind == rc.EDGE_BOUNDED, em, np.nan)
         ax.plot(A, bounded, "-o", ms=3, color=color, label=rf"$\eta_{{\max}}$, $N$ = {n:.4g}")
         ax.plot(A, bds["axis_edge_eta"].values[:, j], "--", lw=1, color=color)
-        unb = kind == regimes.EDGE_UNBOUNDED
+        unb = kind == rc.EDGE_UNBOUNDED
         if unb.any():
             ax.plot(A[unb], np.full(unb.sum(), top), "^", mfc="none", color=color,
                     label=None if flagged else rf"ok up to $\eta$ = {top:g} (no edge found)")

@@ -25,12 +25,11 @@ def stability_figure(report, path=None) -> Figure:
 
     Parameters
     ----------
-    report : cosserat_channel.stability.Report
+    report : cosserat_channel.measure.stability.Report
+        Its rows, ``rtol`` and the fixed ``L``, ``K`` of the title.
     path : str or path-like, optional
         Where to save the figure.
     """
-    from ..stability import K_REPORT, L_REPORT
-
     rows = report.rows
     fig = new_figure((13.0, 4.8))
     ax_s, ax_t, ax_e = fig.subplots(1, 3, sharex=True)
@@ -75,7 +74,7 @@ def stability_figure(report, path=None) -> Figure:
     ax_t.legend(handles=handles + ax_t.get_legend_handles_labels()[0], loc="upper right", fontsize=7)
     ax_e.legend(loc="upper left", fontsize=7)
     fig.suptitle("Stability of one point across " + ETA_LABEL + ": "
-                 + parameter_title(L=L_REPORT, K=K_REPORT) + f", rtol = {report.rtol:g}")
+                 + parameter_title(L=report.L, K=report.K) + f", rtol = {report.rtol:g}")
     if path is not None:
         save_figure(fig, path)
     return fig

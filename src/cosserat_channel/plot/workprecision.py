@@ -1,6 +1,6 @@
-"""Figures of the work-precision report (:mod:`cosserat_channel.workprecision`).
+"""Figures of the work-precision report (:mod:`cosserat_channel.measure.workprecision`).
 
-Both take :class:`cosserat_channel.workprecision.report.Curve` objects (method, stages, points,
+Both take :class:`cosserat_channel.measure.report.Curve` objects (method, stages, points,
 rtol, time_us, median/max per quantity) and return a Figure; saving is :func:`save_figure`'s.
 """
 

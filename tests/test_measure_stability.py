@@ -8,7 +8,8 @@ import math
 
 import pytest
 
-from cosserat_channel import cli, stability
+from cosserat_channel import cli
+from cosserat_channel.measure import stability
 from cosserat_channel.plot.stability import stability_figure
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -50,6 +51,11 @@ def test_cli_writes_markdown_and_png(report_dir):
     assert {r["path"] for r in rows} <= {"explicit", "stiff", "none"}
     assert {"explicit", "stiff"} <= {r["path"] for r in rows}
     assert not any("(ref:" in r["status"] for r in rows)
+
+
+def test_cli_leaves_no_temporary_files(report_dir):
+    """The markdown and the figure are written atomically, with nothing left beside them."""
+    assert sorted(p.name for p in report_dir.iterdir()) == ["stability.md", "stability.png"]
 
 
 def test_report_rows_and_verdict(quick_report):

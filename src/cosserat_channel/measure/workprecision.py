@@ -16,23 +16,19 @@
 
 Every number in one report comes from one run, so the ratios hold on a shared, noisy machine.
 The modules: :mod:`.validation` (set and references), :mod:`.runners` (the timed solvers),
-:mod:`.report` (errors, matched-error ratios, targets, files); the figures live in
-:mod:`cosserat_channel.plot.workprecision`.
+:mod:`.report` (errors, matched-error ratios, targets, files), :mod:`.machine` (where it ran);
+the figures live in :mod:`cosserat_channel.plot.workprecision`.
 """
 
 from __future__ import annotations
 
 import datetime
-import hashlib
-import os
-import platform
-import subprocess
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from . import report, runners, validation
+from . import machine, report, runners, textfile, validation
 from .report import CSV_COLUMNS, Curve
 from .validation import SetSpec
 
@@ -83,55 +79,6 @@ def subsample(eta: np.ndarray, k: int) -> np.ndarray:
     if k >= eta.size:
         return order
     return np.unique(order[np.linspace(0, eta.size - 1, k).round().astype(int)])
-
-
-def _machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
-
-
-def _git_revision() -> str:
-    here = Path(__file__).resolve().parent
-    try:
-        rev = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True,
-                             text=True, timeout=5)
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-                               capture_output=True, text=True, timeout=5)
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    if rev.returncode != 0:
-        return "unknown"
-    return rev.stdout.strip() + (" (with uncommitted changes)" if dirty.stdout.strip() else "")
-
-
-def _source_digest() -> str:
-    """sha256 of every source file of the package: which solver exactly was measured."""
-    here = Path(__file__).resolve().parent.parent
-    digest = hashlib.sha256()
-    for path in sorted(here.rglob("*.py")):
-        digest.update(path.relative_to(here).as_posix().encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:12]
-
-
-def _versions(nbs_note: str) -> str:
-    import numba
-    import scipy
-
-    from .. import __version__
-
-    return (f"cosserat-channel {__version__} (git {_git_revision()}, package sources sha256 "
-            f"{_source_digest()}), Python "
-            f"{platform.python_version()}, numba {numba.__version__}, numpy {np.__version__}, "
-            f"scipy {scipy.__version__}, numbalsoda {nbs_note}")
 
 
 def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | None = None,
@@ -234,11 +181,12 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
     wp_plot.save_figure(fig_tol, paths["tolerance_png"])
     elapsed = (datetime.datetime.now().astimezone() - started).total_seconds()
     meta = {
-        "command": f"`{command}`" if command else "`cosserat_channel.workprecision.run()`",
+        "command": (f"`{command}`" if command
+                    else "`cosserat_channel.measure.workprecision.run()`"),
         "date": date,
-        "machine": _machine() + "; one thread (numba.set_num_threads(1)); shared, so compare "
+        "machine": machine.machine() + "; one thread (numba.set_num_threads(1)); shared, so compare "
                    "ratios within this run, not absolute times across runs",
-        "versions": _versions(nbs_note),
+        "versions": machine.versions(numbalsoda=nbs_note),
         "set": f"{n} points, seed {settings.spec.seed}"
                + (" (quick)" if quick else "") + f"; rtol {', '.join(f'{r:.0e}' for r in settings.rtols)}"
                + f"; atol {runners.ATOL:g} for every method",
@@ -251,7 +199,7 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
                            figures=[WP_FIGURE, TOL_FIGURE],
                            strata=report.stratum_lines(both_values, ref, vs.stratum,
                                                        validation.STRATA))
-    report.write_text(paths["markdown"], text)
+    textfile.write_text(paths["markdown"], text)
     return Report(settings=settings, validation_set=vs, curves=curves, ours_subsample=ours_sub,
                   comparisons=comparisons, targets=targets,
                   figures={"work_precision": fig_wp, "tolerance": fig_tol}, paths=paths,
@@ -357,7 +305,7 @@ def _notes(settings: Settings, vs, sub, nbs_note: str) -> list[str]:
         f"{spec.A[1]:g}], N in [{spec.N[0]:g}, {spec.N[1]:g}]; eta = eps L from {eta.min():.2g} to "
         f"{eta.max():.2g}; stiff stratum eta in [{spec.stiff_eta[0]:g}, {spec.stiff_eta[1]:g}], "
         f"edge stratum a relative gap 10^U(-3,-1) below the largest eta whose stress path "
-        "reaches the wall. See `cosserat_channel/workprecision/validation.py`.",
+        "reaches the wall. See `cosserat_channel/measure/validation.py`.",
         f"Candidates tried: {c.get('candidates')}; dropped: {c.get('status')} without a solution "
         f"(reference status), {c.get('conditioning')} ill-conditioned (slip > "
         f"{validation.MAX_SLIP:g} or |m_wall| < {validation.MIN_ABS_M_OVER_NL:g} N L), "

@@ -1,4 +1,4 @@
-"""Work-precision report: the files, the CSV contract, the figures' artists and the target logic.
+"""Work-precision report (measure/workprecision.py and its modules): the files, the CSV contract, the figures' artists and the target logic.
 
 The quick report runs once per module on the tiny set (timings are not checked: the machine is
 shared). numbalsoda is made to look absent so the test does not depend on the optional extra.
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from matplotlib.collections import PolyCollection
 
-from cosserat_channel import cli, workprecision
-from cosserat_channel.workprecision import report, runners, validation
-from cosserat_channel.workprecision.report import Curve
+from cosserat_channel import cli
+from cosserat_channel.measure import report, runners, validation, workprecision
+from cosserat_channel.measure.report import Curve
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -44,6 +44,12 @@ def test_files_written(quick):
         assert (out / name).is_file(), name
     for name in ("work_precision.png", "tolerance.png"):
         assert (out / name).read_bytes()[:8] == PNG_SIGNATURE
+
+
+def test_no_temporary_files_left(quick):
+    """Every file went through files.atomic_output: nothing but the outputs in the directory."""
+    out, _ = quick
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".") or "tmp" in p.name]
 
 
 def test_csv_columns_are_the_contract(quick):
@@ -233,3 +239,14 @@ def test_cache_key_follows_the_definition():
     assert a.key() == validation.SetSpec(size=12).key()
     assert a.key() != validation.SetSpec(size=12, seed=1).key()
     assert a.key() != validation.SetSpec(size=13).key()
+
+
+def test_edge_stratum_edges_are_pinned():
+    """Where the edge stratum's bisection lands, rounded to 6 digits as the set uses it.
+
+    The set (and so every cached reference) follows these values; if this test fails, bump
+    validation.GENERATOR_VERSION so that cached sets are rebuilt.
+    """
+    spec = validation.SetSpec()
+    assert validation._edge_eta(1 / 3, 1.0, spec) == 3.30886
+    assert validation._edge_eta(0.0, 1.0, spec) == 1.4434

@@ -14,7 +14,8 @@ per point (best of several repeats, microseconds) and the relative error of ``De
   ``beta = 2N/(eta c0)`` is ~1e8 and beyond), our own solver at rtol 1e-12, ``ref = ours 1e-12``
   (a self-convergence check, labelled as such).
 
-Only numbers and markdown here; the figure is :func:`cosserat_channel.plot.stability.stability_figure`.
+Only numbers and markdown here; the figure is
+:func:`cosserat_channel.plot.stability.stability_figure`, drawn from the :class:`Report`.
 """
 
 from __future__ import annotations
@@ -25,12 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import asymptotics
-from . import solve as sv
-from . import stages
-from . import parameters
-from . import status as st
-from .reference import reference
+from .. import asymptotics, parameters, regimes
+from .. import solve as sv
+from .. import status as st
+from ..reference import reference
+from .textfile import write_text
 
 L_REPORT = 10.0  # eps = eta / L; the outputs depend on eta only (model.md's similarity)
 K_REPORT = 0.5
@@ -48,6 +48,8 @@ FLAT_SLOPE_LIMIT = 0.1
 COLUMNS = ("case", "A", "N", "eta", "status", "path", "s1_acc", "s1_rej", "s2_acc", "s2_rej",
            "fev", "us", "D_wall", "err_Delta", "err_m_wall", "ref")
 ETA_CAP = 50.0  # eps 0.5 x L 100: the top of the domain
+EDGE_SEARCH_MIN = 1e-3  # feasible_eta_max searches [EDGE_SEARCH_MIN, ETA_CAP]
+EDGE_XTOL = 1e-12  # its relative bracket: the rows 1e-6 either side of the edge stay on their side
 
 
 def report_L(eta):
@@ -63,6 +65,9 @@ class Report:
     rtol: float = RTOL
     quick: bool = False
     verdict: dict = field(default_factory=dict)
+    # The fixed parameters, for the figure's title (L is raised above eta = 5, see report_L).
+    L: float = L_REPORT
+    K: float = K_REPORT
 
 
 def _status(ws, eta, A, N):
@@ -78,15 +83,11 @@ def feasible_eta_max(A, N, ws=None, eta_cap=ETA_CAP):
     ws = ws or sv.Workspace()
     if _status(ws, eta_cap, A, N) == st.OK:
         return eta_cap, None
-    lo, hi = 1e-3, eta_cap
+    lo = EDGE_SEARCH_MIN
     if _status(ws, lo, A, N) != st.OK:
         raise ValueError(f"A = {A}, N = {N}: no solution even at eta = {lo}")
-    while hi / lo - 1.0 > 1e-12:
-        mid = math.sqrt(lo * hi)
-        if _status(ws, mid, A, N) == st.OK:
-            lo = mid
-        else:
-            hi = mid
+    lo, hi = regimes.bisect_edge(lambda eta: _status(ws, eta, A, N) == st.OK, lo, eta_cap,
+                                 EDGE_XTOL)
     return lo, st.Status(_status(ws, hi, A, N)).name
 
 
@@ -303,14 +304,10 @@ def write_report(directory, quick=False, repeats=5, progress=None) -> Report:
     """Build the report and write ``directory/stability.md`` and ``directory/stability.png``."""
     import os
 
-    from .plot.stability import stability_figure
+    from ..plot.stability import stability_figure
 
     rep = build_report(quick=quick, repeats=repeats, progress=progress)
-    md_path = os.path.join(directory, "stability.md")
-    tmp = md_path + ".tmp"
-    with open(tmp, "w") as fh:
-        fh.write(markdown(rep))
-    os.replace(tmp, md_path)
+    write_text(os.path.join(directory, "stability.md"), markdown(rep))
     stability_figure(rep, os.path.join(directory, "stability.png"))
     return rep
 

@@ -36,21 +36,24 @@ import inspect
 import json
 import math
 import os
-import secrets
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from .. import reference as ref_mod
+from .. import regimes
+from ..files import atomic_output
 
 SEED = 20261121
-# Bump when the sampling below changes: the cache key includes it.
+# Bump when the sampling below changes, the edge bisection (regimes.bisect_edge) included: the
+# cache key includes it, not the code.
 GENERATOR_VERSION = 1
 REF_RTOL = 1e-12
 CROSS_CHECK_TOL = 1e-9
 DOP853_MIN_ETA = 1e-3
 MAX_SLIP = 0.9
 MIN_ABS_M_OVER_NL = 1e-3
+EDGE_XTOL = 1e-12  # relative width of the bisected edge of the edge stratum, before rounding
 QUANTITIES = ("Delta", "m_wall", "slip")
 STRATA = ("bulk", "stiff", "edge")
 
@@ -149,19 +152,19 @@ def _stage1_reaches_wall(eta, A, N):
 
 
 def _edge_eta(A, N, spec):
-    """The largest ``eta`` in the allowed range at which stage 1 reaches the wall, or None."""
-    eta_max = spec.eps[1] * spec.L[1]
-    lo, hi = math.log(spec.stiff_eta[1]), math.log(eta_max)
-    ok = _stage1_reaches_wall(np.exp(np.array([lo, hi])), A, N)
+    """The largest ``eta`` in the allowed range at which stage 1 reaches the wall, or None.
+
+    Bisected (:func:`cosserat_channel.regimes.bisect_edge`) to ``EDGE_XTOL``, far below the
+    6 digits it is rounded to, so that the rounded value, and with it the set, does not depend on
+    where inside its last bracket the bisection stops.
+    """
+    lo, hi = spec.stiff_eta[1], spec.eps[1] * spec.L[1]
+    ok = _stage1_reaches_wall(np.array([lo, hi]), A, N)
     if not ok[0] or ok[1]:
         return None  # no edge inside the range
-    for _ in range(45):
-        mid = 0.5 * (lo + hi)
-        if _stage1_reaches_wall(np.array([math.exp(mid)]), A, N)[0]:
-            lo = mid
-        else:
-            hi = mid
-    return float(f"{math.exp(lo):.6g}")
+    lo, _ = regimes.bisect_edge(lambda eta: bool(_stage1_reaches_wall(np.array([eta]), A, N)[0]),
+                                lo, hi, EDGE_XTOL)
+    return float(f"{lo:.6g}")
 
 
 def _candidate(rng, stratum, spec):
@@ -272,21 +275,18 @@ CACHE_NAME = "reference_cache.npz"
 
 
 def save(vs: ValidationSet, path) -> None:
-    """Write the set to ``path`` atomically (temporary file, then rename)."""
-    path = os.fspath(path)
-    directory, name = os.path.split(os.path.abspath(path))
-    tmp = os.path.join(directory, f".{name}.{secrets.token_hex(4)}.tmp.npz")
+    """Write the set to ``path`` atomically (:func:`cosserat_channel.files.atomic_output`)."""
     arrays = {k: getattr(vs, k) for k in ("eps", "L", "K", "A", "N", "stratum", "cross_checked",
                                            "disagreement")}
     arrays.update({f"ref_{q}": vs.ref[q] for q in QUANTITIES})
-    try:
-        np.savez(tmp, key=np.array(vs.spec.key()), counts=np.array(json.dumps(vs.counts)),
-                 spec=np.array(json.dumps(asdict(vs.spec))), **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    def write(tmp):
+        # Through a file object: given a name, np.savez would append ".npz" to the temporary one.
+        with open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(vs.spec.key()), counts=np.array(json.dumps(vs.counts)),
+                     spec=np.array(json.dumps(asdict(vs.spec))), **arrays)
+
+    atomic_output(path, write)
 
 
 def load(spec: SetSpec, path) -> ValidationSet | None:

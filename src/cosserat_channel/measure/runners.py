@@ -4,10 +4,11 @@
   whole set in one kernel call, on one thread, warmed up, best of ``repeat`` calls;
 - scipy ``solve_ivp`` (RK45, DOP853, LSODA, Radau): stage 1 alone, point by point in a Python
   loop, in the formulation of ``benchmarks/bench_point.py``'s ``scipy_stage1`` (state
-  ``w = delta / xi^2`` from the axis series, the ``D = 0`` event); Radau and LSODA get the exact
-  Jacobian. One pass (a loop over many points averages the noise). A point that needs more than
-  ``max_nfev`` right-hand-side evaluations is abandoned (explicit methods need O(1/eta) steps on
-  the stiff points) and counted as failed; the time spent on it counts;
+  ``w = delta / xi^2`` from the axis series of :func:`stages.stage1_start`, the ``D = 0``
+  event); Radau and LSODA get the exact Jacobian. One pass (a loop over many points averages
+  the noise). A point that needs more than ``max_nfev`` right-hand-side evaluations is abandoned
+  (explicit methods need O(1/eta) steps on the stiff points) and counted as failed; the time
+  spent on it counts;
 - numbalsoda (optional extra ``bench``) LSODA and DOP853: stage 1 alone in a Numba loop through
   numbalsoda's cfunc interface, best of ``repeat``; ``mxstep`` bounds the work per point.
 
@@ -23,7 +24,7 @@ import time
 
 import numpy as np
 
-from .. import model, rk45, solve, stages
+from .. import model, rk45, stages
 from .. import status as st
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
@@ -112,7 +113,7 @@ def scipy_stage1(eps, L, A, N, method, rtol, atol=ATOL, max_nfev=60_000):
         return math.nan
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1 = stages.start_xi(ax)
+    xi1, w0 = stages.stage1_start(ax)
     calls = [0]
 
     def f1(xi, w):
@@ -129,7 +130,6 @@ def scipy_stage1(eps, L, A, N, method, rtol, atol=ATOL, max_nfev=60_000):
 
     hit.terminal = True
     kw = {"jac": jac} if method in ("Radau", "LSODA", "BDF") else {}
-    w0 = model.delta_axis_series(xi1, ax) / xi1**2
     try:
         s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=rtol, atol=atol, events=hit, **kw)
     except _BudgetSpent:
@@ -190,9 +190,8 @@ def _numbalsoda_kernels(nbs):
         dw[0] = dw_dxi(xi, w[0], q[0], q[1], q[2], q[3:])
 
     axis_constants = model.axis_constants
-    delta_axis_series = model.delta_axis_series
     classify = model.classify
-    start_xi = stages.start_xi
+    stage1_start = stages.stage1_start
     OK = st.OK
 
     @njit
@@ -208,8 +207,7 @@ def _numbalsoda_kernels(nbs):
             data[1] = A[i]
             data[2] = N[i]
             axis_constants(eta[i], A[i], N[i], data[3:])
-            xi1 = start_xi(data[3:])
-            u0[0] = delta_axis_series(xi1, data[3:]) / (xi1 * xi1)
+            xi1, u0[0] = stage1_start(data[3:])
             t_eval[0] = xi1
             t_eval[1] = 1.0
             if use_dop853:

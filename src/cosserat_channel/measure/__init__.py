@@ -1,0 +1,17 @@
+"""The measurement tools: how fast and how accurate the solver is, and on which machine.
+
+- :mod:`.stability`: the stability report (``cosserat-channel stability``): steps, cost and
+  error of one point from ``eps L = 1e-8`` to the edge of solvability;
+- :mod:`.workprecision`: the work-precision report (``cosserat-channel bench``); it runs
+  :mod:`.validation` (the validation set and its references), :mod:`.runners` (ours and the
+  peers, timed) and :mod:`.report` (curves, matched-error ratios, targets, markdown and CSV);
+- :mod:`.machine`: CPU model, git revision and versions, printed by every report and by the
+  scripts in ``benchmarks/``;
+- :mod:`.textfile`: text files written through :func:`cosserat_channel.files.atomic_output`.
+
+Direction of the imports: these modules use the solver, :mod:`cosserat_channel.regimes` and
+:mod:`cosserat_channel.plot`; nothing else in the package imports them, except the command
+line (lazily, inside its ``stability`` and ``bench`` commands). The figures of the reports live
+in :mod:`cosserat_channel.plot.stability` and :mod:`cosserat_channel.plot.workprecision` and take
+the reports' data.
+"""

@@ -1,17 +1,20 @@
 """Every figure of the project: the only module that imports matplotlib.
 
-Figures are built as :class:`matplotlib.figure.Figure` objects on an Agg canvas instead of through
-``pyplot``: no global figure registry to leak memory in long sweeps, no interactive backend
-picked up from the environment, and nothing to close afterwards. Files are written atomically
-(:func:`save_figure`), so an interrupted run never leaves a truncated image behind.
+Figures are built as :class:`Figure` objects (a :class:`matplotlib.figure.Figure`) on an Agg
+canvas instead of through ``pyplot``: no global figure registry to leak memory in long sweeps, no
+interactive backend picked up from the environment, and nothing to close afterwards. Files are
+written atomically (:func:`save_figure`), so an interrupted run never leaves a truncated image
+behind. In Jupyter a figure shows itself as a PNG (``display(fig)``, or a cell's last value),
+although pyplot, which registers that display for its own figures, is never imported.
 """
 
 from __future__ import annotations
 
+import io
 import os
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+from matplotlib.figure import Figure as _MplFigure
 
 from ..files import atomic_output
 
@@ -27,6 +30,20 @@ LABELS = {
     "sigma_yx": r"$\bar\sigma_{yx}/\nu$",
     "m": r"$\bar m/\nu$",
 }
+
+
+class Figure(_MplFigure):
+    """A matplotlib Figure that Jupyter (IPython's display) renders as a PNG image.
+
+    IPython shows a figure as an image only through a formatter that pyplot's inline backend
+    registers; this package never imports pyplot, so without ``_repr_png_`` a notebook cell
+    would print ``<Figure size 1000x700 with 4 Axes>`` instead of the figure.
+    """
+
+    def _repr_png_(self) -> bytes:
+        buf = io.BytesIO()
+        self.savefig(buf, format="png", dpi=DPI)
+        return buf.getvalue()
 
 
 # ---------------------------------------------------------------------------------------------

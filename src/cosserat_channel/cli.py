@@ -182,6 +182,23 @@ def check_output_path(path: str, option: str) -> None:
         raise CliError(f"{option}: {problem}")
 
 
+def check_not_input(path: str, inputs, option: str) -> None:
+    """Raise CliError if ``path`` is one of the command's input files (same file, any spelling).
+
+    A command never writes over what it reads: ``query X.nc --format csv -o X.nc`` would replace
+    the result by its own CSV.
+    """
+    for src in inputs:
+        if src is None:
+            continue
+        same = os.path.realpath(path) == os.path.realpath(src)
+        if not same and os.path.exists(path) and os.path.exists(src):
+            same = os.path.samefile(path, src)
+        if same:
+            raise CliError(f"{option}: {path!r} is this command's input {src!r}; writing it would "
+                           "destroy the input: give another file name")
+
+
 # ---------------------------------------------------------------------------------------------
 # point
 # ---------------------------------------------------------------------------------------------
@@ -280,7 +297,10 @@ def _query_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
     s = p.add_argument_group("selection (all clauses are ANDed)")
     s.add_argument("--sel", action="append", default=[], metavar="NAME=VALUE",
-                   help="nearest value of a coordinate, e.g. L=10 (repeatable)")
+                   help="one value of a coordinate, e.g. L=10 (repeatable); it must be a grid "
+                   "value (10 significant digits suffice), see 'info' for the grid")
+    s.add_argument("--nearest", action="store_true",
+                   help="let --sel take the nearest grid value (and say so on stderr)")
     s.add_argument("--range", action="append", default=[], metavar="NAME=LO:HI",
                    help="inclusive range of a coordinate, LO or HI may be empty, e.g. eps=:0.01")
     s.add_argument("--where", action="append", default=[], metavar="'NAME OP VALUE'",
@@ -300,6 +320,7 @@ def _query(args: argparse.Namespace) -> int:
         raise CliError("--format netcdf writes a file: give -o FILE")
     if args.output is not None:
         check_output_path(args.output, "-o")
+        check_not_input(args.output, [args.results], "-o")
     from . import query
     try:
         ds = query.open_results(args.results)
@@ -313,9 +334,13 @@ def _query(args: argparse.Namespace) -> int:
             variables = query.parse_vars(args.vars, ds)
             clauses = [f"--sel {t}" for t in args.sel] + [f"--range {t}" for t in args.range]
             clauses += [f"--where '{c.text}'" for c in where]
-            selection = query.select(ds, sel, ranges, where, variables, " ".join(clauses))
+            selection = query.select(ds, sel, ranges, where, variables, " ".join(clauses),
+                                     nearest=args.nearest)
         except ParameterError as exc:
             raise CliError(str(exc)) from None
+        for name, asked, taken in selection.snapped:
+            _note(f"--nearest: --sel {name}={asked:.10g} is not a grid value; took the nearest, "
+                  f"{name}={taken:.10g}")
         if selection.count() == 0:
             _note("the selection is empty: no point matches")
         try:
@@ -369,6 +394,9 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
                    help="one integration per grid point instead of per distinct (eps L, A, N); "
                    "same values, for checks and benchmarks")
     p.add_argument("--block-size", type=int, metavar="B", help="integrations per block")
+    p.add_argument("--overwrite", action="store_true",
+                   help="compute again and replace OUT.nc if it is already a finished result "
+                   "(without it a finished OUT.nc is kept)")
 
 
 @register("run", "solve every point of a sweep file and write a NetCDF result", _run_arguments)
@@ -388,6 +416,9 @@ def _run(args: argparse.Namespace) -> int:
     output = args.output or spec.output_path
     if output is None:
         output = os.path.splitext(os.path.basename(args.sweep))[0] + ".nc"
+    check_not_input(output, [args.sweep], "-o")
+    if not args.overwrite and _finished_result_kept(output, spec):
+        return EXIT_OK
     logger = logging.getLogger("cosserat_channel.sweep")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
@@ -407,6 +438,30 @@ def _run(args: argparse.Namespace) -> int:
     finally:
         logger.removeHandler(handler)
     return EXIT_OK
+
+
+def _finished_result_kept(output: str, spec) -> bool:
+    """True (and a note) if ``output`` is already this sweep's result; CliError if it is another
+    file. An unfinished run (``OUT.nc.partial/`` beside it) is resumed, not refused."""
+    from .sweep.store import partial_dir
+
+    if not os.path.exists(output) or os.path.isdir(partial_dir(output)):
+        return False
+    sha = None
+    try:
+        import netCDF4
+
+        with netCDF4.Dataset(output) as nc:
+            sha = getattr(nc, "sweep_sha256", None)
+    except (OSError, ValueError, RuntimeError):
+        pass
+    if sha == spec.sha256:
+        _note(f"{output} is already the finished result of this sweep; kept (add --overwrite "
+              "to compute it again)")
+        return True
+    what = "the result of another sweep" if sha else "not a result of 'run'"
+    raise CliError(f"{output} exists ({what}); kept: add --overwrite to replace it, or choose "
+                   "another -o")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -531,6 +586,9 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
                    help="log-spaced samples before bisection (default 48)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
     p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
+    p.add_argument("--overwrite", action="store_true",
+                   help="trace again and replace OUT.nc if it exists (without it an OUT.nc "
+                   "traced with the same arguments is reused, any other is kept)")
 
 
 @register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
@@ -551,10 +609,14 @@ def _boundary(args: argparse.Namespace) -> int:
     check_output_path(args.output, "-o")
     if args.plot is not None:
         _figure_output(args.plot, "--plot")
+        check_not_input(args.plot, [args.output], "--plot")
     from . import regimes
     from .status import Status
 
-    ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse)
+    ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
+    traced = ds is None
+    if traced:
+        ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse)
     print(f"{'A':>12} {'N':>10} {'eta_max':>18} {'kind':<20} {'status above'}")
     for i, a in enumerate(ds["A"].values):
         for j, n in enumerate(ds["N"].values):
@@ -566,8 +628,9 @@ def _boundary(args: argparse.Namespace) -> int:
     try:
         tmp = f"{args.output}.{os.getpid()}.tmp"
         try:
-            ds.to_netcdf(tmp)
-            os.replace(tmp, args.output)
+            if traced:
+                ds.to_netcdf(tmp)
+                os.replace(tmp, args.output)
         finally:
             if os.path.exists(tmp):
                 os.unlink(tmp)
@@ -580,6 +643,33 @@ def _boundary(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _same_boundary(path, A, N, lo, hi, coarse):
+    """The Dataset in ``path`` if it was traced with these arguments (note: reused), None if there
+    is no file; CliError if it is another file (kept unless --overwrite)."""
+    if not os.path.exists(path):
+        return None
+    import numpy as np
+    import xarray as xr
+
+    try:
+        ds = xr.load_dataset(path)
+    except (OSError, ValueError, RuntimeError):
+        ds = None
+    if ds is not None and "eta_max" in ds:
+        a = ds.attrs
+        if (ds["A"].size == len(A) and ds["N"].size == len(N)
+                and np.array_equal(ds["A"].values, A) and np.array_equal(ds["N"].values, N)
+                and (a.get("eta_search_min"), a.get("eta_search_max"), a.get("n_coarse"))
+                == (lo, hi, coarse)):
+            _note(f"{path} was traced with these arguments; reused (add --overwrite to trace "
+                  "again)")
+            return ds
+    what = "traced with other arguments" if ds is not None and "eta_max" in ds else \
+        "not a 'boundary' result"
+    raise CliError(f"{path} exists ({what}); kept: add --overwrite to replace it, or choose "
+                   "another -o")
+
+
 def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
     p.add_argument("--regime", action="store_true",
@@ -590,7 +680,10 @@ def _plot_arguments(p: argparse.ArgumentParser) -> None:
                    "dimension")
     p.add_argument("--hue", help="one line per value of this dimension")
     p.add_argument("--at", metavar="NAME=VALUE[,NAME=VALUE]",
-                   help="nearest values of the other dimensions that vary, e.g. eps=0.0333,L=10")
+                   help="grid values of the other dimensions that vary, e.g. K=0.5,N=1 "
+                   "(see 'info' for the grid)")
+    p.add_argument("--nearest", action="store_true",
+                   help="let --at take the nearest grid values (and say so on stderr)")
     p.add_argument("--boundary", metavar="BOUNDARY.nc",
                    help="with --regime: traced edge from 'boundary' (default: traced here on a "
                    "coarse grid)")
@@ -615,6 +708,39 @@ def parse_at(text: str | None) -> dict:
     return out
 
 
+def _resolve_at(ds, args, at: dict) -> dict:
+    """``--at`` values replaced by the grid values they match (exactly, or with --nearest the
+    nearest, noted on stderr); CliError naming the dimensions still to fix, with an example."""
+    from .parameters import DIMS as dims
+    from .query import QueryError, match_coordinate
+
+    out = {}
+    for name, value in at.items():
+        if name not in ds.dims or name not in ds.coords:
+            raise CliError(f"--at {name}: not a dimension of the result (have "
+                           f"{', '.join(d for d in ds.dims if d in ds.coords)})")
+        c = ds[name].values
+        try:
+            i, exact = match_coordinate(c, value, name, "--at", nearest=args.nearest)
+        except QueryError as exc:
+            raise CliError(str(exc)) from None
+        if not exact:
+            _note(f"--nearest: --at {name}={value:.10g} is not a grid value; took the nearest, "
+                  f"{name}={float(c[i]):.10g}")
+        out[name] = float(c[i])
+    keep = {args.x, args.y} if args.regime else {args.x, args.hue, "eps" if args.x ==
+                                                  "W_over_d_p" else args.x}
+    loose = [d for d in dims if d in ds.dims and ds.sizes[d] > 1 and d not in keep
+             and d not in out]
+    if loose:
+        example = ",".join(f"{d}={float(ds[d].values[0])!r}" for d in loose)
+        values = "; ".join(f"{d}: " + ", ".join(f"{v:.10g}" for v in ds[d].values[:6])
+                           + (", …" if ds.sizes[d] > 6 else "") for d in loose)
+        raise CliError(f"{', '.join(loose)} vary in {args.results}: fix them with --at, e.g. "
+                       f"--at {example} (values {values})")
+    return out
+
+
 @register("plot", "plot a result file: regime map, Delta against a parameter, or profiles",
           _plot_arguments)
 def _plot(args: argparse.Namespace) -> int:
@@ -624,6 +750,7 @@ def _plot(args: argparse.Namespace) -> int:
     if args.regime and args.hue is not None:
         raise CliError("--hue does not go with --regime")
     _figure_output(args.output)
+    check_not_input(args.output, [args.results, args.boundary], "-o")
     from . import query
     from .plot import lines as plot_lines
     from .plot import regimes as plot_regimes
@@ -632,6 +759,7 @@ def _plot(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
+        at = _resolve_at(ds, args, at)
         ds = ds.load()
         boundary = None
         if args.boundary is not None:

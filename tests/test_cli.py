@@ -307,3 +307,25 @@ def test_plot_at_matches_exactly_and_names_what_to_fix(capsys, small_result, tmp
     os.unlink(png)
     assert cli.main(base + ["--at", "K=0.5"]) == 0
     assert capsys.readouterr().err == "" and os.path.exists(png)
+
+
+def test_bench_exit_code_says_whether_the_targets_were_met(capsys, tmp_path, monkeypatch):
+    """A full report with a missed required target exits 1 (FAIL printed, report written); an
+    informative miss or a --quick run exits 0, --quick marking its lines as no verdict."""
+    from types import SimpleNamespace
+
+    from cosserat_channel import workprecision
+    from cosserat_channel.workprecision.report import Target
+
+    targets = [Target("speed", False, "2x slower"), Target("max error (informative)", False, ""),
+               Target("median error", True, "")]
+    fake = SimpleNamespace(targets=targets, paths={"md": str(tmp_path / "r.md")})
+    monkeypatch.setattr(workprecision, "run", lambda *a, **k: fake)
+    assert cli.main(["bench", "-o", str(tmp_path / "r")]) == 1
+    out, err = capsys.readouterr()
+    assert "FAIL: speed" in out and "1 required target(s)" in err
+    assert cli.main(["bench", "--quick", "-o", str(tmp_path / "r")]) == 0
+    out, err = capsys.readouterr()
+    assert all(line.startswith("quick set, not a verdict: ") for line in out.splitlines()[:3])
+    fake.targets = targets[1:]
+    assert cli.main(["bench", "-o", str(tmp_path / "r")]) == 0

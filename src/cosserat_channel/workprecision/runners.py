@@ -134,7 +134,9 @@ def scipy_stage1(eps, L, A, N, method, rtol, atol=ATOL, max_nfev=60_000):
     kw = {"jac": jac} if method in ("Radau", "LSODA", "BDF") else {}
     w0 = model.delta_axis_series(xi1, ax) / xi1**2
     try:
-        s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=rtol, atol=atol, events=hit, **kw)
+        with np.errstate(divide="ignore"):  # Radau: see reference.reference
+            s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=rtol, atol=atol, events=hit,
+                           **kw)
     except _BudgetSpent:
         return math.nan
     return L * (s1.y[0, -1] - N) if s1.status == 0 else math.nan

@@ -428,7 +428,7 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
     """:func:`trace_edge` on the grid ``A x N``; returns an :class:`xarray.Dataset` on ``(A, N)``.
 
     Variables: ``eta_max``, ``eta_min``, ``edge_kind`` (int8 flag: bounded, unbounded_in_range,
-    no_solution), ``status_above`` (int8 status code just above a bounded edge, -1 otherwise),
+    no_solution), ``status_above`` (int8 status code just above a bounded edge, -1 = flag ``no_edge`` otherwise),
     ``n_transitions`` and the analytic ``axis_edge_eta``.
     """
     import xarray as xr
@@ -464,12 +464,14 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
                 "flag_values": np.arange(len(EDGE_KINDS), dtype=np.int8),
                 "flag_meanings": " ".join(EDGE_KINDS)}),
             "status_above": (("A", "N"), above, {
-                "long_name": "status just above eta_max (-1: none)",
-                "flag_values": flags["flag_values"], "flag_meanings": flags["flag_meanings"]}),
+                "long_name": "status just above eta_max (no_edge where no bounded edge)",
+                "flag_values": np.r_[np.int8(-1), flags["flag_values"]].astype(np.int8),
+                "flag_meanings": "no_edge " + flags["flag_meanings"]}),
             "n_transitions": (("A", "N"), n_tr, {
-                "long_name": "changes of feasibility seen over the search range"}),
+                "long_name": "changes of feasibility seen over the search range", "units": "1"}),
             "axis_edge_eta": (("A", "N"), axis_edge_eta(A[:, None], N[None, :]), {
-                "long_name": "eps L on the axis condition (A-1) eps L + 2(A+1) N = 0"}),
+                "long_name": "eps L on the axis condition (A-1) eps L + 2(A+1) N = 0",
+                "units": "1"}),
         },
         coords={d: (d, v, {"long_name": PARAMETERS[d].long_name, "units": PARAMETERS[d].units})
                 for d, v in (("A", A), ("N", N))},

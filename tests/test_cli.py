@@ -329,3 +329,60 @@ def test_bench_exit_code_says_whether_the_targets_were_met(capsys, tmp_path, mon
     assert all(line.startswith("quick set, not a verdict: ") for line in out.splitlines()[:3])
     fake.targets = targets[1:]
     assert cli.main(["bench", "-o", str(tmp_path / "r")]) == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# Progress: a live line on a terminal, nothing otherwise
+# ---------------------------------------------------------------------------------------------
+class _Terminal:
+    """A stream that says it is a terminal and records what is written."""
+
+    def __init__(self, tty=True):
+        self.tty, self.text = tty, ""
+
+    def isatty(self):
+        return self.tty
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+
+def test_progress_draws_on_a_terminal_and_clears_its_line():
+    """update() redraws one line in place with the elapsed time; exit clears it; line() prints."""
+    term = _Terminal()
+    with cli.Progress("boundary", "tracing", stream=term) as bar:
+        bar.update("3/8 edges traced")
+        bar.line("a permanent line")
+    assert "\r\x1b[Kcosserat-channel: boundary: 3/8 edges traced (0:00)" in term.text
+    assert "a permanent line\n" in term.text
+    assert term.text.endswith("\r\x1b[K")  # the status line is gone at the end
+
+
+def test_progress_is_silent_when_not_a_terminal_or_before_its_delay():
+    """Redirected stderr: only line() output; within the delay: nothing."""
+    pipe = _Terminal(tty=False)
+    with cli.Progress("bench", "x", stream=pipe) as bar:
+        bar.update("running")
+        bar.line("kept")
+    assert pipe.text == "kept\n"
+    term = _Terminal()
+    with cli.Progress("point", "solving", delay=60.0, stream=term) as bar:
+        bar.update("still solving")
+    assert term.text == ""
+
+
+def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
+    """boundary passes its edges to the progress line; with stderr not a terminal the command
+    prints nothing on stderr."""
+    seen = []
+    real = cli.Progress.update
+    monkeypatch.setattr(cli.Progress, "update", lambda self, text: (seen.append(text),
+                                                                     real(self, text)))
+    code = cli.main(["boundary", "--A", "0,0.5", "--N", "1", "--coarse", "8",
+                     "-o", str(tmp_path / "b.nc")])
+    assert code == 0
+    assert capsys.readouterr().err == ""
+    assert seen == ["1/2 edges traced", "2/2 edges traced"]

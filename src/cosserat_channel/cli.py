@@ -138,6 +138,90 @@ def _note(message: str) -> None:
     print(f"{PROG}: note: {' '.join(message.split())}", file=sys.stderr)
 
 
+class Progress:
+    """A live status line on stderr while a command works, only when stderr is a terminal.
+
+    ``with Progress("boundary") as p: ... p.update("3/8 edges")`` redraws
+    ``cosserat-channel: boundary: 3/8 edges (0:12)`` in place, with the elapsed time ticking
+    every half second; the line is cleared at the end. Nothing is drawn before ``delay``
+    seconds, so a command that finishes quickly shows nothing; with stderr redirected (a file,
+    a pipe, a test) nothing is drawn at all. :meth:`line` prints a permanent line above it.
+    """
+
+    def __init__(self, what: str, text: str = "", delay: float = 0.0, stream=None):
+        import threading
+
+        self.stream = stream or sys.stderr
+        self.enabled = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.what, self.text, self.delay = what, text, delay
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._tick, daemon=True)
+        self._drawn = False
+
+    def __enter__(self):
+        import time
+
+        self._t0 = time.monotonic()
+        if self.enabled:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+        self._clear()
+        return False
+
+    def update(self, text: str) -> None:
+        self.text = text
+        self._draw()
+
+    def line(self, message: str) -> None:
+        """Print ``message`` as a line of its own (always, terminal or not)."""
+        with self._lock:
+            self._clear_locked()
+            print(message, file=self.stream, flush=True)
+        self._draw()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(0.5):
+            self._draw()
+
+    def _draw(self) -> None:
+        import shutil
+        import time
+
+        if not self.enabled or self._stop.is_set():
+            return
+        elapsed = time.monotonic() - self._t0
+        if elapsed < self.delay:
+            return
+        minutes, seconds = divmod(int(elapsed), 60)
+        text = f"{PROG}: {self.what}: {self.text} ({minutes}:{seconds:02d})"
+        width = max(20, shutil.get_terminal_size().columns - 1)
+        with self._lock:
+            self.stream.write("\r\033[K" + text[:width])
+            self.stream.flush()
+            self._drawn = True
+
+    def _clear(self) -> None:
+        with self._lock:
+            self._clear_locked()
+
+    def _clear_locked(self) -> None:
+        if self._drawn:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+            self._drawn = False
+
+
+# The first use of the solver compiles it (about a minute; later runs load it from the cache).
+_FIRST_RUN = "(the first run of a new version compiles the solver: about a minute)"
+_SOLVING = "solving " + _FIRST_RUN
+
+
 # ---------------------------------------------------------------------------------------------
 # Shared argument groups and checks
 # ---------------------------------------------------------------------------------------------
@@ -242,10 +326,11 @@ def _point(args: argparse.Namespace) -> int:
 
     profile = np.linspace(0.0, 1.0, 401) if args.plot is not None else None
     try:
-        result = solve.solve_point(
-            args.eps, args.L, args.K, args.A, args.N,
-            material=material, profile=profile, **tolerances,
-        )
+        with Progress("point", _SOLVING, delay=2.0):
+            result = solve.solve_point(
+                args.eps, args.L, args.K, args.A, args.N,
+                material=material, profile=profile, **tolerances,
+            )
     except ParameterError as exc:
         raise CliError(str(exc)) from None
 
@@ -500,13 +585,15 @@ def _stability(args: argparse.Namespace) -> int:
     if problem:
         raise CliError(f"-o/--output-dir: {problem}")
 
-    def progress(i, n, row):
-        _note(f"stability: {i}/{n} {row['case']} eta = {row['eta']:.3g}: {row['status']}, "
-              f"{row['path']} path")
-
     repeats = 1 if args.quick else args.repeats
     try:
-        rep = write_report(args.output_dir, quick=args.quick, repeats=repeats, progress=progress)
+        with Progress("stability", "finding the edges of the series") as bar:
+            def progress(i, n, row):
+                bar.update(f"{i}/{n} points; last: {row['case']} eta = {row['eta']:.3g}: "
+                           f"{row['status']}, {row['path']} path")
+
+            rep = write_report(args.output_dir, quick=args.quick, repeats=repeats,
+                               progress=progress)
     except OSError as exc:
         raise CliError(f"cannot write the report into {args.output_dir!r}: {exc}",
                        EXIT_FAILURE) from None
@@ -550,7 +637,8 @@ def _phase_plane(args: argparse.Namespace) -> int:
     from . import regimes
     from .plot import regimes as plot_regimes
     try:
-        pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
+        with Progress("phase-plane", _SOLVING, delay=2.0):
+            pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     for tr in pp.trajectories:
@@ -628,7 +716,9 @@ def _boundary(args: argparse.Namespace) -> int:
     ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
     traced = ds is None
     if traced:
-        ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse)
+        with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+            ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
+                                        progress=lambda k, n: bar.update(f"{k}/{n} edges traced"))
     print(f"{'A':>12} {'N':>10} {'eta_max':>18} {'kind':<20} {'status above'}")
     for i, a in enumerate(ds["A"].values):
         for j, n in enumerate(ds["N"].values):
@@ -784,12 +874,16 @@ def _plot(args: argparse.Namespace) -> int:
             if "eta_max" not in boundary:
                 raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")
         try:
-            if args.regime:
-                plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
-                                        path=args.output)
-            else:
-                plot_lines.line_plot(ds, args.x, args.y, args.hue, at, asymptote=args.asymptote,
-                                     path=args.output)
+            with Progress("plot", "drawing " + _FIRST_RUN * args.regime, delay=1.0) as bar:
+                if args.regime:
+                    def traced(k, n):
+                        bar.update(f"tracing the edge eta_max: {k}/{n} (A, N) pairs")
+
+                    plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
+                                            path=args.output, progress=traced)
+                else:
+                    plot_lines.line_plot(ds, args.x, args.y, args.hue, at,
+                                         asymptote=args.asymptote, path=args.output)
         except (ValueError, KeyError) as exc:
             raise CliError(str(exc).strip("'\"")) from None
         except OSError as exc:
@@ -831,12 +925,14 @@ def _bench(args: argparse.Namespace) -> int:
     )
     from . import workprecision
 
-    def log(message):
-        print(f"{PROG}: bench: {message}", file=sys.stderr, flush=True)
-
     try:
-        rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
-                                command=command, log=log)
+        with Progress("bench", "starting") as bar:
+            def log(message):
+                bar.line(f"{PROG}: bench: {message}")
+                bar.update(f"running; last: {message}")
+
+            rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
+                                    command=command, log=log)
     except OSError as exc:
         raise CliError(f"cannot write the report into {output!r}: {exc}", EXIT_FAILURE) from None
     # An "(informative)" target is reported, not required.

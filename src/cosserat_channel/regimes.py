@@ -424,12 +424,13 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
 
 
 def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA_COARSE,
-                   xtol=ETA_XTOL, rtol=EDGE_RTOL, atol=EDGE_ATOL):
+                   xtol=ETA_XTOL, rtol=EDGE_RTOL, atol=EDGE_ATOL, progress=None):
     """:func:`trace_edge` on the grid ``A x N``; returns an :class:`xarray.Dataset` on ``(A, N)``.
 
     Variables: ``eta_max``, ``eta_min``, ``edge_kind`` (int8 flag: bounded, unbounded_in_range,
     no_solution), ``status_above`` (int8 status code just above a bounded edge, -1 = flag ``no_edge`` otherwise),
-    ``n_transitions`` and the analytic ``axis_edge_eta``.
+    ``n_transitions`` and the analytic ``axis_edge_eta``. ``progress(k, n)``, if given, is called
+    after each of the ``n`` edges.
     """
     import xarray as xr
 
@@ -452,6 +453,8 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
                            atol=atol, workspace=ws)
             eta_max[i, j], eta_min[i, j], kind[i, j] = e.eta_max, e.eta_min, e.kind
             above[i, j], n_tr[i, j] = e.status_above, e.transitions.size
+            if progress is not None:
+                progress(i * N.size + j + 1, A.size * N.size)
     flags = st.cf_flag_attrs()
     ds = xr.Dataset(
         {

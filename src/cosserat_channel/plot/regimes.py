@@ -168,7 +168,7 @@ def _boundary_fields(x, y, X, Y, fixed, traced):
     return out
 
 
-def _traced_on_grid(x, y, xv, yv, fixed, boundary, n_trace):
+def _traced_on_grid(x, y, xv, yv, fixed, boundary, n_trace, progress=None):
     """``eta_max`` and ``eta_min`` (where bounded) on the plot grid, from ``boundary`` or traced."""
     an = [d for d in (x, y) if d in ("A", "N")]
     if not an:
@@ -181,7 +181,7 @@ def _traced_on_grid(x, y, xv, yv, fixed, boundary, n_trace):
                 vals[d] = np.linspace(v.min(), v.max(), min(v.size, n_trace))
         A = vals["A"] if "A" in vals else np.array([fixed["A"]])
         N = vals["N"] if "N" in vals else np.array([fixed["N"]])
-        boundary = regimes.trace_boundary(A, N)
+        boundary = regimes.trace_boundary(A, N, progress=progress)
     kind = boundary["edge_kind"]
     eta_max = boundary["eta_max"].where(kind == regimes.EDGE_BOUNDED)
     first_ok = boundary["eta_min"] > boundary.attrs.get("eta_search_min", regimes.ETA_SEARCH_MIN)
@@ -208,7 +208,8 @@ def _traced_on_grid(x, y, xv, yv, fixed, boundary, n_trace):
     return out
 
 
-def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=12, path=None):
+def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=12, path=None,
+               progress=None):
     """Status over a 2-D slice of a sweep, one colour and legend entry per status present.
 
     Overlays, where the other parameters are fixed: ``A = 1 - 2N^2``, the axis condition
@@ -227,6 +228,8 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=
     boundary : xarray.Dataset, optional
         From :func:`regimes.trace_boundary`; default: traced here on at most ``n_trace`` values of
         A and N over the plotted range (only when ``trace`` is true and A or N is plotted).
+    progress : callable, optional
+        ``progress(k, n)`` after each traced edge (see :func:`regimes.trace_boundary`).
     """
     if x == y or x not in DIMS or y not in DIMS:
         raise ValueError(f"--x and --y must be two different dimensions of {DIMS}; got {x!r}, {y!r}")
@@ -250,7 +253,7 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, trace=True, n_trace=
     if xv.size > 1 and yv.size > 1:
         traced = None
         if trace or boundary is not None:
-            traced = _traced_on_grid(x, y, xf, yf, fixed, boundary, n_trace)
+            traced = _traced_on_grid(x, y, xf, yf, fixed, boundary, n_trace, progress)
         X, Y = np.meshgrid(xf, yf)
         for name, F in _boundary_fields(x, y, X, Y, fixed, traced).items():
             F = np.asarray(F, float)

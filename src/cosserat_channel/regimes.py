@@ -150,13 +150,13 @@ class Trajectory:
 
     @property
     def label(self) -> str:
-        eq = "(A1)" if self.root == "+" else "(A2)"
+        """Legend text: root (E+ is eq:a1, E- is eq:a2, as the figure's title says), start, end."""
         sign = "-" if self.start < 0 else "+"
         end = {"wall": "reaches the wall", "D=0": f"meets $D=0$ at $\\xi$ = {self.xi[-1]:.3g}",
                "no_start": "cannot leave the axis", "failed": "integration failed"}[self.end]
         if self.end == "wall" and not self.spin_bounded:
             end += r", but $\hat\omega\to\infty$ at the axis"
-        return rf"$E_{{{self.root}}}$ {eq} from $\bar m(0) = {sign}NL$: {end}"
+        return rf"$E_{{{self.root}}}$ from $\bar m(0) = {sign}NL$: {end}"
 
 
 @dataclass

@@ -11,6 +11,7 @@ although pyplot, which registers that display for its own figures, is never impo
 from __future__ import annotations
 
 import io
+import math
 import os
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -98,6 +99,15 @@ def save_figure(fig: Figure, path, *, dpi: int = DPI) -> None:
 # ---------------------------------------------------------------------------------------------
 # Figures
 # ---------------------------------------------------------------------------------------------
+def _dimensional_axis(ax, scale: float, label: str):
+    """A right-hand y axis showing the panel's scaled values times ``scale`` (e.g. in Pa)."""
+    if not (math.isfinite(scale) and scale > 0.0):
+        return None
+    sec = ax.secondary_yaxis("right", functions=(lambda v: v * scale, lambda v: v / scale))
+    sec.set_ylabel(label)
+    return sec
+
+
 def point_profiles(result, path=None) -> Figure:
     """Profiles of one solved point against ``xi``: velocity, spin, shear stresses, couple stress.
 
@@ -112,7 +122,9 @@ def point_profiles(result, path=None) -> Figure:
     -------
     matplotlib.figure.Figure
         Four panels: ``u/u(0)``, ``omega_hat``, ``sigma_xy`` with ``sigma_yx``, and ``m``; the
-        plug edge ``xi_p`` (eq:13) is a dashed vertical line on each.
+        plug edge ``xi_p`` (eq:13) is a dashed vertical line on each. With a material (``nu``
+        finite) the title gives ``nu`` and the stress and couple-stress panels get a right-hand
+        axis in Pa and Pa m (scaled by ``rho_p g W nu``, from the result's wall values).
 
     Raises
     ------
@@ -151,7 +163,14 @@ def point_profiles(result, path=None) -> Figure:
         ax.set_xlabel(XI_LABEL)
     ax_u.legend(loc="best")
     ax_s.legend(loc="best")
-    fig.suptitle(parameter_title(result.eps, result.L, result.K, result.A, result.N))
+    title = parameter_title(result.eps, result.L, result.K, result.A, result.N)
+    nu = float(getattr(result, "nu", math.nan))
+    if math.isfinite(nu):
+        title += rf", $\nu$ = {nu:.4g}"
+        _dimensional_axis(ax_s, -result.sigma_xy_wall_Pa, "stress (Pa)")
+        if result.m_wall != 0.0:
+            _dimensional_axis(ax_m, result.m_wall_Pa_m / result.m_wall, "couple stress (Pa m)")
+    fig.suptitle(title)
     if path is not None:
         save_figure(fig, path)
     return fig

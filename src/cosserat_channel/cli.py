@@ -516,6 +516,13 @@ def _run(args: argparse.Namespace) -> int:
     check_not_input(output, [args.sweep], "-o")
     if not args.overwrite and _finished_result_kept(output, spec):
         return EXIT_OK
+    if args.scheduler is None:
+        from .sweep.engine import warm_up
+
+        # Here, not inside the run: on a terminal the minute a new version spends compiling
+        # shows as such, before the run's own progress bar starts.
+        with Progress("run", "loading the solver " + _FIRST_RUN, delay=2.0):
+            warm_up()
     logger = logging.getLogger("cosserat_channel.sweep")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))

@@ -395,7 +395,7 @@ def _query_arguments(p: argparse.ArgumentParser) -> None:
     s = p.add_argument_group("selection (all clauses are ANDed)")
     s.add_argument("--sel", action="append", default=[], metavar="NAME=VALUE",
                    help="one value of a coordinate, e.g. L=10 (repeatable); it must be a grid "
-                   "value (10 significant digits suffice), see 'info' for the grid")
+                   "value (10 significant digits suffice; an off-grid value names the nearest)")
     s.add_argument("--nearest", action="store_true",
                    help="let --sel take the nearest grid value (and say so on stderr)")
     s.add_argument("--range", action="append", default=[], metavar="NAME=LO:HI",
@@ -790,7 +790,7 @@ def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hue", help="one line per value of this dimension")
     p.add_argument("--at", metavar="NAME=VALUE[,NAME=VALUE]",
                    help="grid values of the other dimensions that vary, e.g. K=0.5,N=1 "
-                   "(see 'info' for the grid)")
+                   "(an off-grid value names the nearest)")
     p.add_argument("--nearest", action="store_true",
                    help="let --at take the nearest grid values (and say so on stderr)")
     p.add_argument("--boundary", metavar="BOUNDARY.nc",

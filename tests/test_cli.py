@@ -201,3 +201,188 @@ def test_installed_executable_error_is_one_line():
     lines = proc.stderr.splitlines()
     assert len(lines) == 1, proc.stderr
     assert lines[0].startswith("cosserat-channel: error: eps = nan")
+
+
+# ---------------------------------------------------------------------------------------------
+# Outputs never replace inputs; finished results are kept unless --overwrite
+# ---------------------------------------------------------------------------------------------
+SMALL_SWEEP = """\
+[grid]
+eps = [0.02, 0.05]
+L = 10.0
+K = [0.5, 5.0]
+A = 0.3333333333333333
+N = 1.0
+"""
+
+
+@pytest.fixture()
+def small_result(tmp_path):
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL_SWEEP)
+    out = tmp_path / "s.nc"
+    assert cli.main(["run", str(toml), "-o", str(out)]) == 0
+    return toml, out
+
+
+def test_query_output_onto_its_input_is_refused(capsys, small_result, tmp_path):
+    """-o naming the queried file (as given, via ./, or a hard link) exits 2; the file is intact."""
+    _, out = small_result
+    before = out.read_bytes()
+    os.link(out, tmp_path / "link.nc")
+    capsys.readouterr()
+    for target, fmt in [(str(out), "csv"), (os.path.join(str(tmp_path), ".", "s.nc"), "netcdf"),
+                        (str(tmp_path / "link.nc"), "json")]:
+        code = cli.main(["query", str(out), "--sel", "K=0.5", "--format", fmt, "-o", target])
+        err = capsys.readouterr().err
+        assert code == 2 and "input" in err and len(err.splitlines()) == 1
+    assert out.read_bytes() == before
+
+
+def test_run_keeps_a_finished_result_unless_overwrite(capsys, small_result, monkeypatch):
+    """The same sweep again: exit 0, a note, nothing computed, the file untouched; --overwrite
+    computes it again; a result of another sweep is refused (exit 2) and kept."""
+    toml, out = small_result
+    before = out.read_bytes()
+    capsys.readouterr()
+    from cosserat_channel.sweep import engine
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("computed although the result is finished")
+
+    with monkeypatch.context() as m:
+        m.setattr(engine, "Plan", no_work)
+        assert cli.main(["run", str(toml), "-o", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert "already the finished result" in err and "--overwrite" in err
+        other = toml.with_name("other.toml")
+        other.write_text(SMALL_SWEEP.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
+        assert cli.main(["run", str(other), "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "another sweep" in err and "--overwrite" in err and len(err.splitlines()) == 1
+        assert cli.main(["run", str(toml), "-o", str(toml)]) == 2
+        assert "input" in capsys.readouterr().err
+    assert out.read_bytes() == before and toml.read_text() == SMALL_SWEEP
+    assert cli.main(["run", str(toml), "-o", str(out), "--overwrite"]) == 0
+    assert "to compute" in capsys.readouterr().err
+
+
+def test_boundary_reuses_its_own_file_and_keeps_another(capsys, tmp_path, monkeypatch):
+    """boundary -o B.nc: the same arguments reuse B.nc (no tracing), others are refused unless
+    --overwrite."""
+    from cosserat_channel import regimes
+
+    b = tmp_path / "b.nc"
+    def args(n="1", *extra):
+        return ["boundary", "--A", "0.3333333333333333", "--N", n, "--coarse", "8", "-o", str(b),
+                *extra]
+
+    assert cli.main(args()) == 0
+    first = capsys.readouterr().out
+    with monkeypatch.context() as m:
+        m.setattr(regimes, "trace_boundary", lambda *a, **k: pytest.fail("traced again"))
+        assert cli.main(args()) == 0
+        out, err = capsys.readouterr()
+        assert out == first and "reused" in err
+        assert cli.main(args("2")) == 2
+        assert "--overwrite" in capsys.readouterr().err
+    assert cli.main(args("2", "--overwrite")) == 0
+
+
+def test_plot_at_matches_exactly_and_names_what_to_fix(capsys, small_result, tmp_path):
+    """A varying dimension not fixed: exit 2 with a ready --at example; an off-grid --at names the
+    nearest values; --nearest takes them and says so; the example as given works."""
+    _, out = small_result
+    png = str(tmp_path / "d.png")
+    base = ["plot", str(out), "--x", "eps", "--y", "Delta", "-o", png]
+    capsys.readouterr()
+    assert cli.main(base) == 2
+    err = capsys.readouterr().err
+    assert "K vary" in err and "--at K=0.5 " in err and "K: 0.5, 5" in err
+    assert cli.main(base + ["--at", "K=0.4"]) == 2
+    assert "nearest grid value: 0.5;" in capsys.readouterr().err
+    assert not os.path.exists(png)
+    assert cli.main(base + ["--at", "K=0.4", "--nearest"]) == 0
+    assert "took the nearest, K=0.5" in capsys.readouterr().err
+    os.unlink(png)
+    assert cli.main(base + ["--at", "K=0.5"]) == 0
+    assert capsys.readouterr().err == "" and os.path.exists(png)
+
+
+def test_bench_exit_code_says_whether_the_targets_were_met(capsys, tmp_path, monkeypatch):
+    """A full report with a missed required target exits 1 (FAIL printed, report written); an
+    informative miss or a --quick run exits 0, --quick marking its lines as no verdict."""
+    from types import SimpleNamespace
+
+    from cosserat_channel import workprecision
+    from cosserat_channel.workprecision.report import Target
+
+    targets = [Target("speed", False, "2x slower"), Target("max error (informative)", False, ""),
+               Target("median error", True, "")]
+    fake = SimpleNamespace(targets=targets, paths={"md": str(tmp_path / "r.md")})
+    monkeypatch.setattr(workprecision, "run", lambda *a, **k: fake)
+    assert cli.main(["bench", "-o", str(tmp_path / "r")]) == 1
+    out, err = capsys.readouterr()
+    assert "FAIL: speed" in out and "1 required target(s)" in err
+    assert cli.main(["bench", "--quick", "-o", str(tmp_path / "r")]) == 0
+    out, err = capsys.readouterr()
+    assert all(line.startswith("quick set, not a verdict: ") for line in out.splitlines()[:3])
+    fake.targets = targets[1:]
+    assert cli.main(["bench", "-o", str(tmp_path / "r")]) == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# Progress: a live line on a terminal, nothing otherwise
+# ---------------------------------------------------------------------------------------------
+class _Terminal:
+    """A stream that says it is a terminal and records what is written."""
+
+    def __init__(self, tty=True):
+        self.tty, self.text = tty, ""
+
+    def isatty(self):
+        return self.tty
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+
+def test_progress_draws_on_a_terminal_and_clears_its_line():
+    """update() redraws one line in place with the elapsed time; exit clears it; line() prints."""
+    term = _Terminal()
+    with cli.Progress("boundary", "tracing", stream=term) as bar:
+        bar.update("3/8 edges traced")
+        bar.line("a permanent line")
+    assert "\r\x1b[Kcosserat-channel: boundary: 3/8 edges traced (0:00)" in term.text
+    assert "a permanent line\n" in term.text
+    assert term.text.endswith("\r\x1b[K")  # the status line is gone at the end
+
+
+def test_progress_is_silent_when_not_a_terminal_or_before_its_delay():
+    """Redirected stderr: only line() output; within the delay: nothing."""
+    pipe = _Terminal(tty=False)
+    with cli.Progress("bench", "x", stream=pipe) as bar:
+        bar.update("running")
+        bar.line("kept")
+    assert pipe.text == "kept\n"
+    term = _Terminal()
+    with cli.Progress("point", "solving", delay=60.0, stream=term) as bar:
+        bar.update("still solving")
+    assert term.text == ""
+
+
+def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
+    """boundary passes its edges to the progress line; with stderr not a terminal the command
+    prints nothing on stderr."""
+    seen = []
+    real = cli.Progress.update
+    monkeypatch.setattr(cli.Progress, "update", lambda self, text: (seen.append(text),
+                                                                     real(self, text)))
+    code = cli.main(["boundary", "--A", "0,0.5", "--N", "1", "--coarse", "8",
+                     "-o", str(tmp_path / "b.nc")])
+    assert code == 0
+    assert capsys.readouterr().err == ""
+    assert seen == ["1/2 edges traced", "2/2 edges traced"]

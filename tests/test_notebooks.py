@@ -1,25 +1,23 @@
-"""The notebooks run clean in small mode and are committed without outputs.
+"""The notebooks run clean through a real Jupyter kernel in small mode, every figure appears as an
+image, and they are committed without outputs.
 
-No Jupyter dependency: the code cells of each notebook are concatenated and run with this Python
-in a subprocess, with COSSERAT_NOTEBOOK_SMALL=1 (the notebooks shrink their grids) and the Agg
-backend. The notebooks use no magics, so this is what a kernel would run.
+Each notebook is executed by nbclient in an ipykernel (what Jupyter does when a user runs all
+cells), with COSSERAT_NOTEBOOK_SMALL=1 in the kernel's environment (the notebooks shrink their
+grids). A figure cell is a code cell that calls ``display(...)``: it must produce one
+``image/png`` output per call, not the ``<Figure size ...>`` text a figure gives when nothing
+renders it.
 """
 
 import json
 import os
 import pathlib
-import subprocess
-import sys
 
+import nbclient  # the `test` extra installs nbclient, nbformat and ipykernel
+import nbformat
 import pytest
 
 NOTEBOOKS = pathlib.Path(__file__).resolve().parent.parent / "notebooks"
 NAMES = ["01_quickstart", "02_paper_figures", "03_solvability_regions", "04_work_precision"]
-
-
-def _code(name):
-    nb = json.loads((NOTEBOOKS / f"{name}.ipynb").read_text())
-    return nb, "\n\n".join("".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code")
 
 
 def _bench_available():
@@ -31,20 +29,45 @@ def _bench_available():
 @pytest.mark.parametrize("name", NAMES)
 def test_notebook_committed_without_outputs(name):
     """Every code cell has no outputs and no execution count."""
-    nb, _ = _code(name)
+    nb = json.loads((NOTEBOOKS / f"{name}.ipynb").read_text())
     for cell in nb["cells"]:
         if cell["cell_type"] == "code":
             assert cell["outputs"] == [] and cell["execution_count"] is None
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_notebook_runs_clean(name, tmp_path):
-    """The notebook's code runs to the end in small mode with exit code 0 and no traceback."""
+def test_notebook_runs_in_a_kernel_and_shows_every_figure(name, tmp_path, monkeypatch):
+    """All cells run without error in a kernel; each display(...) of a figure is a PNG image."""
     if name == "04_work_precision" and not _bench_available():
         pytest.skip("04 needs the 'cosserat-channel bench' subcommand, not registered yet")
-    _, code = _code(name)
-    env = dict(os.environ, COSSERAT_NOTEBOOK_SMALL="1", MPLBACKEND="Agg")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
-                          cwd=tmp_path, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-4000:]
-    assert "Traceback" not in proc.stderr
+    nb = nbformat.read(NOTEBOOKS / f"{name}.ipynb", as_version=4)
+    # The kernel inherits this process's environment: small mode, and no MPLBACKEND that a
+    # developer's shell or CI may set (it must not matter: the figures never use pyplot).
+    monkeypatch.setenv("COSSERAT_NOTEBOOK_SMALL", "1")
+    monkeypatch.delenv("MPLBACKEND", raising=False)
+    client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
+                                     resources={"metadata": {"path": str(tmp_path)}})
+    client.execute()  # raises CellExecutionError, with the traceback, if a cell fails
+
+    figure_cells = 0
+    for cell in nb.cells:
+        if cell.cell_type != "code":
+            continue
+        errors = [o for o in cell.outputs if o.output_type == "error"]
+        assert not errors, errors
+        calls = cell.source.count("display(")
+        if not calls:
+            continue
+        figure_cells += 1
+        images = [o for o in cell.outputs
+                  if o.output_type in ("display_data", "execute_result") and "image/png" in o.data]
+        texts = [o.data.get("text/plain", "") for o in cell.outputs
+                 if o.output_type == "display_data" and "image/png" not in o.data]
+        assert len(images) == calls, (
+            f"cell shows {len(images)} image(s) for {calls} display call(s): {cell.source[:200]!r}"
+            f"; text outputs instead: {texts}"
+        )
+        for o in images:
+            assert o.data["image/png"]  # base64 of a real PNG (starts with the PNG signature)
+            assert o.data["image/png"].startswith("iVBORw0KGgo")
+    assert figure_cells > 0

@@ -83,7 +83,7 @@ def test_phase_plane_figure_artists():
     assert any("E_{-} = 0" in t for t in texts)
     for tr in pp.trajectories:
         assert tr.label in texts
-    assert sum(1 for t in texts if t.startswith(r"$E_{+}$ (A1)")) == 2
+    assert sum(1 for t in texts if t.startswith(r"$E_{+}$ from")) == 2
     assert len(ax.get_lines()) >= 2 + 2 + 4
     assert r"\bar m" in ax.get_ylabel() and r"\xi" in ax.get_xlabel()
     assert "0.603" in ax.get_title() and "$A$ = 0.333333" in ax.get_title()
@@ -110,9 +110,9 @@ def test_line_plot_hue_and_asymptote(fig7_ds):
     fig = pl.line_plot(fig7_ds, "W_over_d_p", "Delta", hue="L")
     ax = fig.axes[0]
     texts = _legend_texts(fig)
-    assert "$L$ = 2" in texts and "$L$ = 10" in texts and pl.ASYMPTOTIC_LABEL in texts
+    assert "$L$ = 2" in texts and "$L$ = 10" in texts and pl.ASYMPTOTIC_EACH_LABEL in texts
     solid = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]
-    circles = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+    circles = [ln for ln in ax.get_lines() if ln.get_marker() == "o" and len(ln.get_xdata())]
     assert len(solid) == 2 and len(circles) == 2
     line10 = solid[1].get_ydata()
     np.testing.assert_allclose(line10, fig7_ds["Delta"].sel(L=10).squeeze().values)
@@ -140,7 +140,7 @@ def test_profiles_figure_with_composite():
     assert len([ln for ln in ax_u.get_lines() if ln.get_linestyle() == "-"]) == 3
     assert len([ln for ln in ax_m.get_lines() if ln.get_marker() == "o"]) == 3
     texts = _legend_texts(fig)
-    assert {"$L$ = 2", "$L$ = 10", "$L$ = 20", pl.ASYMPTOTIC_LABEL} <= set(texts)
+    assert {"$L$ = 2", "$L$ = 10", "$L$ = 20", pl.ASYMPTOTIC_EACH_LABEL} <= set(texts)
     assert any("sigma_{xy}" in t for t in texts)
     assert "u/u(0)" in ax_u.get_ylabel() and r"\bar m" in ax_m.get_ylabel()
     assert "L" not in fig._suptitle.get_text().split(":")[1].replace("Lambda", "")
@@ -157,7 +157,7 @@ def test_line_plot_profiles_from_sweep():
     fig = pl.line_plot(ds, "xi", "m", hue="eps")
     ax = fig.axes[0]
     assert len([ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]) == 2
-    assert pl.ASYMPTOTIC_LABEL in _legend_texts(fig)
+    assert pl.ASYMPTOTIC_EACH_LABEL in _legend_texts(fig)
 
 
 # --------------------------------------------------------------------------------------------

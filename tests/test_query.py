@@ -120,15 +120,49 @@ def test_open_results_rejects(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # Selection
 # ---------------------------------------------------------------------------------------------
-def test_sel_nearest_reports_selected_value(capsys, results):
-    """--sel picks the nearest coordinate value and reports it, not the value typed."""
-    code, out, err = run(capsys, "query", results, "--sel", "L=7", "--sel", "eps=0.009",
-                         "--format", "csv")
+def test_sel_off_grid_is_a_one_line_error_naming_the_nearest_values(capsys, results):
+    """--sel L=7 (between 1 and 10) is refused, naming 1 and 10 and --nearest; nothing on stdout."""
+    code, out, err = run(capsys, "query", results, "--sel", "L=7", "--format", "csv")
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and err.startswith("cosserat-channel: error: --sel L=7")
+    assert "nearest grid values: 1, 10" in err and "--nearest" in err
+    code, _, err = run(capsys, "query", results, "--sel", "L=100")
+    assert code == 2 and "nearest grid value: 10;" in err
+
+
+def test_sel_matches_within_round_off(capsys, results):
+    """A value typed from a printed coordinate (10 significant digits) selects it, silently."""
+    code, out, err = run(capsys, "query", results, "--sel", "A=0.3333333333", "--sel",
+                         "eps=0.01", "--sel", "K=0", "--format", "csv")
     assert code == 0 and err == ""
     rows = csv_rows(out)
-    assert len(rows) == 3 * 1 * 2  # K x A x N
+    assert len(rows) == 2 * 2  # L x N
+    assert {r["eps"] for r in rows} == {"0.01"} and {r["K"] for r in rows} == {"0.0"}
+
+
+def test_match_coordinate_zero_on_a_linspace_through_zero():
+    """A = 0 matches the ~1e-16 a linspace gives there; A = 0.01 between grid values does not."""
+    grid = np.linspace(-3, 5, 161)
+    i, exact = query.match_coordinate(grid, 0.0, "A")
+    assert exact and abs(grid[i]) < 1e-12
+    with pytest.raises(query.QueryError, match="nearest grid values: 0, 0.05"):
+        query.match_coordinate(grid, 0.01, "A")
+    assert query.match_coordinate(grid, 0.01, "A", nearest=True) == (i, False)
+
+
+def test_sel_nearest_opts_in_and_says_what_it_took(capsys, results):
+    """With --nearest, --sel takes the nearest value and stderr names the value taken."""
+    code, out, err = run(capsys, "query", results, "--nearest", "--sel", "L=7", "--sel",
+                         "eps=0.009", "--sel", "K=0.5", "--format", "csv")
+    assert code == 0
+    rows = csv_rows(out)
+    assert len(rows) == 1 * 2  # A x N
     assert {r["L"] for r in rows} == {"10.0"}
     assert {r["eps"] for r in rows} == {"0.01"}
+    notes = err.splitlines()
+    assert len(notes) == 2  # K=0.5 is on the grid: no note
+    assert "--sel L=7 is not a grid value; took the nearest, L=10" in notes[0]
+    assert "--sel eps=0.009" in notes[1] and "eps=0.01" in notes[1]
 
 
 def test_range_inclusive_and_open(capsys, results):

@@ -80,7 +80,7 @@ def test_kill_9_then_rerun_resumes_to_identical_result(tmp_path):
     out.write_bytes(b"sentinel: an earlier result")
     store = Path(partial_dir(out))
     cmd = [sys.executable, "-m", "cosserat_channel.cli", "run", str(toml), "-o", str(out),
-           "--workers", "1", "--block-size", "40"]
+           "--workers", "1", "--block-size", "40", "--overwrite"]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 120
     while proc.poll() is None and time.monotonic() < deadline:
@@ -163,7 +163,7 @@ def test_success_replaces_result_and_removes_store(tmp_path, capsys):
     toml.write_text(SMALL)
     out = tmp_path / "out.nc"
     out.write_bytes(b"old")
-    assert cli.main(["run", str(toml), "-o", str(out), "--workers", "2"]) == 0
+    assert cli.main(["run", str(toml), "-o", str(out), "--workers", "2", "--overwrite"]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.nc", "s.toml"]
     assert_identical(out, run_sweep(str(toml)))
     assert oct(out.stat().st_mode & 0o777) != oct(0o600)

@@ -26,6 +26,17 @@ from typing import Callable
 from .parameters import DIMS, MATERIAL, MATERIAL_REQUIRED, PARAMETERS, TOLERANCES, ParameterError
 
 PROG = "cosserat-channel"
+DESCRIPTION = ("Solve the frictional Cosserat model of dense granular flow in a vertical channel "
+               "(Mohan, Nott & Rao)\nfor one point or a sweep over (eps, L, K, A, N), and query "
+               "and plot the results.")
+EPILOG = f"""examples:
+  {PROG} point --eps 0.0333333333 --L 10 --K 0.5 --A 0.333333333 --N 1
+  {PROG} run sweeps/quickstart.toml -o demo/quickstart.nc
+  {PROG} info demo/quickstart.nc
+  {PROG} query demo/quickstart.nc --sel L=10 --where "status == ok" --vars Delta,slip
+  {PROG} plot demo/quickstart.nc --x eps --y Delta --hue L --at K=0.5,A=0.3333333333,N=1 -o demo/delta.png
+
+'{PROG} COMMAND --help' describes a command; README.md has the rest."""
 EXIT_OK = 0
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
@@ -96,7 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
     # allow_abbrev=False: an abbreviation that works today breaks when a later option shares it.
-    parser = _Parser(prog=PROG, description=__doc__.splitlines()[0], allow_abbrev=False)
+    parser = _Parser(prog=PROG, description=DESCRIPTION, epilog=EPILOG, allow_abbrev=False,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for cmd in COMMANDS.values():
@@ -124,6 +136,90 @@ def _error(message: str) -> None:
 
 def _note(message: str) -> None:
     print(f"{PROG}: note: {' '.join(message.split())}", file=sys.stderr)
+
+
+class Progress:
+    """A live status line on stderr while a command works, only when stderr is a terminal.
+
+    ``with Progress("boundary") as p: ... p.update("3/8 edges")`` redraws
+    ``cosserat-channel: boundary: 3/8 edges (0:12)`` in place, with the elapsed time ticking
+    every half second; the line is cleared at the end. Nothing is drawn before ``delay``
+    seconds, so a command that finishes quickly shows nothing; with stderr redirected (a file,
+    a pipe, a test) nothing is drawn at all. :meth:`line` prints a permanent line above it.
+    """
+
+    def __init__(self, what: str, text: str = "", delay: float = 0.0, stream=None):
+        import threading
+
+        self.stream = stream or sys.stderr
+        self.enabled = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.what, self.text, self.delay = what, text, delay
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._tick, daemon=True)
+        self._drawn = False
+
+    def __enter__(self):
+        import time
+
+        self._t0 = time.monotonic()
+        if self.enabled:
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+        self._clear()
+        return False
+
+    def update(self, text: str) -> None:
+        self.text = text
+        self._draw()
+
+    def line(self, message: str) -> None:
+        """Print ``message`` as a line of its own (always, terminal or not)."""
+        with self._lock:
+            self._clear_locked()
+            print(message, file=self.stream, flush=True)
+        self._draw()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(0.5):
+            self._draw()
+
+    def _draw(self) -> None:
+        import shutil
+        import time
+
+        if not self.enabled or self._stop.is_set():
+            return
+        elapsed = time.monotonic() - self._t0
+        if elapsed < self.delay:
+            return
+        minutes, seconds = divmod(int(elapsed), 60)
+        text = f"{PROG}: {self.what}: {self.text} ({minutes}:{seconds:02d})"
+        width = max(20, shutil.get_terminal_size().columns - 1)
+        with self._lock:
+            self.stream.write("\r\033[K" + text[:width])
+            self.stream.flush()
+            self._drawn = True
+
+    def _clear(self) -> None:
+        with self._lock:
+            self._clear_locked()
+
+    def _clear_locked(self) -> None:
+        if self._drawn:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+            self._drawn = False
+
+
+# The first use of the solver compiles it (about a minute; later runs load it from the cache).
+_FIRST_RUN = "(the first run of a new version compiles the solver: about a minute)"
+_SOLVING = "solving " + _FIRST_RUN
 
 
 # ---------------------------------------------------------------------------------------------
@@ -182,6 +278,23 @@ def check_output_path(path: str, option: str) -> None:
         raise CliError(f"{option}: {problem}")
 
 
+def check_not_input(path: str, inputs, option: str) -> None:
+    """Raise CliError if ``path`` is one of the command's input files (same file, any spelling).
+
+    A command never writes over what it reads: ``query X.nc --format csv -o X.nc`` would replace
+    the result by its own CSV.
+    """
+    for src in inputs:
+        if src is None:
+            continue
+        same = os.path.realpath(path) == os.path.realpath(src)
+        if not same and os.path.exists(path) and os.path.exists(src):
+            same = os.path.samefile(path, src)
+        if same:
+            raise CliError(f"{option}: {path!r} is this command's input {src!r}; writing it would "
+                           "destroy the input: give another file name")
+
+
 # ---------------------------------------------------------------------------------------------
 # point
 # ---------------------------------------------------------------------------------------------
@@ -213,10 +326,11 @@ def _point(args: argparse.Namespace) -> int:
 
     profile = np.linspace(0.0, 1.0, 401) if args.plot is not None else None
     try:
-        result = solve.solve_point(
-            args.eps, args.L, args.K, args.A, args.N,
-            material=material, profile=profile, **tolerances,
-        )
+        with Progress("point", _SOLVING, delay=2.0):
+            result = solve.solve_point(
+                args.eps, args.L, args.K, args.A, args.N,
+                material=material, profile=profile, **tolerances,
+            )
     except ParameterError as exc:
         raise CliError(str(exc)) from None
 
@@ -280,7 +394,10 @@ def _query_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
     s = p.add_argument_group("selection (all clauses are ANDed)")
     s.add_argument("--sel", action="append", default=[], metavar="NAME=VALUE",
-                   help="nearest value of a coordinate, e.g. L=10 (repeatable)")
+                   help="one value of a coordinate, e.g. L=10 (repeatable); it must be a grid "
+                   "value (10 significant digits suffice; an off-grid value names the nearest)")
+    s.add_argument("--nearest", action="store_true",
+                   help="let --sel take the nearest grid value (and say so on stderr)")
     s.add_argument("--range", action="append", default=[], metavar="NAME=LO:HI",
                    help="inclusive range of a coordinate, LO or HI may be empty, e.g. eps=:0.01")
     s.add_argument("--where", action="append", default=[], metavar="'NAME OP VALUE'",
@@ -300,6 +417,7 @@ def _query(args: argparse.Namespace) -> int:
         raise CliError("--format netcdf writes a file: give -o FILE")
     if args.output is not None:
         check_output_path(args.output, "-o")
+        check_not_input(args.output, [args.results], "-o")
     from . import query
     try:
         ds = query.open_results(args.results)
@@ -313,12 +431,16 @@ def _query(args: argparse.Namespace) -> int:
             variables = query.parse_vars(args.vars, ds)
             clauses = [f"--sel {t}" for t in args.sel] + [f"--range {t}" for t in args.range]
             clauses += [f"--where '{c.text}'" for c in where]
-            selection = query.select(ds, sel, ranges, where, variables, " ".join(clauses))
+            selection = query.select(ds, sel, ranges, where, variables, " ".join(clauses),
+                                     nearest=args.nearest)
         except ParameterError as exc:
             raise CliError(str(exc)) from None
+        for name, asked, taken in selection.snapped:
+            _note(f"--nearest: --sel {name}={asked:.10g} is not a grid value; took the nearest, "
+                  f"{name}={taken:.10g}")
+        if selection.count() == 0:
+            _note("the selection is empty: no point matches")
         try:
-            if selection.count() == 0:
-                _note("the selection is empty: no point matches")
             if args.format == "netcdf":
                 query.write_netcdf(selection, args.output)
             elif args.output is not None:
@@ -394,6 +516,9 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
                    help="one integration per grid point instead of per distinct (eps L, A, N); "
                    "same values, for checks and benchmarks")
     p.add_argument("--block-size", type=int, metavar="B", help="integrations per block")
+    p.add_argument("--overwrite", action="store_true",
+                   help="compute again and replace OUT.nc if it is already a finished result "
+                   "(without it a finished OUT.nc is kept)")
 
 
 @register("run", "solve every point of a sweep file and write a NetCDF result", _run_arguments)
@@ -415,6 +540,16 @@ def _run(args: argparse.Namespace) -> int:
     output = args.output if args.output is not None else spec.output_path
     if output is None:
         output = os.path.splitext(os.path.basename(args.sweep))[0] + ".nc"
+    check_not_input(output, [args.sweep], "-o")
+    if not args.overwrite and _finished_result_kept(output, spec):
+        return EXIT_OK
+    if args.scheduler is None:
+        from .sweep.engine import warm_up
+
+        # Here, not inside the run: on a terminal the minute a new version spends compiling
+        # shows as such, before the run's own progress bar starts.
+        with Progress("run", "loading the solver " + _FIRST_RUN, delay=2.0):
+            warm_up()
     logger = logging.getLogger("cosserat_channel.sweep")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
@@ -444,6 +579,30 @@ def _run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _finished_result_kept(output: str, spec) -> bool:
+    """True (and a note) if ``output`` is already this sweep's result; CliError if it is another
+    file. An unfinished run (``OUT.nc.partial/`` beside it) is resumed, not refused."""
+    from .sweep.store import partial_dir
+
+    if not os.path.exists(output) or os.path.isdir(partial_dir(output)):
+        return False
+    sha = None
+    try:
+        import netCDF4
+
+        with netCDF4.Dataset(output) as nc:
+            sha = getattr(nc, "sweep_sha256", None)
+    except (OSError, ValueError, RuntimeError):
+        pass
+    if sha == spec.sha256:
+        _note(f"{output} is already the finished result of this sweep; kept (add --overwrite "
+              "to compute it again)")
+        return True
+    what = "the result of another sweep" if sha else "not a result of 'run'"
+    raise CliError(f"{output} exists ({what}); kept: add --overwrite to replace it, or choose "
+                   "another -o")
+
+
 # ---------------------------------------------------------------------------------------------
 # stability (issue 4)
 # ---------------------------------------------------------------------------------------------
@@ -468,13 +627,15 @@ def _stability(args: argparse.Namespace) -> int:
     if problem:
         raise CliError(f"-o/--output-dir: {problem}")
 
-    def progress(i, n, row):
-        _note(f"stability: {i}/{n} {row['case']} eta = {row['eta']:.3g}: {row['status']}, "
-              f"{row['path']} path")
-
     repeats = 1 if args.quick else args.repeats
     try:
-        rep = write_report(args.output_dir, quick=args.quick, repeats=repeats, progress=progress)
+        with Progress("stability", "finding the edges of the series") as bar:
+            def progress(i, n, row):
+                bar.update(f"{i}/{n} points; last: {row['case']} eta = {row['eta']:.3g}: "
+                           f"{row['status']}, {row['path']} path")
+
+            rep = write_report(args.output_dir, quick=args.quick, repeats=repeats,
+                               progress=progress)
     except OSError as exc:
         raise CliError(f"cannot write the report into {args.output_dir!r}: {exc}",
                        EXIT_FAILURE) from None
@@ -518,7 +679,8 @@ def _phase_plane(args: argparse.Namespace) -> int:
     from . import regimes
     from .plot import regimes as plot_regimes
     try:
-        pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
+        with Progress("phase-plane", _SOLVING, delay=2.0):
+            pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     for tr in pp.trajectories:
@@ -579,6 +741,9 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
                    help="log-spaced samples before bisection (default 48)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
     p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
+    p.add_argument("--overwrite", action="store_true",
+                   help="trace again and replace OUT.nc if it exists (without it an OUT.nc "
+                   "traced with the same arguments is reused, any other is kept)")
 
 
 @register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
@@ -607,10 +772,16 @@ def _boundary(args: argparse.Namespace) -> int:
     check_output_path(args.output, "-o")
     if args.plot is not None:
         _figure_output(args.plot, "--plot")
+        check_not_input(args.plot, [args.output], "--plot")
     from . import regimes
     from .status import Status
 
-    ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse)
+    ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
+    traced = ds is None
+    if traced:
+        with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+            ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
+                                        progress=lambda k, n: bar.update(f"{k}/{n} edges traced"))
     print(f"{'A':>12} {'N':>10} {'eta_max':>18} {'kind':<20} {'status above'}")
     for i, a in enumerate(ds["A"].values):
         for j, n in enumerate(ds["N"].values):
@@ -623,9 +794,10 @@ def _boundary(args: argparse.Namespace) -> int:
 
     try:
         # Checksums, as on sweep results: a damaged file fails to read instead of changing.
-        enc = {v: {"fletcher32": True} for v in ds.variables
-               if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
-        netcdf_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
+        if traced:
+            enc = {v: {"fletcher32": True} for v in ds.variables
+                   if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
+            netcdf_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
         if args.plot is not None:
             from .plot import regimes as plot_regimes
 
@@ -638,6 +810,33 @@ def _boundary(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _same_boundary(path, A, N, lo, hi, coarse):
+    """The Dataset in ``path`` if it was traced with these arguments (note: reused), None if there
+    is no file; CliError if it is another file (kept unless --overwrite)."""
+    if not os.path.exists(path):
+        return None
+    import numpy as np
+    import xarray as xr
+
+    try:
+        ds = xr.load_dataset(path)
+    except (OSError, ValueError, RuntimeError):
+        ds = None
+    if ds is not None and "eta_max" in ds:
+        a = ds.attrs
+        if (ds["A"].size == len(A) and ds["N"].size == len(N)
+                and np.array_equal(ds["A"].values, A) and np.array_equal(ds["N"].values, N)
+                and (a.get("eta_search_min"), a.get("eta_search_max"), a.get("n_coarse"))
+                == (lo, hi, coarse)):
+            _note(f"{path} was traced with these arguments; reused (add --overwrite to trace "
+                  "again)")
+            return ds
+    what = "traced with other arguments" if ds is not None and "eta_max" in ds else \
+        "not a 'boundary' result"
+    raise CliError(f"{path} exists ({what}); kept: add --overwrite to replace it, or choose "
+                   "another -o")
+
+
 def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
     p.add_argument("--regime", action="store_true",
@@ -648,7 +847,10 @@ def _plot_arguments(p: argparse.ArgumentParser) -> None:
                    "dimension")
     p.add_argument("--hue", help="one line per value of this dimension")
     p.add_argument("--at", metavar="NAME=VALUE[,NAME=VALUE]",
-                   help="nearest values of the other dimensions that vary, e.g. eps=0.0333,L=10")
+                   help="grid values of the other dimensions that vary, e.g. K=0.5,N=1 "
+                   "(an off-grid value names the nearest)")
+    p.add_argument("--nearest", action="store_true",
+                   help="let --at take the nearest grid values (and say so on stderr)")
     p.add_argument("--boundary", metavar="BOUNDARY.nc",
                    help="with --regime: traced edge from 'boundary' (default: traced here on a "
                    "coarse grid)")
@@ -673,6 +875,39 @@ def parse_at(text: str | None) -> dict:
     return out
 
 
+def _resolve_at(ds, args, at: dict) -> dict:
+    """``--at`` values replaced by the grid values they match (exactly, or with --nearest the
+    nearest, noted on stderr); CliError naming the dimensions still to fix, with an example."""
+    from .parameters import DIMS as dims
+    from .query import QueryError, match_coordinate
+
+    out = {}
+    for name, value in at.items():
+        if name not in ds.dims or name not in ds.coords:
+            raise CliError(f"--at {name}: not a dimension of the result (have "
+                           f"{', '.join(d for d in ds.dims if d in ds.coords)})")
+        c = ds[name].values
+        try:
+            i, exact = match_coordinate(c, value, name, "--at", nearest=args.nearest)
+        except QueryError as exc:
+            raise CliError(str(exc)) from None
+        if not exact:
+            _note(f"--nearest: --at {name}={value:.10g} is not a grid value; took the nearest, "
+                  f"{name}={float(c[i]):.10g}")
+        out[name] = float(c[i])
+    keep = {args.x, args.y} if args.regime else {args.x, args.hue, "eps" if args.x ==
+                                                  "W_over_d_p" else args.x}
+    loose = [d for d in dims if d in ds.dims and ds.sizes[d] > 1 and d not in keep
+             and d not in out]
+    if loose:
+        example = ",".join(f"{d}={float(ds[d].values[0])!r}" for d in loose)
+        values = "; ".join(f"{d}: " + ", ".join(f"{v:.10g}" for v in ds[d].values[:6])
+                           + (", …" if ds.sizes[d] > 6 else "") for d in loose)
+        raise CliError(f"{', '.join(loose)} vary in {args.results}: fix them with --at, e.g. "
+                       f"--at {example} (values {values})")
+    return out
+
+
 @register("plot", "plot a result file: regime map, Delta against a parameter, or profiles",
           _plot_arguments)
 def _plot(args: argparse.Namespace) -> int:
@@ -682,6 +917,7 @@ def _plot(args: argparse.Namespace) -> int:
     if args.regime and args.hue is not None:
         raise CliError("--hue does not go with --regime")
     _figure_output(args.output)
+    check_not_input(args.output, [args.results, args.boundary], "-o")
     from . import query
     from .plot import lines as plot_lines
     from .plot import regimes as plot_regimes
@@ -690,6 +926,7 @@ def _plot(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
+        at = _resolve_at(ds, args, at)
         try:
             ds = ds.load()
         except (OSError, RuntimeError) as exc:
@@ -705,20 +942,24 @@ def _plot(args: argparse.Namespace) -> int:
             if "eta_max" not in boundary:
                 raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")
         try:
-            if args.regime:
-                if boundary is None:
-                    # The figure only draws data: the traced edge is computed here, on the
-                    # coarse (A, N) grid the map asks for.
-                    grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at)
-                    if grid is not None:
-                        from . import regimes
+            with Progress("plot", "drawing " + _FIRST_RUN * args.regime, delay=1.0) as bar:
+                if args.regime:
+                    if boundary is None:
+                        # The figure only draws data: the traced edge is computed here, on the
+                        # coarse (A, N) grid the map asks for.
+                        grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at)
+                        if grid is not None:
+                            from . import regimes
 
-                        boundary = regimes.trace_boundary(*grid)
-                plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
-                                        path=args.output)
-            else:
-                plot_lines.line_plot(ds, args.x, args.y, args.hue, at, asymptote=args.asymptote,
-                                     path=args.output)
+                            def traced(k, n):
+                                bar.update(f"tracing the edge eta_max: {k}/{n} (A, N) pairs")
+
+                            boundary = regimes.trace_boundary(*grid, progress=traced)
+                    plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
+                                            path=args.output)
+                else:
+                    plot_lines.line_plot(ds, args.x, args.y, args.hue, at,
+                                         asymptote=args.asymptote, path=args.output)
         except (ValueError, KeyError) as exc:
             raise CliError(str(exc).strip("'\"")) from None
         except OSError as exc:
@@ -738,7 +979,8 @@ _BENCH_OUTPUT = "bench-report"
 def _bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true",
                    help="a tiny set (12 points, 3 rtols, scipy RK45 and LSODA on 3 points), "
-                   "well under two minutes; for checks, not for numbers")
+                   "well under two minutes; for checks, not for numbers: its PASS/FAIL lines are "
+                   "no verdict and the exit code is 0 (a full run exits 1 if a target is missed)")
     p.add_argument("-o", "--output", metavar="DIR",
                    help=f"report directory, created if missing (default: {_BENCH_OUTPUT}); its "
                    "reference_cache.npz is reused by later runs with the same set")
@@ -760,17 +1002,26 @@ def _bench(args: argparse.Namespace) -> int:
     )
     from .measure import workprecision
 
-    def log(message):
-        print(f"{PROG}: bench: {message}", file=sys.stderr, flush=True)
-
     try:
-        rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
-                                command=command, log=log)
+        with Progress("bench", "starting") as bar:
+            def log(message):
+                bar.line(f"{PROG}: bench: {message}")
+                bar.update(f"running; last: {message}")
+
+            rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
+                                    command=command, log=log)
     except OSError as exc:
         raise CliError(f"cannot write the report into {output!r}: {exc}", EXIT_FAILURE) from None
+    # An "(informative)" target is reported, not required.
+    missed = [t for t in rep.targets if t.passed is False and "(informative)" not in t.text]
     for target in rep.targets:
-        print(target.line().replace("**", ""))
+        line = target.line().replace("**", "")
+        print(("quick set, not a verdict: " if args.quick else "") + line)
     print("wrote " + ", ".join(str(p) for p in rep.paths.values()))
+    if missed and not args.quick:
+        _error(f"{len(missed)} required target(s) of the report missed (the FAIL lines above); "
+               "the report is written")
+        return EXIT_FAILURE
     return EXIT_OK
 
 

@@ -154,7 +154,7 @@ def _xi_stop(x: Inputs):
 # Table order is the order of the command line's table, of a sweep's default variables and of the
 # variables in a file.
 OUTPUTS: dict[str, Output] = {o.name: o for o in (
-    Output("Delta", "particle diameters", "shear-layer thickness (1 - xi_p)/eps",
+    Output("Delta", "1", "shear-layer thickness (1 - xi_p)/eps, in particle diameters",
            lambda x: x.one_minus / x.eps, plug_edge=True),
     Output("xi_p", "1", "plug edge, u(xi_p) = 0.95 u(0) (eq:13)",
            lambda x: 1.0 - x.one_minus, plug_edge=True),

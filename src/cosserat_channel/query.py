@@ -1,7 +1,7 @@
 """Safe selection and filtering of result files (the ``query`` and ``info`` commands).
 
 A selection is three kinds of clause, each parsed with a regular expression and ``float()`` only
-(never ``eval``): ``--sel NAME=VALUE`` (nearest coordinate value), ``--range NAME=LO:HI``
+(never ``eval``): ``--sel NAME=VALUE`` (a coordinate value, see below), ``--range NAME=LO:HI``
 (inclusive, either bound may be empty) and ``--where "NAME OP VALUE"`` with ``OP`` one of
 ``== != < <= > >=`` on a variable or a coordinate. A flag variable (``status``) is compared by
 its flag name: ``status == ok``. Several ``--where`` clauses are ANDed. Comparisons follow IEEE:
@@ -9,7 +9,11 @@ a NaN value fails every comparison except ``!=``.
 
 Choices worth knowing:
 
-* ``--sel`` and ``--range`` index by position (nearest value / inclusive mask on the coordinate),
+* ``--sel`` matches a coordinate value exactly, up to round-off (:data:`SEL_RTOL`, so a value
+  typed from a printed coordinate with 10 significant digits matches); a value between grid values
+  is an error that names the nearest ones, unless ``nearest=True`` (``--nearest``) asks for the
+  nearest value, and then :attr:`Selection.snapped` says what was taken.
+* ``--sel`` and ``--range`` index by position (matching value / inclusive mask on the coordinate),
   so they work on coordinates in any order, not only sorted ones. A ``--sel`` keeps its dimension
   with length one: the rows carry the selected value as a column, and a NetCDF subset stays a
   result file of the same five-dimensional layout.
@@ -41,6 +45,9 @@ from .files import atomic_output, netcdf_output
 from .parameters import DIMS, ParameterError
 
 RANGE_SLACK = 1e-9
+# --sel: |grid - value| <= SEL_RTOL * max(|grid|, |value|), or <= SEL_RTOL * 1e-3 * max|coordinate|
+# for values at or next to 0 (a linspace through 0 gives ~1e-16 there instead of 0).
+SEL_RTOL = 1e-9
 ROW_BLOCK = 1_000_000
 TABLE_ROWS = 200
 SWEEP_TEXT_LINES = 12
@@ -238,6 +245,35 @@ def parse_vars(text: str | None, ds: xr.Dataset) -> tuple[str, ...] | None:
 # ---------------------------------------------------------------------------------------------
 # Selecting
 # ---------------------------------------------------------------------------------------------
+def match_coordinate(values, value: float, name: str, option: str = "--sel",
+                     nearest: bool = False) -> tuple[int, bool]:
+    """``(index, exact)`` of ``value`` in the coordinate ``values``.
+
+    ``exact``: the value equals the grid value within round-off (:data:`SEL_RTOL`). Without
+    ``nearest`` a value between grid values raises :class:`QueryError` naming the nearest grid
+    values below and above it; with ``nearest`` the index is that of the nearest value.
+    """
+    c = np.asarray(values, dtype=float).reshape(-1)
+    if c.size == 0:
+        raise QueryError(f"{option} {name}: the coordinate {name} is empty")
+    dist = np.abs(c - value)
+    i = int(np.argmin(dist))
+    scale = float(np.max(np.abs(c)))
+    tol = SEL_RTOL * max(abs(float(c[i])), abs(value), 1e-3 * scale)
+    if dist[i] <= tol or nearest:
+        return i, bool(dist[i] <= tol)
+    below = c[c < value]
+    above = c[c > value]
+    near = [f"{v:.10g}" for v in ((below.max(),) if below.size else ())
+            + ((above.min(),) if above.size else ())]
+    where = "nearest grid values" if len(near) == 2 else "nearest grid value"
+    raise QueryError(
+        f"{option} {name}={value:.10g}: not a value of {name} ({c.size} values from "
+        f"{c.min():.10g} to {c.max():.10g}); {where}: {', '.join(near)}; give "
+        f"{'one of them' if len(near) == 2 else 'it'}, or add --nearest to take the nearest"
+    )
+
+
 @dataclass
 class Selection:
     """The selected part of a result file, still lazy.
@@ -252,6 +288,7 @@ class Selection:
     conditions: tuple[Condition, ...]
     row_dims: tuple[str, ...]
     description: str = ""
+    snapped: tuple = ()  # (name, value asked, value taken) of each --sel moved by nearest=True
     _mask: np.ndarray | None = field(default=None, repr=False)
 
     def mask(self) -> np.ndarray | None:
@@ -280,14 +317,22 @@ class Selection:
 
 
 def select(ds: xr.Dataset, sel=(), ranges=(), where=(), variables=None,
-           description: str = "") -> Selection:
-    """Apply parsed clauses (see :func:`parse_sel`, :func:`parse_range`, :func:`parse_where`)."""
+           description: str = "", nearest: bool = False) -> Selection:
+    """Apply parsed clauses (see :func:`parse_sel`, :func:`parse_range`, :func:`parse_where`).
+
+    A ``--sel`` value must be a grid value (within round-off) unless ``nearest``; see
+    :func:`match_coordinate`.
+    """
     index: dict[str, np.ndarray] = {}
+    snapped = []
     for name, value in sel:
         if name in index:
             raise QueryError(f"--sel {name}: {name} is selected twice")
         c = np.asarray(ds[name].values, dtype=float)
-        index[name] = np.array([int(np.argmin(np.abs(c - value)))])
+        i, exact = match_coordinate(c, value, name, nearest=nearest)
+        if not exact:
+            snapped.append((name, value, float(c[i])))
+        index[name] = np.array([i])
     for name, lo, hi in ranges:
         if name in index:
             raise QueryError(f"--range {name}: {name} is already selected by another --sel/--range")
@@ -309,7 +354,7 @@ def select(ds: xr.Dataset, sel=(), ranges=(), where=(), variables=None,
     for name in (*columns, *(c.name for c in conditions)):
         used.update(ds[name].dims)
     row_dims = tuple(d for d in ds.dims if d in used)
-    return Selection(sub, columns, conditions, row_dims, description)
+    return Selection(sub, columns, conditions, row_dims, description, tuple(snapped))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -145,13 +145,13 @@ class Trajectory:
 
     @property
     def label(self) -> str:
-        eq = "(A1)" if self.root == "+" else "(A2)"
+        """Legend text: root (E+ is eq:a1, E- is eq:a2, as the figure's title says), start, end."""
         sign = "-" if self.start < 0 else "+"
         end = {"wall": "reaches the wall", "D=0": f"meets $D=0$ at $\\xi$ = {self.xi[-1]:.3g}",
                "no_start": "cannot leave the axis", "failed": "integration failed"}[self.end]
         if self.end == "wall" and not self.spin_bounded:
             end += r", but $\hat\omega\to\infty$ at the axis"
-        return rf"$E_{{{self.root}}}$ {eq} from $\bar m(0) = {sign}NL$: {end}"
+        return rf"$E_{{{self.root}}}$ from $\bar m(0) = {sign}NL$: {end}"
 
 
 @dataclass
@@ -451,12 +451,13 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
 
 
 def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA_COARSE,
-                   xtol=ETA_XTOL, rtol=EDGE_RTOL, atol=EDGE_ATOL):
+                   xtol=ETA_XTOL, rtol=EDGE_RTOL, atol=EDGE_ATOL, progress=None):
     """:func:`trace_edge` on the grid ``A x N``; returns an :class:`xarray.Dataset` on ``(A, N)``.
 
     Variables: ``eta_max``, ``eta_min``, ``edge_kind`` (int8 flag: bounded, unbounded_in_range,
-    no_solution), ``status_above`` (int8 status code just above a bounded edge, -1 otherwise),
-    ``n_transitions`` and the analytic ``axis_edge_eta``.
+    no_solution), ``status_above`` (int8 status code just above a bounded edge, -1 = flag ``no_edge`` otherwise),
+    ``n_transitions`` and the analytic ``axis_edge_eta``. ``progress(k, n)``, if given, is called
+    after each of the ``n`` edges.
     """
     import xarray as xr
 
@@ -479,6 +480,8 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
                            atol=atol, workspace=ws)
             eta_max[i, j], eta_min[i, j], kind[i, j] = e.eta_max, e.eta_min, e.kind
             above[i, j], n_tr[i, j] = e.status_above, e.transitions.size
+            if progress is not None:
+                progress(i * N.size + j + 1, A.size * N.size)
     flags = st.cf_flag_attrs()
     ds = xr.Dataset(
         {
@@ -491,12 +494,14 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
                 "flag_values": np.arange(len(EDGE_KINDS), dtype=np.int8),
                 "flag_meanings": " ".join(EDGE_KINDS)}),
             "status_above": (("A", "N"), above, {
-                "long_name": "status just above eta_max (-1: none)",
-                "flag_values": flags["flag_values"], "flag_meanings": flags["flag_meanings"]}),
+                "long_name": "status just above eta_max (no_edge where no bounded edge)",
+                "flag_values": np.r_[np.int8(-1), flags["flag_values"]].astype(np.int8),
+                "flag_meanings": "no_edge " + flags["flag_meanings"]}),
             "n_transitions": (("A", "N"), n_tr, {
-                "long_name": "changes of feasibility seen over the search range"}),
+                "long_name": "changes of feasibility seen over the search range", "units": "1"}),
             "axis_edge_eta": (("A", "N"), axis_edge_eta(A[:, None], N[None, :]), {
-                "long_name": "eps L on the axis condition (A-1) eps L + 2(A+1) N = 0"}),
+                "long_name": "eps L on the axis condition (A-1) eps L + 2(A+1) N = 0",
+                "units": "1"}),
         },
         coords={d: (d, v, {"long_name": PARAMETERS[d].long_name, "units": PARAMETERS[d].units})
                 for d, v in (("A", A), ("N", N))},

@@ -19,7 +19,10 @@ of each point). All use the same ``atol``.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import sys
 import time
 
 import numpy as np
@@ -131,7 +134,9 @@ def scipy_stage1(eps, L, A, N, method, rtol, atol=ATOL, max_nfev=60_000):
     hit.terminal = True
     kw = {"jac": jac} if method in ("Radau", "LSODA", "BDF") else {}
     try:
-        s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=rtol, atol=atol, events=hit, **kw)
+        with np.errstate(divide="ignore"):  # Radau: see reference.reference
+            s1 = solve_ivp(f1, [xi1, 1.0], [w0], method=method, rtol=rtol, atol=atol, events=hit,
+                           **kw)
     except _BudgetSpent:
         return math.nan
     return L * (s1.y[0, -1] - N) if s1.status == 0 else math.nan
@@ -230,6 +235,38 @@ def numbalsoda_stage1(nbs, eps, L, A, N, method, rtol, atol=ATOL, repeat=5, mxst
     N = np.ascontiguousarray(N, dtype=float)
     mu = np.empty(eta.size)
     use_dop853 = method == "DOP853"
-    loop(address, use_dop853, eta[:1], A[:1], N[:1], rtol, atol, mxstep, mu[:1])  # compile
-    seconds = _best_of(lambda: loop(address, use_dop853, eta, A, N, rtol, atol, mxstep, mu), repeat)
+    with _c_output_discarded():
+        loop(address, use_dop853, eta[:1], A[:1], N[:1], rtol, atol, mxstep, mu[:1])  # compile
+        seconds = _best_of(lambda: loop(address, use_dop853, eta, A, N, rtol, atol, mxstep, mu),
+                           repeat)
     return seconds / eta.size, L * mu
+
+
+@contextlib.contextmanager
+def _c_output_discarded():
+    """Discard what C code writes to stdout/stderr meanwhile (numbalsoda's solvers print a line
+    per failed point, hundreds in a report; the report counts the failures itself)."""
+    import ctypes
+    import ctypes.util
+
+    flushes = [ctypes.CDLL(None).fflush]  # C stdio
+    try:  # numbalsoda's DOP853 is Fortran: its unit 6 has a buffer of its own
+        flushes.append(ctypes.CDLL(ctypes.util.find_library("gfortran") or "libgfortran.so.5")
+                       ._gfortran_flush_i4)
+    except (OSError, AttributeError):
+        pass
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = (os.dup(1), os.dup(2))
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        for flush in flushes:  # buffers still holding lines for the discarded descriptors
+            flush(None)
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, devnull):
+            os.close(fd)

@@ -1,17 +1,21 @@
 """Every figure of the project: the only module that imports matplotlib.
 
-Figures are built as :class:`matplotlib.figure.Figure` objects on an Agg canvas instead of through
-``pyplot``: no global figure registry to leak memory in long sweeps, no interactive backend
-picked up from the environment, and nothing to close afterwards. Files are written atomically
-(:func:`save_figure`), so an interrupted run never leaves a truncated image behind.
+Figures are built as :class:`Figure` objects (a :class:`matplotlib.figure.Figure`) on an Agg
+canvas instead of through ``pyplot``: no global figure registry to leak memory in long sweeps, no
+interactive backend picked up from the environment, and nothing to close afterwards. Files are
+written atomically (:func:`save_figure`), so an interrupted run never leaves a truncated image
+behind. In Jupyter a figure shows itself as a PNG (``display(fig)``, or a cell's last value),
+although pyplot, which registers that display for its own figures, is never imported.
 """
 
 from __future__ import annotations
 
+import io
+import math
 import os
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+from matplotlib.figure import Figure as _MplFigure
 
 from ..files import atomic_output
 
@@ -27,6 +31,20 @@ LABELS = {
     "sigma_yx": r"$\bar\sigma_{yx}/\nu$",
     "m": r"$\bar m/\nu$",
 }
+
+
+class Figure(_MplFigure):
+    """A matplotlib Figure that Jupyter (IPython's display) renders as a PNG image.
+
+    IPython shows a figure as an image only through a formatter that pyplot's inline backend
+    registers; this package never imports pyplot, so without ``_repr_png_`` a notebook cell
+    would print ``<Figure size 1000x700 with 4 Axes>`` instead of the figure.
+    """
+
+    def _repr_png_(self) -> bytes:
+        buf = io.BytesIO()
+        self.savefig(buf, format="png", dpi=DPI)
+        return buf.getvalue()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -81,6 +99,15 @@ def save_figure(fig: Figure, path, *, dpi: int = DPI) -> None:
 # ---------------------------------------------------------------------------------------------
 # Figures
 # ---------------------------------------------------------------------------------------------
+def _dimensional_axis(ax, scale: float, label: str):
+    """A right-hand y axis showing the panel's scaled values times ``scale`` (e.g. in Pa)."""
+    if not (math.isfinite(scale) and scale > 0.0):
+        return None
+    sec = ax.secondary_yaxis("right", functions=(lambda v: v * scale, lambda v: v / scale))
+    sec.set_ylabel(label)
+    return sec
+
+
 def point_profiles(result, path=None) -> Figure:
     """Profiles of one solved point against ``xi``: velocity, spin, shear stresses, couple stress.
 
@@ -95,7 +122,9 @@ def point_profiles(result, path=None) -> Figure:
     -------
     matplotlib.figure.Figure
         Four panels: ``u/u(0)``, ``omega_hat``, ``sigma_xy`` with ``sigma_yx``, and ``m``; the
-        plug edge ``xi_p`` (eq:13) is a dashed vertical line on each.
+        plug edge ``xi_p`` (eq:13) is a dashed vertical line on each. With a material (``nu``
+        finite) the title gives ``nu`` and the stress and couple-stress panels get a right-hand
+        axis in Pa and Pa m (scaled by ``rho_p g W nu``, from the result's wall values).
 
     Raises
     ------
@@ -134,7 +163,14 @@ def point_profiles(result, path=None) -> Figure:
         ax.set_xlabel(XI_LABEL)
     ax_u.legend(loc="best")
     ax_s.legend(loc="best")
-    fig.suptitle(parameter_title(result.eps, result.L, result.K, result.A, result.N))
+    title = parameter_title(result.eps, result.L, result.K, result.A, result.N)
+    nu = float(getattr(result, "nu", math.nan))
+    if math.isfinite(nu):
+        title += rf", $\nu$ = {nu:.4g}"
+        _dimensional_axis(ax_s, -result.sigma_xy_wall_Pa, "stress (Pa)")
+        if result.m_wall != 0.0:
+            _dimensional_axis(ax_m, result.m_wall_Pa_m / result.m_wall, "couple stress (Pa m)")
+    fig.suptitle(title)
     if path is not None:
         save_figure(fig, path)
     return fig

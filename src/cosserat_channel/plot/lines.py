@@ -31,6 +31,10 @@ Y_LABELS = {
 PROFILE_VARIABLES = ("u_over_u0", "omega_hat", "m", "sigma_yx")
 SYMBOLS = {"eps": r"$\varepsilon$", "L": "$L$", "K": "$K$", "A": "$A$", "N": "$N$"}
 ASYMPTOTIC_LABEL = r"asymptotic, $N = 1$ (Appendix C)"
+# With several lines, one legend entry stands for the circles of every line: drawn in a neutral
+# colour and saying that each line's circles share its colour (not the first line's alone).
+ASYMPTOTIC_EACH_LABEL = r"asymptotic, $N = 1$ (Appendix C): circles in each line's colour"
+ASYMPTOTIC_PROXY = dict(ls="none", marker="o", mfc="none", color="0.35", ms=6)
 N_MARKERS = 25
 MAX_LEGEND_HUES = 12
 
@@ -103,8 +107,10 @@ def line_plot(ds, x, y="Delta", hue=None, at=None, *, asymptote=True, path=None)
         else:
             continue
         ax.plot(xplot[idx], asym, "o", mfc="none", color=color, ms=6,
-                label=None if drawn_asym else ASYMPTOTIC_LABEL)
+                label=None if drawn_asym or len(hues) > 1 else ASYMPTOTIC_LABEL)
         drawn_asym = True
+    if drawn_asym and len(hues) > 1:
+        ax.plot([], [], label=ASYMPTOTIC_EACH_LABEL, **ASYMPTOTIC_PROXY)
     if x in ("eps", "W_over_d_p") and xs.size > 1 and xs.max() / xs.min() > 20:
         ax.set_xscale("log")
     if x == "K" and xs.size > 1 and xs.min() > 0 and xs.max() / xs.min() > 100:
@@ -156,11 +162,14 @@ def profiles_figure(results, *, asymptotic=True, path=None):
             c = {v: _composite_value(v, xi[sel], r.eps, r.L, r.K)
                  for v in ("u_over_u0", "omega_hat", "sigma_yx", "m")}
             kw = dict(ls="none", marker="o", mfc="none", color=color, ms=6)
-            ax_u.plot(xi[sel], c["u_over_u0"], label=None if drawn_asym else ASYMPTOTIC_LABEL, **kw)
+            one = len(results) == 1
+            ax_u.plot(xi[sel], c["u_over_u0"], label=ASYMPTOTIC_LABEL if one else None, **kw)
             ax_w.plot(xi[sel], c["omega_hat"], **kw)
             ax_s.plot(xi[sel], c["sigma_yx"], **kw)
             ax_m.plot(xi[sel], c["m"], **kw)
             drawn_asym = True
+    if drawn_asym and len(results) > 1:
+        ax_u.plot([], [], label=ASYMPTOTIC_EACH_LABEL, **ASYMPTOTIC_PROXY)
     ax_s.plot(results[0].profile["xi"], results[0].profile["sigma_xy"], color="k", lw=1.5,
               label=LABELS["sigma_xy"] + r" $= -\xi$")
     ax_s.plot([], [], color="0.4", ls="-.", lw=2, label=LABELS["sigma_yx"])

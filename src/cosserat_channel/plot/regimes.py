@@ -30,12 +30,14 @@ DIM_LABELS = {
     "N": r"$N = \sin\phi/\tan\delta$ (-)",
     "xi": r"$\xi = x/W$ (-)",
 }
+# The traced edges are wide translucent bands drawn under the thin analytic lines: where the
+# traced edge is the axis condition (or the wall line) both stay visible, the line inside the band.
 BOUNDARY_STYLES = {
-    "wall": dict(color="k", ls="-", lw=2.0),
-    "axis": dict(color="#0033cc", ls="--", lw=2.0),
-    "A=-1": dict(color="#8b4513", ls=":", lw=2.5),
-    "traced": dict(color="#00bfff", ls="-.", lw=2.0),
-    "traced_min": dict(color="#00bfff", ls=(0, (1, 1)), lw=2.0),
+    "wall": dict(color="k", ls="-", lw=1.8, alpha=1.0, zorder=4),
+    "axis": dict(color="#0033cc", ls="--", lw=1.8, alpha=1.0, zorder=4),
+    "A=-1": dict(color="#8b4513", ls=":", lw=2.5, alpha=1.0, zorder=4),
+    "traced": dict(color="#00bfff", ls="-", lw=7.0, alpha=0.6, zorder=3),
+    "traced_min": dict(color="#ff69b4", ls="-", lw=7.0, alpha=0.6, zorder=3),
 }
 BOUNDARY_LABELS = {
     "wall": r"$A = 1 - 2N^2$ (wall inadmissible below)",
@@ -104,8 +106,11 @@ def phase_plane_figure(pp, nu=None, path=None):
     ax.set_xlabel(DIM_LABELS["xi"])
     ax.set_ylabel(r"$\bar m$ ($\rho_p g W d_p$)" if nu is not None
                   else r"$\bar m/\nu$ ($\rho_p g W d_p$)")
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
-    title = "Phase plane of (A1), (A2): " + parameter_title(pp.eps, pp.L, None, pp.A, pp.N)
+    # Below the plane, in two columns: beside it the long trajectory labels took 40 % of the width.
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncols=2,
+              fontsize="small", frameon=False)
+    title = (r"Phase plane (paper figure 12): $E_{+}$ of eq:a1, $E_{-}$ of eq:a2; "
+             + parameter_title(pp.eps, pp.L, None, pp.A, pp.N))
     if nu is not None:
         title += rf", $\nu$ = {nu:.4g}"
     ax.set_title(title)
@@ -281,12 +286,14 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, path=None):
             F = np.asarray(F, float)
             if not (np.nanmin(F, initial=np.inf) < 0.0 < np.nanmax(F, initial=-np.inf)):
                 continue
-            cs = ax.contour(X, Y, F, levels=[0.0], colors=[BOUNDARY_STYLES[name]["color"]],
-                            linestyles=[BOUNDARY_STYLES[name]["ls"]],
-                            linewidths=[BOUNDARY_STYLES[name]["lw"]])
+            style = BOUNDARY_STYLES[name]
+            cs = ax.contour(X, Y, F, levels=[0.0], colors=[style["color"]],
+                            linestyles=[style["ls"]], linewidths=[style["lw"]],
+                            alpha=style["alpha"], zorder=style["zorder"])
             if not any(len(seg) for seg in cs.allsegs[0]):
                 continue
-            handles.append(Line2D([], [], label=BOUNDARY_LABELS[name], **BOUNDARY_STYLES[name]))
+            handles.append(Line2D([], [], label=BOUNDARY_LABELS[name],
+                                  **{k: v for k, v in style.items() if k != "zorder"}))
     ax.set_xlim(_edges(xv)[[0, -1]])
     ax.set_ylim(_edges(yv)[[0, -1]])
     ax.set_xlabel(DIM_LABELS[x])

@@ -37,9 +37,21 @@ def _finite(x, y):
     return x[ok], y[ok]
 
 
-def _unanswered(c) -> str:
+def _unanswered(c, solved_every=None) -> str:
+    """The points a curve left unanswered, in the words the right panel uses for the same count.
+
+    ``solved_every``: how many points it solved at every rtol (from its comparison), else only
+    the worst single rtol is known.
+    """
+    if solved_every is not None and solved_every < c.n_attempted:
+        return f" ({solved_every} of {c.n_attempted} solved at every rtol)"
     k = max(c.failed, default=0)
-    return f" ({k} of {c.n_attempted} unanswered at some rtol)" if k else ""
+    return f" (at most {k} of {c.n_attempted} unanswered at one rtol)" if k else ""
+
+
+# Legends go below the panels: inside they covered curves.
+LEGEND_BELOW = dict(loc="upper center", bbox_to_anchor=(0.5, -0.09), fontsize="x-small",
+                    ncols=1, frameon=False)
 
 
 def _style_axes(ax, title):
@@ -49,7 +61,7 @@ def _style_axes(ax, title):
     ax.set_ylabel(ERROR_LABEL)
     ax.grid(True, which="major", alpha=0.3)
     ax.grid(True, which="minor", alpha=0.1)
-    ax.legend(loc="best", fontsize="x-small")
+    ax.legend(**LEGEND_BELOW)
     ax.set_title(title, fontsize="medium")
 
 
@@ -60,10 +72,12 @@ def work_precision_figure(ours_both, stage1_curves, comparisons=(), *, title: st
     stage-1 curve with its ``m_wall`` median, every method on its own points (a peer's points it
     gave up on count with the time spent up to its work cap). Right panel (when ``comparisons``
     are given): each stage-1 peer on the points it solved at every rtol, dashed, next to ours
-    re-timed on exactly those points, solid in the same colour.
+    re-timed on exactly those points, solid in our colour with the peer's (hollow) marker. Both
+    panels count a peer's points the same way: solved at every rtol.
     """
     pairs = [c for c in comparisons if c.ours.stages == "stage1"]
-    fig = new_figure((16.0, 7.5) if pairs else (10.0, 7.0))
+    solved_every = {c.peer.method: c.peer_solved.n_attempted for c in pairs}
+    fig = new_figure((16.0, 9.5) if pairs else (10.0, 8.5))
     axes = fig.subplots(1, 2 if pairs else 1, squeeze=False)[0]
     ax = axes[0]
     x, y = _finite(ours_both.time_us, ours_both.worst_median())
@@ -77,7 +91,7 @@ def work_precision_figure(ours_both, stage1_curves, comparisons=(), *, title: st
             ls = ":"
         elif c.method.startswith("scipy"):
             label += f", Python loop, {c.n_attempted} points"
-        label += _unanswered(c)
+        label += _unanswered(c, solved_every.get(c.method) if c.method != "ours" else None)
         x, y = _finite(c.time_us, c.median["m_wall"])
         ax.plot(x, y, color=colour, marker=marker, ls=ls, lw=1.5, ms=5,
                 mfc="none" if c.points == "subsample" and c.method == "ours" else colour,
@@ -91,8 +105,9 @@ def work_precision_figure(ours_both, stage1_curves, comparisons=(), *, title: st
             ax2.plot(x, y, color=colour, marker=marker, ls="--", lw=1.5, ms=5,
                      label=f"{c.peer.method} ({c.peer_solved.n_attempted} points it solved)")
             x, y = _finite(c.ours_solved.time_us, c.ours_solved.median["m_wall"])
-            ax2.plot(x, y, color=colour, marker=marker, ls="-", lw=1.5, ms=5, mfc="none",
-                     label=f"ours on the same {c.ours_solved.n_attempted} points")
+            ax2.plot(x, y, color=STYLES["ours"][0], marker=marker, ls="-", lw=1.5, ms=6,
+                     mfc="none", label=f"ours on the same {c.ours_solved.n_attempted} points "
+                     f"(marker of {c.peer.method})")
         _style_axes(ax2, "stage 1 ($m_w$): each peer on the points it solved at every rtol, "
                     "ours on the same points")
     if title:

@@ -1,0 +1,102 @@
+"""CF metadata of the files we write: cf_xarray decodes them, UDUNITS-2 parses every unit.
+
+The units are parsed by ``cf_units`` (SciTools; its wheels bundle the UDUNITS-2 C library, so
+this is the real UDUNITS parser). ``cfunits`` would need the C library installed separately.
+"""
+
+import cf_units
+import cf_xarray  # noqa: F401  (registers the .cf accessor)
+import numpy as np
+import pytest
+import xarray as xr
+
+from cosserat_channel import outputs, regimes
+from cosserat_channel.parameters import MATERIAL, PARAMETERS
+from cosserat_channel.sweep import run_sweep
+from cosserat_channel.sweep.spec import allowed_variables
+
+SWEEP = {
+    "grid": {"eps": [0.02, 0.3, 0.5], "L": 10.0, "K": [0.5, 5.0], "A": [0.3333333333333333, -2.0],
+             "N": 1.0},
+    "material": {"d_p": 0.002, "rho_p": 2940, "phi": 25},
+    "output": {"variables": list(allowed_variables(True)), "profile_points": 5},
+}
+
+
+def udunits(unit: str) -> cf_units.Unit:
+    """The parsed unit; fails for what UDUNITS cannot parse (cf_units raises ValueError)."""
+    u = cf_units.Unit(unit)
+    assert not u.is_unknown() and not u.is_no_unit(), unit
+    return u
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cf") / "r.nc"
+    run_sweep(SWEEP, str(path), workers=1)
+    with xr.open_dataset(path) as ds:
+        yield ds.load()
+
+
+@pytest.fixture(scope="module")
+def boundary(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cf") / "b.nc"
+    regimes.trace_boundary([1 / 3, 3.0], [0.5, 1.0], n_coarse=8).to_netcdf(path)
+    with xr.open_dataset(path) as ds:
+        yield ds.load()
+
+
+def test_every_declared_unit_is_udunits():
+    """The units of every parameter, material input, output, counter and profile parse."""
+    units = [p.units for p in PARAMETERS.values()] + [m.units for m in MATERIAL.values()]
+    units += [o.units for o in outputs.OUTPUTS.values()]
+    units += [u for u, *_ in outputs.COUNTERS.values()] + [u for u, _ in outputs.PROFILES.values()]
+    for u in units:
+        udunits(u)
+    assert udunits(outputs.OUTPUTS["Delta"].units) == cf_units.Unit("1")
+    assert "particle diameters" in outputs.OUTPUTS["Delta"].long_name
+    assert udunits("Pa").is_convertible(cf_units.Unit("kg m-1 s-2"))
+
+
+def test_units_in_files_parse(result, boundary):
+    """Every non-flag variable and every coordinate of a sweep and a boundary file has units
+    that UDUNITS parses; stresses in Pa convert to SI."""
+    for ds in (result, boundary):
+        for name, v in ds.variables.items():
+            if "flag_meanings" in v.attrs:
+                continue
+            assert "units" in v.attrs, name
+            udunits(v.attrs["units"])
+    assert cf_units.Unit(result["m_wall_Pa_m"].attrs["units"]).is_convertible("N m-1")
+
+
+def test_cf_xarray_decodes_the_status_flags(result):
+    """``status.cf == name`` is ``status == code`` for every flag; every code is a flag."""
+    status = result["status"]
+    assert status.cf.is_flag_variable
+    flags = dict(zip(status.attrs["flag_meanings"].split(), status.attrs["flag_values"]))
+    for name, code in flags.items():
+        assert np.array_equal((status.cf == name).values, (status == code).values), name
+    assert set(np.unique(status.values)) <= set(flags.values())
+    assert (status.cf == "ok").any() and (status.cf != "ok").any()
+    assert set(status.cf.flags.data_vars) == set(flags)
+
+
+def test_cf_xarray_decodes_the_boundary_flags(boundary):
+    """edge_kind and status_above: every value in the file is one of its flag_values (no_edge
+    for -1), and cf_xarray's decoding agrees with the codes."""
+    for name in ("edge_kind", "status_above"):
+        da = boundary[name]
+        assert da.cf.is_flag_variable, name
+        values = set(np.asarray(da.attrs["flag_values"]).tolist())
+        assert set(np.unique(da.values).tolist()) <= values, name
+    above = boundary["status_above"]
+    assert np.array_equal((above.cf == "no_edge").values, (above == -1).values)
+    assert (above.cf == "eps_too_large_path").any()
+
+
+def test_cf_xarray_sees_the_coordinates(result):
+    """The dimension coordinates carry long names; cf_xarray's summary of the file works."""
+    for d in ("eps", "L", "K", "A", "N", "xi"):
+        assert d in result.coords and result[d].attrs.get("long_name")
+    assert "Coordinates" in repr(result.cf)

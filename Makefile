@@ -21,6 +21,7 @@ demo: $(STAMP)
 	@echo "demo outputs are in demo/"
 
 test: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
 	$(PY) -m pytest -q
 
 # Installs JupyterLab into .venv (the `notebooks` extra) and opens notebooks/ in the browser.

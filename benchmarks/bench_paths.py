@@ -28,7 +28,8 @@ def timed(ws, eta, method, reps=20):
 
 def main():
     ws = solve.Workspace()
-    print("| eta | DP5 steps | DP5 us | DP5 err(Delta) | RODAS4P2 steps | RODAS4P2 us | RODAS4P2 err(Delta) | auto picks |")
+    print("| eta | DP5 steps | DP5 us | DP5 err(Delta) | RODAS4P2 steps | RODAS4P2 us "
+          "| RODAS4P2 err(Delta) | auto picks |")
     print("|---|---|---|---|---|---|---|---|")
     for eta in (3.0, 1.0, 0.3, 0.1, 0.03, 0.01, 1e-3, 1e-4):
         eps, L = eta / 10, 10.0

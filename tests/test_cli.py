@@ -314,8 +314,8 @@ def test_bench_exit_code_says_whether_the_targets_were_met(capsys, tmp_path, mon
     informative miss or a --quick run exits 0, --quick marking its lines as no verdict."""
     from types import SimpleNamespace
 
-    from cosserat_channel import workprecision
-    from cosserat_channel.workprecision.report import Target
+    from cosserat_channel.measure import workprecision
+    from cosserat_channel.measure.report import Target
 
     targets = [Target("speed", False, "2x slower"), Target("max error (informative)", False, ""),
                Target("median error", True, "")]

@@ -353,7 +353,7 @@ def test_damaged_result_file_fails_to_read_never_changes(tmp_path, sweep_file, c
     flip(bad, at + 8, 64)
     with xr.open_dataset(bad) as f:
         with pytest.raises(RuntimeError, match="HDF error"):
-            f["sigma_yx_wall"].values
+            f["sigma_yx_wall"].values  # noqa: B018 (reading the values is the test)
         assert np.array_equal(f["Delta"].values, ds["Delta"].values, equal_nan=True)
     for argv in (["query", str(bad)], ["query", str(bad), "--where", "sigma_yx_wall < 0"],
                  ["query", str(bad), "--format", "netcdf", "-o", str(tmp_path / "sub.nc")],

@@ -7,7 +7,6 @@ legends that cover no data, the same counts in both panels, and units a user can
 import math
 
 import numpy as np
-import pytest
 from matplotlib.colors import to_rgba
 
 from cosserat_channel import plot, regimes
@@ -16,9 +15,9 @@ from cosserat_channel.plot import regimes as pr
 from cosserat_channel.plot import stability as ps
 from cosserat_channel.plot import workprecision as pw
 from cosserat_channel.solve import solve_point
-from cosserat_channel.stability import Report
+from cosserat_channel.measure.stability import Report
 from cosserat_channel.sweep import run_sweep
-from cosserat_channel.workprecision.report import Comparison, Curve
+from cosserat_channel.measure.report import Comparison, Curve
 
 
 def _legend(ax):

@@ -1,4 +1,5 @@
-"""Work-precision report (measure/workprecision.py and its modules): the files, the CSV contract, the figures' artists and the target logic.
+"""Work-precision report (measure/workprecision.py and its modules): the files, the CSV contract,
+the figures' artists and the target logic.
 
 The quick report runs once per module on the tiny set (timings are not checked: the machine is
 shared). numbalsoda is made to look absent so the test does not depend on the optional extra.

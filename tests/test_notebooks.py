@@ -9,7 +9,6 @@ renders it.
 """
 
 import json
-import os
 import pathlib
 
 import nbclient  # the `test` extra installs nbclient, nbformat and ipykernel

@@ -1,12 +1,8 @@
 """Regime maps, phase plane, boundary and line/profile figures from real results; the CLI."""
 
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from matplotlib.lines import Line2D
 
 from cosserat_channel import cli, regimes
 from cosserat_channel import status as st

@@ -2,8 +2,9 @@
 
 The ``sh`` blocks are run line by line (backslash continuations joined) from the scratch copy's
 root, where ``.venv/bin/cosserat-channel`` is a shim for this Python's package, so the commands
-are the README's own text (run in this process through ``cli.main``, see the test). Each must exit 0, write every file it names (``-o``, ``--plot``), and,
-all together, leave nothing outside ``demo/`` (which git ignores). Only the set-up lines
+are the README's own text (run in this process through ``cli.main``, see the test). Each must
+exit 0, write every file it names (``-o``, ``--plot``), and, all together, leave nothing outside
+``demo/`` (which git ignores). Only the set-up lines
 (``make ...``, which build a venv: CI runs ``make test`` itself) are skipped, and the report
 commands that take minutes (``bench``, ``stability``) run with ``--quick`` (the same code on a
 smaller set). The ``python``

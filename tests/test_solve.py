@@ -50,7 +50,8 @@ SPREAD = [
 
 @pytest.mark.parametrize("point", SPREAD, ids=[str(p) for p in SPREAD])
 def test_agrees_with_scipy_reference(point):
-    """At the default rtol, Delta, m_wall, sigma_yx_wall and slip agree with solve_ivp (rtol 1e-12) to 1e-6; statuses agree."""
+    """At the default rtol, Delta, m_wall, sigma_yx_wall and slip agree with solve_ivp (rtol 1e-12)
+    to 1e-6; statuses agree."""
     eps, L, K, A, N = point
     ours = solve_point(eps, L, K, A, N)
     ref = _ref(eps, L, K, A, N)
@@ -202,7 +203,7 @@ def test_similarity_holds_in_the_reference():
     """model.md: 1-xi_p, J(0), sigma_yx(1), m(1)/L depend on (eps L, A, N, eps K) only (independent solver)."""
     refs = [reference(eps, L, K, 1 / 3, 1.0, rtol=1e-13) for eps, L, K in SIMILAR]
     base = refs[0]
-    for (eps, L, K), r in zip(SIMILAR[1:], refs[1:]):
+    for (_eps, L, _K), r in zip(SIMILAR[1:], refs[1:]):
         assert 1 - r["xi_p"] == pytest.approx(1 - base["xi_p"], rel=1e-9)
         assert r["J_axis"] == pytest.approx(base["J_axis"], rel=1e-9)
         assert r["sigma_yx_wall"] == pytest.approx(base["sigma_yx_wall"], rel=1e-9)
@@ -212,7 +213,7 @@ def test_similarity_holds_in_the_reference():
 def test_similarity_holds_in_solve_point():
     """The same three points through solve_point agree to 13 digits (model.md's check)."""
     rs = [solve_point(eps, L, K, 1 / 3, 1.0) for eps, L, K in SIMILAR]
-    for (eps, L, K), r in zip(SIMILAR, rs):
+    for (eps, L, _K), r in zip(SIMILAR, rs):
         assert r.Delta * eps == pytest.approx(rs[0].Delta * SIMILAR[0][0], rel=1e-13)
         assert r.m_wall / L == pytest.approx(rs[0].m_wall / SIMILAR[0][1], rel=1e-13)
         assert r.sigma_yx_wall == pytest.approx(rs[0].sigma_yx_wall, rel=1e-13)
@@ -345,7 +346,7 @@ def test_within_resolution_of_the_axis_edge():
 
 def test_batch_profiles_match_solve_point_including_A_minus_one():
     """solve_batch's per-triple profiles give solve_point's profiles, also for the A = -1 closed form."""
-    from cosserat_channel import rk45, solve, stages
+    from cosserat_channel import rk45, stages
 
     xi = np.linspace(0.0, 1.0, 21)
     pts = [(1 / 30, 10.0, 0.5, 1 / 3, 1.0), (0.01, 2.0, 5.0, -1.0, 3.0)]

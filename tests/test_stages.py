@@ -45,7 +45,7 @@ def test_status_path_decides_as_the_full_solve(rtol):
     """Workspace.status equals the full solve's status on the test points, near the edge and on a
     random domain-wide sample, at three tolerances."""
     ws_full, ws = Workspace(), Workspace()
-    for eps, L, K, A, N in POINTS + _edge_points() + _random_domain(300):
+    for eps, L, _K, A, N in POINTS + _edge_points() + _random_domain(300):
         eta = eps * L
         assert ws.status(eta, A, N, rtol, 1e-12) == ws_full.run(eta, A, N, rtol, 1e-12), (eps, L, A, N)
 

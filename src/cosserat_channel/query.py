@@ -42,7 +42,7 @@ import numpy as np
 import xarray as xr
 
 from .files import atomic_output, netcdf_output
-from .parameters import DIMS, ParameterError
+from .parameters import ParameterError
 
 RANGE_SLACK = 1e-9
 # --sel: |grid - value| <= SEL_RTOL * max(|grid|, |value|), or <= SEL_RTOL * 1e-3 * max|coordinate|

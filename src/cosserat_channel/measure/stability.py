@@ -252,7 +252,8 @@ def markdown(rep: Report) -> str:
     lines = [
         "# Stability report (issue 4)",
         "",
-        f"L = {L_REPORT:g} (2 eta above eta = 5, so that eps <= 0.5), K = {K_REPORT:g}, eps = eta/L, rtol = {rep.rtol:g}, atol = {ATOL:g}; "
+        f"L = {L_REPORT:g} (2 eta above eta = 5, so that eps <= 0.5), K = {K_REPORT:g}, eps = eta/L, "
+        f"rtol = {rep.rtol:g}, atol = {ATOL:g}; "
         "time = kernel (both stages) per point, best of repeats, microseconds; errors relative to "
         "the reference named in `ref` (Radau rtol 1e-12, Appendix A's closed form, or our solver "
         "at rtol 1e-12 where Radau cannot start)." + (" Quick version." if rep.quick else ""),

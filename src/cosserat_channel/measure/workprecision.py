@@ -265,7 +265,7 @@ def _numbalsoda(nbs, vs, settings, ours_s1, ours_both, peers):
     everything = np.arange(vs.size)
     out = []
     for method in runners.NUMBALSODA_METHODS:
-        def measure(idx):
+        def measure(idx, method=method):
             return [runners.numbalsoda_stage1(nbs, vs.eps[idx], vs.L[idx], vs.A[idx], vs.N[idx],
                                               method, rtol, repeat=settings.repeat,
                                               mxstep=settings.mxstep) + (None,)

@@ -455,8 +455,8 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
     """:func:`trace_edge` on the grid ``A x N``; returns an :class:`xarray.Dataset` on ``(A, N)``.
 
     Variables: ``eta_max``, ``eta_min``, ``edge_kind`` (int8 flag: bounded, unbounded_in_range,
-    no_solution), ``status_above`` (int8 status code just above a bounded edge, -1 = flag ``no_edge`` otherwise),
-    ``n_transitions`` and the analytic ``axis_edge_eta``. ``progress(k, n)``, if given, is called
+    no_solution), ``status_above`` (int8 status code just above a bounded edge, otherwise -1, the
+    flag ``no_edge``), ``n_transitions`` and the analytic ``axis_edge_eta``. ``progress(k, n)``, if given, is called
     after each of the ``n`` edges.
     """
     import xarray as xr

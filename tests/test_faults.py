@@ -51,7 +51,7 @@ N = [1.0, 1.5]
 variables = ["Delta", "slip", "sigma_yx_wall", "xi_stop", "stage1_steps"]
 """
 BLOCKS = 7
-RUN = ("--workers", "1", "--block-size", "4")
+RUN = ("--workers", "1", "--block-size", "4", "--overwrite")  # out.nc holds an earlier result
 SENTINEL = b"an earlier result, to be replaced whole or left alone"
 
 HARNESS = r'''

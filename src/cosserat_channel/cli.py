@@ -438,9 +438,9 @@ def _query(args: argparse.Namespace) -> int:
         for name, asked, taken in selection.snapped:
             _note(f"--nearest: --sel {name}={asked:.10g} is not a grid value; took the nearest, "
                   f"{name}={taken:.10g}")
-        if selection.count() == 0:
-            _note("the selection is empty: no point matches")
         try:
+            if selection.count() == 0:  # reads the file: inside the read-failure handling
+                _note("the selection is empty: no point matches")
             if args.format == "netcdf":
                 query.write_netcdf(selection, args.output)
             elif args.output is not None:
@@ -926,11 +926,12 @@ def _plot(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
-        at = _resolve_at(ds, args, at)
+        # Read (and so checksum) first: a damaged file is reported as such, whatever else is wrong.
         try:
             ds = ds.load()
         except (OSError, RuntimeError) as exc:
             raise _read_or_write_failure(exc, args.results, ds, None) from None
+        at = _resolve_at(ds, args, at)
         boundary = None
         if args.boundary is not None:
             import xarray as xr

@@ -1,0 +1,150 @@
+"""The ``point`` and ``phase-plane`` commands: one point of the model."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+from . import (  # noqa: F401 (the shared pieces of the command line)
+    CliError,
+    EXIT_FAILURE,
+    EXIT_OK,
+    MATERIAL,
+    ParameterError,
+    Progress,
+    TOLERANCES,
+    _MATERIAL_ARGS,
+    _POINT_ARGS,
+    _SOLVING,
+    _figure_output,
+    _note,
+    add_material_arguments,
+    add_point_arguments,
+    check_output_path,
+    material_from_args,
+    register,
+    tolerances_from_args,
+)
+# ---------------------------------------------------------------------------------------------
+# point
+# ---------------------------------------------------------------------------------------------
+def _point_arguments(p: argparse.ArgumentParser) -> None:
+    add_point_arguments(p)
+    add_material_arguments(p)
+    out = p.add_argument_group("output")
+    out.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    out.add_argument("--plot", metavar="FILE.png",
+                     help="also plot the profiles against xi to FILE (PNG; written only if solved)")
+
+
+@register("point", "solve one point (eps, L, K, A, N) and print its outputs", _point_arguments)
+def _point(args: argparse.Namespace) -> int:
+    material = material_from_args(args)
+    tolerances = tolerances_from_args(args)
+    if args.plot is not None:
+        check_output_path(args.plot, "--plot")
+        from .. import plot
+
+        try:
+            plot.figure_format(args.plot)
+        except ValueError as exc:
+            raise CliError(f"--plot: {exc}") from None
+
+    import numpy as np
+
+    from .. import solve
+
+    profile = np.linspace(0.0, 1.0, 401) if args.plot is not None else None
+    try:
+        with Progress("point", _SOLVING, delay=2.0):
+            result = solve.solve_point(
+                args.eps, args.L, args.K, args.A, args.N,
+                material=material, profile=profile, **tolerances,
+            )
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
+
+    if args.json:
+        # allow_nan=False: to_dict maps NaN to null, and the output must stay strict JSON.
+        print(json.dumps(result.to_dict(), allow_nan=False))
+    else:
+        tol = {k: tolerances.get(k, p.default) for k, p in TOLERANCES.items()}
+        print(format_point_table(result, tol, material))
+
+    if args.plot is not None:
+        if not result.ok:
+            _note(f"no profile to plot (status {result.status.name}); {args.plot} not written")
+        else:
+            try:
+                plot.point_profiles(result, args.plot)
+            except OSError as exc:
+                raise CliError(f"--plot: cannot write {args.plot!r}: {exc}", EXIT_FAILURE) from None
+    return EXIT_OK
+
+
+def _row(name: str, value, unit: str = "", text: str = "") -> str:
+    v = f"{value:.10g}" if isinstance(value, float) else str(value)
+    return f"  {name:<17} {v:>18}  {unit:<19} {text}".rstrip()
+
+
+def format_point_table(result, tolerances: dict, material: dict | None) -> str:
+    """The human-readable report of one point: parameters, status, outputs, counters."""
+    from ..outputs import OUTPUTS
+
+    lines = ["parameters"]
+    for _, dest, text in _POINT_ARGS:
+        lines.append(_row(dest, getattr(result, dest), "-", text.split(",")[0]))
+    for k, v in tolerances.items():
+        text = "relative tolerance" if k == "rtol" else "absolute tolerance"
+        lines.append(_row(k, float(v), "-", text))
+    if material is not None:
+        for _, dest, text in _MATERIAL_ARGS:
+            lines.append(_row(dest, float(material[dest]), MATERIAL[dest].units,
+                              text.rsplit(" in ", 1)[0]))
+    lines.append(f"status  {result.status.name}: {result.status.message}")
+    outputs = [
+        _row(name, float(getattr(result, name)), o.units, o.long_name)
+        for name, o in OUTPUTS.items()
+        if math.isfinite(getattr(result, name))
+    ]
+    if outputs:
+        lines.append("outputs")
+        lines.extend(outputs)
+    lines.append("counters  " + " ".join(f"{k}={v}" for k, v in result.counters.items()))
+    return "\n".join(lines)
+
+
+
+def _phase_plane_arguments(p: argparse.ArgumentParser) -> None:
+    for flag, dest, text in _POINT_ARGS:
+        if dest != "K":
+            p.add_argument(flag, dest=dest, type=float, required=True, metavar=dest.upper(),
+                           help=text)
+    p.add_argument("--nu", type=float, help="solids fraction: plot m_bar = nu m as the paper "
+                   "(figure 12: 0.603) instead of m_bar/nu")
+    p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
+
+
+@register("phase-plane", "plot the phase plane of eq:a1/eq:a2 (paper figure 12) for any "
+          "(eps, L, A, N)", _phase_plane_arguments)
+def _phase_plane(args: argparse.Namespace) -> int:
+    if args.nu is not None and not (0.0 < args.nu < 1.0):
+        raise CliError(f"--nu must be in (0, 1); got {args.nu:g}")
+    _figure_output(args.output)
+    from .. import regimes
+    from ..plot import regimes as plot_regimes
+    try:
+        with Progress("phase-plane", _SOLVING, delay=2.0):
+            pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
+    for tr in pp.trajectories:
+        print(f"E{tr.root} from m(0) = {tr.start:+.6g}: {tr.end}"
+              + (f" at xi = {tr.xi[-1]:.6g}" if tr.end == "D=0" else "")
+              + (f", m(1)/nu = {tr.m[-1]:.10g}" if tr.end == "wall" else ""))
+    try:
+        plot_regimes.phase_plane_figure(pp, nu=args.nu, path=args.output)
+    except OSError as exc:
+        raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
+    return EXIT_OK

@@ -1,0 +1,300 @@
+"""The ``boundary`` and ``plot`` commands: solvability edges and figures of results."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+
+from . import (  # noqa: F401 (the shared pieces of the command line)
+    CliError,
+    DIMS,
+    EXIT_FAILURE,
+    EXIT_OK,
+    ParameterError,
+    Progress,
+    _FIRST_RUN,
+    _figure_output,
+    _note,
+    _read_or_write_failure,
+    check_not_input,
+    check_output_path,
+    register,
+)
+# ---------------------------------------------------------------------------------------------
+# phase-plane, boundary, plot (data in regimes.py, figures in plot/regimes.py and plot/lines.py)
+# ---------------------------------------------------------------------------------------------
+# boundary: values per list and (A, N) pairs. One pair costs ~80 solves (tens of ms), so the
+# largest accepted run takes about an hour; without a bound 'start:stop:1000000000' built a list
+# of 23 GB before anything was checked.
+MAX_BOUNDARY_VALUES = 100_000
+MAX_BOUNDARY_PAIRS = 100_000
+MAX_COARSE = 10_000
+
+
+def parse_values(text: str, option: str, max_values: int = MAX_BOUNDARY_VALUES) -> list:
+    """``"a,b,c"`` (a list) or ``"start:stop:num"`` (linspace) -> list of floats; CliError if bad."""
+    try:
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) != 3:
+                raise ValueError
+            start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
+            if num < 1:
+                raise ValueError
+            if num > max_values:
+                raise CliError(f"{option}: {num:,} values is more than {max_values:,}; "
+                               "split the run")
+            import numpy as np
+
+            values = [float(v) for v in np.linspace(start, stop, num)]
+        else:
+            if text.count(",") >= max_values:
+                raise CliError(f"{option}: more than {max_values:,} values; split the run")
+            values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise CliError(f"{option}: expected a list 'a,b,c' or 'start:stop:num'; got {text!r}") \
+            from None
+    if not all(math.isfinite(v) for v in values):
+        raise CliError(f"{option}: values must be finite; got {text!r}")
+    return values
+
+
+def _boundary_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--A", required=True, metavar="LIST|START:STOP:NUM",
+                   help="values of A, e.g. -0.9:0.9:19 or 0,0.3333333333333333")
+    p.add_argument("--N", required=True, metavar="LIST|START:STOP:NUM",
+                   help="values of N (> 0), e.g. 0.5,1,2")
+    p.add_argument("--eta-range", default="0.001:100", metavar="LO:HI",
+                   help="searched range of eta = eps L (default 0.001:100: eps <= 1, L <= 100)")
+    p.add_argument("--coarse", type=int, default=48, metavar="M",
+                   help="log-spaced samples before bisection (default 48)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
+    p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
+    p.add_argument("--overwrite", action="store_true",
+                   help="trace again and replace OUT.nc if it exists (without it an OUT.nc "
+                   "traced with the same arguments is reused, any other is kept)")
+
+
+@register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
+          _boundary_arguments)
+def _boundary(args: argparse.Namespace) -> int:
+    from ..parameters import ETA_MAX, ETA_MIN
+
+    A = parse_values(args.A, "--A")
+    N = parse_values(args.N, "--N")
+    if any(n <= 0.0 for n in N):
+        raise CliError(f"--N: values must be > 0; got {args.N!r}")
+    if len(A) * len(N) > MAX_BOUNDARY_PAIRS:
+        raise CliError(f"--A, --N: {len(A) * len(N):,} (A, N) pairs is more than "
+                       f"{MAX_BOUNDARY_PAIRS:,}; split the run")
+    try:
+        lo, hi = (float(v) for v in args.eta_range.split(":"))
+    except ValueError:
+        raise CliError(f"--eta-range: expected LO:HI; got {args.eta_range!r}") from None
+    if not (0.0 < lo < hi < math.inf):
+        raise CliError(f"--eta-range: need 0 < LO < HI < inf; got {args.eta_range!r}")
+    if lo < ETA_MIN or hi > ETA_MAX:
+        raise CliError(f"--eta-range: {args.eta_range!r} is not inside [{ETA_MIN:g}, "
+                       f"{ETA_MAX:g}], the eps L the solver resolves")
+    if not 2 <= args.coarse <= MAX_COARSE:
+        raise CliError(f"--coarse must be in [2, {MAX_COARSE}]; got {args.coarse}")
+    check_output_path(args.output, "-o")
+    if args.plot is not None:
+        _figure_output(args.plot, "--plot")
+        check_not_input(args.plot, [args.output], "--plot")
+    from .. import regimes
+    from ..status import Status
+
+    ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
+    traced = ds is None
+    if traced:
+        with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+            ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
+                                        progress=lambda k, n: bar.update(f"{k}/{n} edges traced"))
+    print(f"{'A':>12} {'N':>10} {'eta_max':>18} {'kind':<20} {'status above'}")
+    for i, a in enumerate(ds["A"].values):
+        for j, n in enumerate(ds["N"].values):
+            k = int(ds["edge_kind"].values[i, j])
+            above = int(ds["status_above"].values[i, j])
+            name = "-" if above < 0 else Status(above).name
+            print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
+                  f"{regimes.EDGE_KINDS[k]:<20} {name}")
+    from ..files import netcdf_output
+
+    try:
+        # Checksums, as on sweep results: a damaged file fails to read instead of changing.
+        if traced:
+            enc = {v: {"fletcher32": True} for v in ds.variables
+                   if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
+            netcdf_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
+        if args.plot is not None:
+            from ..plot import regimes as plot_regimes
+
+            plot_regimes.boundary_figure(ds, path=args.plot)
+    except OSError as exc:
+        from ..files import WriteError
+
+        raise CliError(str(exc) if isinstance(exc, WriteError) else f"cannot write: {exc}",
+                       EXIT_FAILURE) from None
+    return EXIT_OK
+
+
+def _same_boundary(path, A, N, lo, hi, coarse):
+    """The Dataset in ``path`` if it was traced with these arguments (note: reused), None if there
+    is no file; CliError if it is another file (kept unless --overwrite)."""
+    if not os.path.exists(path):
+        return None
+    import numpy as np
+    import xarray as xr
+
+    try:
+        ds = xr.load_dataset(path)
+    except (OSError, ValueError, RuntimeError):
+        ds = None
+    if ds is not None and "eta_max" in ds:
+        a = ds.attrs
+        if (ds["A"].size == len(A) and ds["N"].size == len(N)
+                and np.array_equal(ds["A"].values, A) and np.array_equal(ds["N"].values, N)
+                and (a.get("eta_search_min"), a.get("eta_search_max"), a.get("n_coarse"))
+                == (lo, hi, coarse)):
+            _note(f"{path} was traced with these arguments; reused (add --overwrite to trace "
+                  "again)")
+            return ds
+    what = "traced with other arguments" if ds is not None and "eta_max" in ds else \
+        "not a 'boundary' result"
+    raise CliError(f"{path} exists ({what}); kept: add --overwrite to replace it, or choose "
+                   "another -o")
+
+
+def _plot_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
+    p.add_argument("--regime", action="store_true",
+                   help="map the status over the (--x, --y) slice with the analytic boundaries")
+    p.add_argument("--x", required=True, help="abscissa: eps, W_over_d_p, L, K, A, N or xi")
+    p.add_argument("--y", required=True,
+                   help="a variable (e.g. Delta; u_over_u0 with --x xi) or, with --regime, a "
+                   "dimension")
+    p.add_argument("--hue", help="one line per value of this dimension")
+    p.add_argument("--at", metavar="NAME=VALUE[,NAME=VALUE]",
+                   help="grid values of the other dimensions that vary, e.g. K=0.5,N=1 "
+                   "(an off-grid value names the nearest)")
+    p.add_argument("--nearest", action="store_true",
+                   help="let --at take the nearest grid values (and say so on stderr)")
+    p.add_argument("--boundary", metavar="BOUNDARY.nc",
+                   help="with --regime: traced edge from 'boundary' (default: traced here on a "
+                   "coarse grid)")
+    p.add_argument("--no-asymptote", dest="asymptote", action="store_false",
+                   help="do not overlay the Appendix C asymptotics (N = 1)")
+    p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
+
+
+def parse_at(text: str | None) -> dict:
+    """``"eps=0.03,L=10"`` -> ``{"eps": 0.03, "L": 10.0}``; CliError if malformed."""
+    out = {}
+    for item in (text or "").split(","):
+        if not item.strip():
+            continue
+        name, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise CliError(f"--at: expected NAME=VALUE[,NAME=VALUE]; got {text!r}") from None
+    return out
+
+
+def _resolve_at(ds, args, at: dict) -> dict:
+    """``--at`` values replaced by the grid values they match (exactly, or with --nearest the
+    nearest, noted on stderr); CliError naming the dimensions still to fix, with an example."""
+    from ..parameters import DIMS as dims
+    from ..query import QueryError, match_coordinate
+
+    out = {}
+    for name, value in at.items():
+        if name not in ds.dims or name not in ds.coords:
+            raise CliError(f"--at {name}: not a dimension of the result (have "
+                           f"{', '.join(d for d in ds.dims if d in ds.coords)})")
+        c = ds[name].values
+        try:
+            i, exact = match_coordinate(c, value, name, "--at", nearest=args.nearest)
+        except QueryError as exc:
+            raise CliError(str(exc)) from None
+        if not exact:
+            _note(f"--nearest: --at {name}={value:.10g} is not a grid value; took the nearest, "
+                  f"{name}={float(c[i]):.10g}")
+        out[name] = float(c[i])
+    keep = {args.x, args.y} if args.regime else {args.x, args.hue, "eps" if args.x ==
+                                                  "W_over_d_p" else args.x}
+    loose = [d for d in dims if d in ds.dims and ds.sizes[d] > 1 and d not in keep
+             and d not in out]
+    if loose:
+        example = ",".join(f"{d}={float(ds[d].values[0])!r}" for d in loose)
+        values = "; ".join(f"{d}: " + ", ".join(f"{v:.10g}" for v in ds[d].values[:6])
+                           + (", …" if ds.sizes[d] > 6 else "") for d in loose)
+        raise CliError(f"{', '.join(loose)} vary in {args.results}: fix them with --at, e.g. "
+                       f"--at {example} (values {values})")
+    return out
+
+
+@register("plot", "plot a result file: regime map, Delta against a parameter, or profiles",
+          _plot_arguments)
+def _plot(args: argparse.Namespace) -> int:
+    at = parse_at(args.at)
+    if args.boundary is not None and not args.regime:
+        raise CliError("--boundary goes with --regime")
+    if args.regime and args.hue is not None:
+        raise CliError("--hue does not go with --regime")
+    _figure_output(args.output)
+    check_not_input(args.output, [args.results, args.boundary], "-o")
+    from .. import query
+    from ..plot import lines as plot_lines
+    from ..plot import regimes as plot_regimes
+    try:
+        ds = query.open_results(args.results)
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
+    try:
+        # Read (and so checksum) first: a damaged file is reported as such, whatever else is wrong.
+        try:
+            ds = ds.load()
+        except (OSError, RuntimeError) as exc:
+            raise _read_or_write_failure(exc, args.results, ds, None) from None
+        at = _resolve_at(ds, args, at)
+        boundary = None
+        if args.boundary is not None:
+            import xarray as xr
+
+            try:
+                boundary = xr.load_dataset(args.boundary)
+            except (OSError, ValueError) as exc:
+                raise CliError(f"--boundary: cannot read {args.boundary!r}: {exc}") from None
+            if "eta_max" not in boundary:
+                raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")
+        try:
+            with Progress("plot", "drawing " + _FIRST_RUN * args.regime, delay=1.0) as bar:
+                if args.regime:
+                    if boundary is None:
+                        # The figure only draws data: the traced edge is computed here, on the
+                        # coarse (A, N) grid the map asks for.
+                        grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at)
+                        if grid is not None:
+                            from .. import regimes
+
+                            def traced(k, n):
+                                bar.update(f"tracing the edge eta_max: {k}/{n} (A, N) pairs")
+
+                            boundary = regimes.trace_boundary(*grid, progress=traced)
+                    plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
+                                            path=args.output)
+                else:
+                    plot_lines.line_plot(ds, args.x, args.y, args.hue, at,
+                                         asymptote=args.asymptote, path=args.output)
+        except (ValueError, KeyError) as exc:
+            raise CliError(str(exc).strip("'\"")) from None
+        except OSError as exc:
+            raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
+    finally:
+        ds.close()
+    return EXIT_OK

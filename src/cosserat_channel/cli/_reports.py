@@ -1,0 +1,115 @@
+"""The ``stability`` and ``bench`` commands: the reports of :mod:`cosserat_channel.measure`."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from . import (  # noqa: F401 (the shared pieces of the command line)
+    CliError,
+    EXIT_FAILURE,
+    EXIT_OK,
+    PROG,
+    Progress,
+    _error,
+    register,
+)
+# ---------------------------------------------------------------------------------------------
+# stability (issue 4)
+# ---------------------------------------------------------------------------------------------
+def _stability_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--output-dir", dest="output_dir", default="stability_report",
+                   metavar="DIR", help="where stability.md and stability.png go "
+                   "(default: stability_report/, created if missing)")
+    p.add_argument("--quick", action="store_true",
+                   help="a small version (one (A, N) series, few points, one timing repeat)")
+    p.add_argument("--repeats", type=int, default=5, metavar="R",
+                   help="timing repeats per point, the best is reported (default 5)")
+
+
+@register("stability", "report steps, cost and error of one point from eps L = 1e-8 to the "
+          "edge of solvability, and which stage-1 path each point took", _stability_arguments)
+def _stability(args: argparse.Namespace) -> int:
+    if args.repeats < 1:
+        raise CliError(f"--repeats must be a positive integer; got {args.repeats}")
+    from ..measure.stability import directory_problem, write_report
+
+    problem = directory_problem(args.output_dir)
+    if problem:
+        raise CliError(f"-o/--output-dir: {problem}")
+
+    repeats = 1 if args.quick else args.repeats
+    try:
+        with Progress("stability", "finding the edges of the series") as bar:
+            def progress(i, n, row):
+                bar.update(f"{i}/{n} points; last: {row['case']} eta = {row['eta']:.3g}: "
+                           f"{row['status']}, {row['path']} path")
+
+            rep = write_report(args.output_dir, quick=args.quick, repeats=repeats,
+                               progress=progress)
+    except OSError as exc:
+        raise CliError(f"cannot write the report into {args.output_dir!r}: {exc}",
+                       EXIT_FAILURE) from None
+    v = rep.verdict
+    print(f"wrote {os.path.join(args.output_dir, 'stability.md')} and "
+          f"{os.path.join(args.output_dir, 'stability.png')}; max error/rtol "
+          f"{v['max_err_over_rtol']:.2f}, max steps {v['max_steps']}")
+    return EXIT_OK
+
+
+
+# ---------------------------------------------------------------------------------------------
+# bench (the report lives in measure/workprecision.py)
+# ---------------------------------------------------------------------------------------------
+# = measure.workprecision.DEFAULT_OUTPUT, not imported: --help stays light.
+_BENCH_OUTPUT = "bench-report"
+
+
+def _bench_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quick", action="store_true",
+                   help="a tiny set (12 points, 3 rtols, scipy RK45 and LSODA on 3 points), "
+                   "well under two minutes; for checks, not for numbers: its PASS/FAIL lines are "
+                   "no verdict and the exit code is 0 (a full run exits 1 if a target is missed)")
+    p.add_argument("-o", "--output", metavar="DIR",
+                   help=f"report directory, created if missing (default: {_BENCH_OUTPUT}); its "
+                   "reference_cache.npz is reused by later runs with the same set")
+    p.add_argument("--scipy-points", type=int, metavar="N",
+                   help="points in the subsample the scipy loops run on (default 60, quick 3)")
+
+
+@register("bench", "work-precision report: error against run time per point, ours side by side "
+          "with scipy solve_ivp and numbalsoda", _bench_arguments)
+def _bench(args: argparse.Namespace) -> int:
+    if args.scipy_points is not None and args.scipy_points < 2:
+        raise CliError(f"--scipy-points must be an integer >= 2; got {args.scipy_points}")
+    output = args.output or _BENCH_OUTPUT
+    if os.path.exists(output) and not os.path.isdir(output):
+        raise CliError(f"-o: {output!r} exists and is not a directory")
+    command = " ".join(
+        [PROG, "bench"] + (["--quick"] if args.quick else []) + ["-o", output]
+        + ([f"--scipy-points {args.scipy_points}"] if args.scipy_points is not None else [])
+    )
+    from ..measure import workprecision
+
+    try:
+        with Progress("bench", "starting") as bar:
+            def log(message):
+                bar.line(f"{PROG}: bench: {message}")
+                bar.update(f"running; last: {message}")
+
+            rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
+                                    command=command, log=log)
+    except OSError as exc:
+        raise CliError(f"cannot write the report into {output!r}: {exc}", EXIT_FAILURE) from None
+    # An "(informative)" target is reported, not required.
+    missed = [t for t in rep.targets if t.passed is False and "(informative)" not in t.text]
+    for target in rep.targets:
+        line = target.line().replace("**", "")
+        print(("quick set, not a verdict: " if args.quick else "") + line)
+    print("wrote " + ", ".join(str(p) for p in rep.paths.values()))
+    if missed and not args.quick:
+        _error(f"{len(missed)} required target(s) of the report missed (the FAIL lines above); "
+               "the report is written")
+        return EXIT_FAILURE
+    return EXIT_OK
+

@@ -25,6 +25,7 @@ from cosserat_channel.rk45 import (
     integrate,
     no_event,
 )
+from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
 
 
 # ---------------------------------------------------------------------------
@@ -33,25 +34,6 @@ from cosserat_channel.rk45 import (
 @njit(cache=True)
 def decay(t, y, args, out):
     out[0] = -y[0]
-
-
-@njit(cache=True)
-def gauss(t, y, args, out):
-    # y = y0 * exp(-(t^2 - t0^2))
-    out[0] = -2.0 * t * y[0]
-
-
-@njit(cache=True)
-def oscillator(t, y, args, out):
-    # y'' = -w^2 y with w = args[0]
-    w = args[0]
-    out[0] = y[1]
-    out[1] = -w * w * y[0]
-
-
-@njit(cache=True)
-def const_one(t, y, args, out):
-    out[0] = 1.0
 
 
 @njit(cache=True)
@@ -93,17 +75,6 @@ def gauss_event_driver(T, Q, stats):
     return dopri5(gauss, y_half, 0.0, np.array([1.0]), 2.0, (), 1e-11,
                   np.array([1e-13]), 0.0, 0.0, T, Q, stats)
 
-
-def gauss_exact(t, t0=0.0, y0=1.0):
-    return y0 * np.exp(-(np.asarray(t) ** 2 - t0 * t0))
-
-
-def osc_exact(t, w):
-    t = np.asarray(t, dtype=float)
-    return np.stack([np.cos(w * t), -w * np.sin(w * t)], axis=-1)
-
-
-OSC_ARGS = (3.0,)
 
 # ---------------------------------------------------------------------------
 # 1. Tableau

@@ -304,6 +304,16 @@ def check_not_input(path: str, inputs, option: str) -> None:
 
 
 
+def open_results(path: str):
+    """The result file at ``path``, opened lazily; a CliError (one line) when it cannot be."""
+    from .. import query
+
+    try:
+        return query.open_results(path)
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
+
+
 def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | None) -> CliError:
     """One line for an error met while reading ``results`` or writing ``output``.
 

@@ -7,6 +7,7 @@ import math
 import os
 
 from . import (  # noqa: F401 (the shared pieces of the command line)
+    open_results,
     CliError,
     DIMS,
     EXIT_FAILURE,
@@ -248,13 +249,9 @@ def _plot(args: argparse.Namespace) -> int:
         raise CliError("--hue does not go with --regime")
     _figure_output(args.output)
     check_not_input(args.output, [args.results, args.boundary], "-o")
-    from .. import query
     from ..plot import lines as plot_lines
     from ..plot import regimes as plot_regimes
-    try:
-        ds = query.open_results(args.results)
-    except ParameterError as exc:
-        raise CliError(str(exc)) from None
+    ds = open_results(args.results)
     try:
         # Read (and so checksum) first: a damaged file is reported as such, whatever else is wrong.
         try:

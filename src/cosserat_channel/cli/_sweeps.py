@@ -8,6 +8,7 @@ import logging
 import sys
 
 from . import (  # noqa: F401 (the shared pieces of the command line)
+    open_results,
     CliError,
     EXIT_FAILURE,
     EXIT_OK,
@@ -159,10 +160,7 @@ def _query(args: argparse.Namespace) -> int:
         check_output_path(args.output, "-o")
         check_not_input(args.output, [args.results], "-o")
     from .. import query
-    try:
-        ds = query.open_results(args.results)
-    except ParameterError as exc:
-        raise CliError(str(exc)) from None
+    ds = open_results(args.results)
     try:
         try:
             sel = [query.parse_sel(t, ds) for t in args.sel]
@@ -205,10 +203,7 @@ def _info_arguments(p: argparse.ArgumentParser) -> None:
           _info_arguments)
 def _info(args: argparse.Namespace) -> int:
     from .. import query
-    try:
-        ds = query.open_results(args.results)
-    except ParameterError as exc:
-        raise CliError(str(exc)) from None
+    ds = open_results(args.results)
     try:
         try:
             text = query.describe(ds, args.results)

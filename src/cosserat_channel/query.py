@@ -26,6 +26,10 @@ Choices worth knowing:
 
 The file is opened lazily (dask-backed through ``xr.open_dataset(chunks={})``); a selection reads
 only what it needs, and rows are extracted in blocks of ``ROW_BLOCK`` points.
+
+The module is long (~580 lines) because parsing, selecting, rendering (table, CSV, JSON, NetCDF)
+and describing a result share the :class:`Selection` and its row iterator; it stays one piece so
+that every output format sees exactly the same points.
 """
 
 from __future__ import annotations

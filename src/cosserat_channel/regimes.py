@@ -23,7 +23,9 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
 
 Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
 reads the codes of this data from :mod:`cosserat_channel.regime_codes` and never solves).
-:func:`bisect_edge` is the one bisection of a solvability edge in the package.
+:func:`bisect_edge` is the one bisection of a solvability edge in the package. The module is
+just over 500 lines because the phase plane and the edge share the model's regime logic and the
+Dataset layout of :func:`trace_boundary`; a solvability atlas would make it a ``regimes/`` package.
 """
 
 from __future__ import annotations

@@ -38,6 +38,7 @@ from cosserat_channel.sweep import engine, run_sweep
 from cosserat_channel.sweep.plan import Plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import partial_dir
+from support import assert_identical
 
 # 72 points, 28 integrations (eps L products repeat); with --block-size 4, 7 blocks. About a second.
 SWEEP = """\
@@ -154,14 +155,6 @@ def one_line_error(stderr: str) -> str:
     assert len(errors) == 1, stderr
     assert "Traceback" not in stderr, stderr
     return errors[0]
-
-
-def assert_identical(path, ds):
-    with xr.open_dataset(path) as f:
-        f.load()
-        assert set(f.data_vars) == set(ds.data_vars)
-        for v in ds.data_vars:
-            assert np.array_equal(f[v].values, ds[v].values, equal_nan=True), v
 
 
 def rerun(sweep_file, out, capsys):

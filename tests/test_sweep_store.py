@@ -10,14 +10,13 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
-import xarray as xr
 
 from cosserat_channel import cli
 from cosserat_channel.sweep import engine, run_sweep
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import WorkStore, partial_dir
+from support import assert_identical
 
 # About 3 s on one core: 9,600 integrations at rtol = 1e-10 in 240 blocks of 40.
 SLOW = """\
@@ -49,14 +48,6 @@ def run_cli(*args) -> subprocess.CompletedProcess:
 
 def snapshot(directory) -> dict:
     return {p.name: p.read_bytes() for p in sorted(Path(directory).iterdir())}
-
-
-def assert_identical(path, ds):
-    with xr.open_dataset(path) as f:
-        f.load()
-        assert set(f.data_vars) == set(ds.data_vars)
-        for v in ds.data_vars:
-            assert np.array_equal(f[v].values, ds[v].values, equal_nan=True), v
 
 
 def leave_partial(monkeypatch, toml, out):

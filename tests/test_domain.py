@@ -97,7 +97,7 @@ def _check_invariants(r):
     if r.status == st.Status.eps_too_large_path:
         if math.isnan(r.xi_stop):
             # The documented NaN band: within ~1e-5 (relative) of the axis edge, where the
-            # location is below double-precision resolution (status.MESSAGES).
+            # location is below double-precision resolution (Status.eps_too_large_path.message).
             eta = r.eps * r.L
             margin = (r.A - 1) * eta + 2 * (r.A + 1) * r.N
             assert margin < 1e-4 * 2 * (r.A + 1) * r.N, "NaN xi_stop away from the axis edge"

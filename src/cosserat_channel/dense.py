@@ -10,7 +10,8 @@ Both integrators store one interpolant per accepted step in Hairer's ``CONTD5`` 
 [Sh86]); :mod:`.rosenbrock` fills it with RODAS's 3rd-order extension (``q4 = 0``). Everything
 else here reads either: :func:`find_step`, :func:`dense_eval_step`, :func:`dense_eval`,
 :func:`dense_eval_many`, :func:`locate_event` and :func:`event_after_step`, and
-:func:`component_minus_level` (a level crossing of one component, for :func:`.roots.find_root`).
+:func:`component_minus_level` and, on one known step, :func:`step_component_minus_level` (a
+level crossing of one component, for :func:`.roots.find_root`).
 :class:`Solution` is the Python-side view of a finished run.
 
 Kernels that receive the event function are ``inline="always"``; see :mod:`.rk45` for why.

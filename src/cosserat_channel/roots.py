@@ -8,8 +8,8 @@ multiple roots); the Illinois weight halving removes most stalls and the bisecti
 bounds the rest, so the bracket shrinks by at least a factor two every three evaluations.
 
 Users: event location on a dense output (:func:`.dense.locate_event`) and, through
-:func:`.dense.component_minus_level`, a level crossing of one component of a dense output (the
-plug edge of :mod:`.solve`).
+:func:`.dense.step_component_minus_level`, the level crossing of one component on one step of a
+dense output (the plug edge of :mod:`.stages`).
 
 The kernel receives ``f`` as an argument and is therefore ``inline="always"``: a jitted caller
 that passes a global ``@njit`` function then calls it directly and stays cacheable (see

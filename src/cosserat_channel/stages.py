@@ -123,6 +123,13 @@ def _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work):
 
 
 @njit(nogil=True, cache=True)
+def _delta_wall(T1, Q1, n1, buf):
+    """``delta(1)``: the wall ends the last stage-1 step, so no search and no axis series."""
+    dense.dense_eval_step(T1, Q1, max(n1 - 1, 0), 1.0, buf)
+    return buf[0]
+
+
+@njit(nogil=True, cache=True)
 def _stage1_work(n1):
     work = np.empty(N_W)
     work[W_STEP] = n1 - 1
@@ -410,7 +417,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
     s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
     if s1 == rk45.SUCCESS:
-        delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf, _stage1_work(n1))
+        delta_wall = _delta_wall(T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
         sensitivity = _wall_D_sensitivity(A, N, delta_wall)
         # Near the path edge D(1) is small and Delta, sigma_yx(1) and stage 2 (B ~ 1/sqrt(D))
@@ -423,7 +430,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
             s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
             if s1 == rk45.SUCCESS:
-                delta_wall = _delta_at(1.0, xi1, ax, T1, Q1, n1, buf, _stage1_work(n1))
+                delta_wall = _delta_wall(T1, Q1, n1, buf)
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
                 sensitivity = _wall_D_sensitivity(A, N, delta_wall)
     res[R_N1] = n1

@@ -56,8 +56,6 @@ EPS_TOO_LARGE_PATH = int(Status.eps_too_large_path)
 AXIS_SPIN_UNBOUNDED = int(Status.axis_spin_unbounded)
 INTEGRATION_FAILED = int(Status.integration_failed)
 
-MESSAGES = {s: s.message for s in Status}
-
 
 def cf_flag_attrs() -> dict:
     """CF attributes for an int8 ``status`` variable (``flag_values`` / ``flag_meanings``)."""

@@ -130,7 +130,7 @@ def find_step(T, nsteps, t):
     return lo
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def find_step_from(T, nsteps, t, k):
     """:func:`find_step` for a caller whose queries move slowly: walk from step `k` (the answer of
     its previous query) instead of bisecting; the same index, in O(1) for a nearby `t`.
@@ -147,7 +147,7 @@ def find_step_from(T, nsteps, t, k):
     return k
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def dense_eval_step(T, Q, k, t, out):
     """Evaluate the interpolant of accepted step `k` at time `t`.
 

@@ -33,7 +33,12 @@ import math
 
 from numba import njit
 
+
 from . import status as st
+
+# error_model="numpy": a division by zero gives inf/NaN, which the integrators handle as a
+# non-finite trial step, instead of a branch and a Python exception around every division.
+_JIT = dict(nogil=True, cache=True, error_model="numpy")
 
 # Slots of the axis-constants array returned by `axis_constants`.
 AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)
@@ -46,7 +51,7 @@ N_AX = 4
 # --------------------------------------------------------------------------------------------
 # Regimes (Appendix A) and the axis condition (eq:20)
 # --------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def axis_margin(eta, A, N):
     """Axis existence condition of eq:20, ``(A-1) eta + 2(A+1) N``.
 
@@ -57,7 +62,7 @@ def axis_margin(eta, A, N):
     return (A - 1.0) * eta + 2.0 * (A + 1.0) * N
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def classify(eta, A, N):
     """Status decided before any integration, for the regimes of Appendix A.
 
@@ -78,7 +83,7 @@ def classify(eta, A, N):
     return st.OK
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def axis_constants(eta, A, N, out):
     """Fill ``out[N_AX]`` with the axis series of eq:20 in cancellation-free form (A > -1).
 
@@ -97,7 +102,7 @@ def axis_constants(eta, A, N, out):
     out[AX_BETA] = 2.0 * a1 * N / (eta * c0) if c0 > 0.0 else math.inf
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def axis_relative_margin(A, N, ax):
     """``c0^2`` relative to the terms of ``D/xi^2`` at the axis that it is the difference of.
 
@@ -109,7 +114,7 @@ def axis_relative_margin(A, N, ax):
     return ax[AX_C0] * ax[AX_C0] / (2.0 * (A + 1.0) * N * ax[AX_Y])
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def delta_axis_series(xi, ax):
     """``delta`` near the axis: ``m = -N L + x xi^2 / 2`` (eq:54, eq:20) plus the quartic term."""
     x2 = xi * xi
@@ -119,7 +124,7 @@ def delta_axis_series(xi, ax):
 # --------------------------------------------------------------------------------------------
 # Stage 1: stresses, xi = 0 -> 1
 # --------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def yield_D(xi, delta, A, N, ax):
     """``D`` under the square root of eq:56 / eq:a3 (scaled), evaluated cancellation-free."""
     r = delta - 0.5 * ax[AX_Y] * xi * xi
@@ -127,7 +132,7 @@ def yield_D(xi, delta, A, N, ax):
     return c0xi * c0xi + 2.0 * (A + 1.0) * (2.0 * N * r - delta * delta)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def ddelta_dxi(xi, delta, eta, A, N, ax):
     """Stage-1 right-hand side, e-61 with eq:56 (root ``E-`` of eq:a2): ``eta delta' = (A+1) xi - sqrt(D)``.
 
@@ -138,7 +143,7 @@ def ddelta_dxi(xi, delta, eta, A, N, ax):
     return ((A + 1.0) * xi - math.sqrt(max(D, 0.0))) / eta
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def dw_dxi(xi, w, eta, A, N, ax):
     """Stage 1 for the integrator, in ``w = delta / xi^2``: ``w' = (delta' - 2 xi w) / xi^2``.
 
@@ -150,7 +155,7 @@ def dw_dxi(xi, w, eta, A, N, ax):
     return (ddelta_dxi(xi, delta, eta, A, N, ax) - 2.0 * xi * w) / (xi * xi)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def dw_dxi_jacobian(xi, w, eta, A, N, ax):
     """Exact ``(d f/d w, d f/d xi)`` of :func:`dw_dxi` ``= f(xi, w)``, for the Rosenbrock path.
 
@@ -170,13 +175,13 @@ def dw_dxi_jacobian(xi, w, eta, A, N, ax):
     return dfdw, dfdxi
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def sigma_xy(xi):
     """eq:19: ``sigma_xy = -xi`` (scaled by nu)."""
     return -xi
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def sigma_yx(xi, D, A):
     """eq:56 with the root the paper keeps: ``sigma_yx = A xi - sqrt(D)`` (scaled by nu)."""
     return A * xi - math.sqrt(max(D, 0.0))
@@ -185,7 +190,7 @@ def sigma_yx(xi, D, A):
 # --------------------------------------------------------------------------------------------
 # Stage 2: velocities, xi = 1 -> 0
 # --------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def spin_rate_B(delta, D, eta, A, N):
     """``B`` of eq:18 / e-60, ``d omega/d xi = B omega``; with ``s = sigma_yx + A sigma_xy = -sqrt(D)``.
 
@@ -194,13 +199,13 @@ def spin_rate_B(delta, D, eta, A, N):
     return 2.0 * (A + 1.0) * (N - delta) / (eta * math.sqrt(D))
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def shear_rate_h(xi, D, A):
     """``h`` of e-59: ``du/d xi = -h omega``."""
     return (A + 1.0) * (1.0 - (A - 1.0) * xi / math.sqrt(D))
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def plug_target(J_axis, eps_K):
     """Right-hand side of eq:13 in terms of ``J``: ``J(xi_p) = 0.95 J(0) - 0.05 eps K``.
 
@@ -213,13 +218,13 @@ def plug_target(J_axis, eps_K):
 # --------------------------------------------------------------------------------------------
 # A = -1 (Appendix A): closed form
 # --------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def a_minus_one_xi_B(eta, N):
     """``xi B = c = 2N/eta`` for A = -1: the limit of e-60 on ``m = -N L``, where ``D = 0``."""
     return 2.0 * N / eta
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def a_minus_one_h():
     """``h = 2`` for A = -1: Appendix A's ``du/dxi = -2 omega`` (e-59 with sigma_yx = -xi)."""
     return 2.0

@@ -405,10 +405,7 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     def feasible_at(eta):
         code = model.classify(eta, A, N)
         if code == st.OK and A != -1.0:
-            try:
-                code = ws.status(eta, A, N, rtol, atol)
-            except ZeroDivisionError:  # a kernel that raised counts as a failed integration
-                code = st.INTEGRATION_FAILED
+            code = ws.status(eta, A, N, rtol, atol)
         return code == st.OK, int(code)
 
     code = model.classify(lo_e, A, N)

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
+
 from . import dense
 from . import model
 from . import rk45
@@ -28,6 +29,14 @@ from . import roots
 from . import rosenbrock
 from . import status as st
 from .model import AX_BETA, AX_C0, N_AX
+
+# error_model="numpy": a division by zero gives inf/NaN, which the integrators handle as a
+# non-finite trial step, instead of a branch and a Python exception around every division.
+_JIT = dict(nogil=True, cache=True, error_model="numpy")
+_JIT_INLINE = dict(_JIT, inline="always")
+# The stage-2 rates and the lookups in stage 1's dense output are inlined into the stage-2 march:
+# as separate functions, each call passing the dense-output arrays cost reference-count updates
+# that made a stage-2 evaluation ~5x the cost of a stage-1 one.
 
 # Work budgets per stage: bounded work per point (a point that needs more is reported as
 # integration_failed, never left running).
@@ -83,20 +92,20 @@ N_PROF = 4
 # ---------------------------------------------------------------------------------------------
 # Right-hand sides and events in the integrator's calling convention
 # ---------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _stage1_rhs(xi, y, args, out):
     # The state is w = delta / xi^2 (see model.dw_dxi).
     eta, A, N, ax = args
     out[0] = model.dw_dxi(xi, y[0], eta, A, N, ax)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _stage1_jac(xi, y, args):
     eta, A, N, ax = args
     return model.dw_dxi_jacobian(xi, y[0], eta, A, N, ax)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _stage1_event(xi, y, args):
     # D = 0: the stress path leaves the yield-admissible region (Appendix A).
     eta, A, N, ax = args
@@ -110,7 +119,7 @@ W_H = 2  # ... and h there, which the tail event needs again at the same xi
 N_W = 3
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT_INLINE)
 def _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work):
     """Stage-1 solution anywhere in [0, 1]: the axis series below ``xi1``, the dense output above."""
     if xi <= xi1:
@@ -122,14 +131,14 @@ def _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work):
     return xi * xi * buf[0]
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _delta_wall(T1, Q1, n1, buf):
     """``delta(1)``: the wall ends the last stage-1 step, so no search and no axis series."""
     dense.dense_eval_step(T1, Q1, max(n1 - 1, 0), 1.0, buf)
     return buf[0]
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _stage1_work(n1):
     work = np.empty(N_W)
     work[W_STEP] = n1 - 1
@@ -138,7 +147,7 @@ def _stage1_work(n1):
     return work
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT_INLINE)
 def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work):
     """``(xi B, h)`` of e-60 / e-59 at ``xi``, on the stage-1 solution.
 
@@ -157,7 +166,7 @@ def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work):
     return xi * model.spin_rate_B(delta, D, eta, A, N), h
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT_INLINE)
 def _stage2_rhs(t, y, args, out):
     # Independent variable t = ln(xi): near the axis B ~ beta/xi, so d log(omega_hat)/dt -> beta
     # is smooth all the way down, where marching in xi would crawl in geometric steps.
@@ -168,7 +177,7 @@ def _stage2_rhs(t, y, args, out):
     out[1] = -xi * h * math.exp(y[0])  # dJ/dt   (e-59)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _h_axis(A, ax):
     # h at the axis, where sqrt(D) -> c0 xi (A = -1: h = 2 everywhere).
     if A == -1.0:
@@ -176,7 +185,7 @@ def _h_axis(A, ax):
     return (A + 1.0) * (1.0 - (A - 1.0) / ax[AX_C0])
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT_INLINE)
 def _stage2_event(t, y, args):
     # Positive while the rest of J (from xi down to the axis) can still matter: that rest is at
     # most xi * max(h) * omega_hat(xi), because omega_hat increases with xi (B > 0 near the axis).
@@ -196,7 +205,7 @@ def _stage2_event(t, y, args):
 # ---------------------------------------------------------------------------------------------
 # The kernel for one (eta, A, N)
 # ---------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def use_stiff_path(eta, ax):
     """Whether stage 1 should take the stiff path: the Jacobian is known in closed form.
 
@@ -209,7 +218,7 @@ def use_stiff_path(eta, ax):
     return max(2.0 / eta, ax[AX_BETA]) > STIFF_LAMBDA
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def stage1_rtol(rtol, A, N, ax):
     """Stage 1's relative tolerance: the user's, tightened to ``rho/1000`` next to the axis edge.
 
@@ -223,7 +232,7 @@ def stage1_rtol(rtol, A, N, ax):
     return min(rtol, max(STAGE1_RTOL_FLOOR, 1e-3 * rho))
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _march_stage1(stiff, xi0, y0, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
     # The only place that picks stage 1's integrator; both write the same dense-output layout.
     if stiff:
@@ -233,7 +242,7 @@ def _march_stage1(stiff, xi0, y0, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
                        T1, Q1, stats1)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def axis_crossing_xi2(eta, A, N, ax):
     """``xi^2`` where the two-term axis series ``D = c0^2 xi^2 + 2(A+1)(2Nk - y^2/4) xi^4`` vanishes.
 
@@ -247,14 +256,14 @@ def axis_crossing_xi2(eta, A, N, ax):
     return c0 * (4.0 * eta * c0 + 2.0 * a1 * N) / (2.0 * a1 * y * y * eta)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def start_xi(ax):
     """Where stage 1 leaves the axis series: small enough that the neglected O(xi^6) term is far
     below round-off, scaled with ``c0`` because the series' radius shrinks at the axis edge."""
     return 1e-3 * min(1.0, ax[AX_C0])
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def stage1_start(ax):
     """Where and with what value the stage-1 march starts: ``(xi1, w(xi1))`` from the axis series.
 
@@ -265,7 +274,7 @@ def stage1_start(ax):
     return xi1, model.delta_axis_series(xi1, ax) / (xi1 * xi1)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
     """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
 
@@ -312,7 +321,7 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
     return s1, n1, t1
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _path_end_bound(xi, eta, A, N):
     """An upper bound on where a stage-1 path that exists at ``xi > N`` meets ``D = 0`` (A > -1).
 
@@ -333,7 +342,7 @@ def _path_end_bound(xi, eta, A, N):
     return xi + eta * W / gap
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def path_must_end(xi, eta, A, N):
     """Whether every stage-1 path that reaches ``xi`` meets ``D = 0`` before the wall (A > -1).
 
@@ -352,13 +361,13 @@ def path_must_end(xi, eta, A, N):
     return False
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _wall_D_sensitivity(A, N, delta_wall):
     """``|dD/d delta| delta`` at the wall: what a relative error in delta does to D(1)."""
     return 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_AUTO):
     """Stage 1 for one ``(eta, A, N)``: the regime, the march from the axis and the wall values.
 
@@ -466,7 +475,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     return st.OK, D_wall < WALL_D_FALLBACK * D_resolution
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method=METHOD_AUTO,
               stage2=True):
     """Both stages for one ``(eta, A, N)`` with ``A > -1`` or ``A = -1``, or only what decides.
@@ -501,7 +510,7 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     return code
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, res):
     """Stage 2: wall -> axis in ``t = ln(xi)``, state ``(log omega_hat, J)``; ``omega_hat(1) = 1``,
     ``J(1) = 0`` (eq:7). Stops once the rest of ``J`` is below ``TAIL_FRACTION * rtol * J``.
@@ -534,13 +543,13 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     return st.OK
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
     """``1 - xi_p`` from eq:13 (see :func:`_one_minus_xi_p`, which the batch kernel calls with scratch)."""
     return _one_minus_xi_p(eps_K, res, T2, Q2, np.empty(2))
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _one_minus_xi_p(eps_K, res, T2, Q2, scratch):
     """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi).
 
@@ -576,7 +585,7 @@ def _one_minus_xi_p(eps_K, res, T2, Q2, scratch):
     return -math.expm1(x)
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
     """Stage 1 alone for many triples (benchmarks), exactly as :func:`solve_eta` runs it:
     ``m(1)/(nu L)`` into ``mu_wall`` (NaN without a solution) and the counters into ``stats[i]``."""
@@ -589,7 +598,7 @@ def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
         mu_wall[i] = res[R_MU_WALL]
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_steps_stage2,
                 res, stats, one_minus, xi_profile, profiles, stage2=True, plug_edge=True):
     """Many ``(eta, A, N)`` triples, each with its own run of ``eps K`` values, on one core.
@@ -629,7 +638,7 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
 
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     """Profiles of one solved triple at ``xis``: rows ``P_J``, ``P_OMEGA_HAT``, ``P_DELTA``, ``P_SIGMA_YX``.
 

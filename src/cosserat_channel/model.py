@@ -33,7 +33,6 @@ import math
 
 from numba import njit
 
-
 from . import status as st
 
 # error_model="numpy": a division by zero gives inf/NaN, which the integrators handle as a

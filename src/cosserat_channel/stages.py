@@ -21,7 +21,6 @@ import math
 import numpy as np
 from numba import njit
 
-
 from . import dense
 from . import model
 from . import rk45

@@ -5,15 +5,24 @@ Measures, in one run on this machine:
 1. the same unreduced sweep (one core) asked for every output and for ``m_wall`` alone (stage-1
    output: no velocity stage away from the path edge, no plug-edge root);
 2. ``regimes.trace_edge`` deciding feasibility by the full two-stage solve (as before) and by
-   ``Workspace.status`` (stage 2 only next to the edge), with the two eta_max compared.
+   ``Workspace.status`` (stage 2 only next to the edge), with the two eta_max compared;
+3. with ``--baseline REF``, the same edges traced by the package as it was at git commit REF
+   (default 5fd2cfb, the code when issue 15 was filed: feasibility by both stages, the kernels of
+   that day), in a subprocess of this run on a ``git archive`` of REF. This is the "today's
+   time" of the issue's target, measured side by side rather than quoted.
 
-Run: ``.venv/bin/python benchmarks/bench_needed.py [--quick]``. Targets: sweep ratio <= 0.55,
-trace_edge ratio <= 0.5 with identical eta_max to 1e-10 (relative).
+Run: ``.venv/bin/python benchmarks/bench_needed.py [--quick] [--baseline [REF]]``. Targets: sweep
+ratio <= 0.55, trace_edge ratio <= 0.5 with identical eta_max to 1e-10 (relative).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
@@ -49,10 +58,45 @@ def time_sweep(mapping, repeat):
     return best, ds
 
 
+BASELINE_SCRIPT = """
+import json, sys, time
+from cosserat_channel import regimes
+cases = json.loads(sys.argv[1])
+regimes.trace_edge(1 / 3, 1.0)  # compile / load outside the timing
+out = []
+for A, N in cases:
+    t0 = time.perf_counter()
+    e = regimes.trace_edge(A, N)
+    out.append([time.perf_counter() - t0, e.eta_max])
+print(json.dumps(out))
+"""
+
+
+def trace_baseline(ref: str, cases) -> list | None:
+    """``[(seconds, eta_max), ...]`` of ``trace_edge`` on ``cases`` with the package at git ``ref``."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    with tempfile.TemporaryDirectory(prefix="cc-baseline-") as tmp:
+        archive = subprocess.run(["git", "-C", root, "archive", ref, "src"], capture_output=True)
+        if archive.returncode != 0:
+            print(f"baseline: cannot read commit {ref!r}: {archive.stderr.decode().strip()}")
+            return None
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive.stdout, check=True)
+        env = dict(os.environ, PYTHONPATH=os.path.join(tmp, "src"))
+        run = subprocess.run([sys.executable, "-c", BASELINE_SCRIPT, json.dumps(cases)], env=env,
+                             capture_output=True, text=True)
+        if run.returncode != 0:
+            print(f"baseline at {ref} failed: {run.stderr.strip().splitlines()[-1:]}")
+            return None
+        return json.loads(run.stdout.strip().splitlines()[-1])
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="a small grid (CI smoke run)")
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--baseline", nargs="?", const="5fd2cfb", default=None, metavar="REF",
+                    help="also trace the edges with the package at git commit REF (default "
+                         "5fd2cfb, when issue 15 was filed)")
     args = ap.parse_args()
     n = 20 if args.quick else 100
     print(f"CPU: {cpu_model()}; one core; unreduced sweep of {n} x {n} x 5 x 2 points")
@@ -73,6 +117,7 @@ def main() -> int:
     regimes.trace_edge(1 / 3, 1.0, workspace=ws_new)  # warm up
     t_old = t_new = 0.0
     worst = 0.0
+    etas = []
     for A, N in EDGE_CASES:
         t0 = time.perf_counter()
         old = regimes.trace_edge(A, N, workspace=ws_full)
@@ -81,6 +126,7 @@ def main() -> int:
         t2 = time.perf_counter()
         t_old += t1 - t0
         t_new += t2 - t1
+        etas.append(new.eta_max)
         if np.isfinite(old.eta_max) or np.isfinite(new.eta_max):
             worst = max(worst, abs(new.eta_max - old.eta_max) / abs(old.eta_max))
         print(f"  A = {A:6.3f}, N = {N:4.2f}: eta_max {old.eta_max:.12g} (full) "
@@ -89,6 +135,20 @@ def main() -> int:
     print(f"trace_edge, {len(EDGE_CASES)} edges: {t_old:.2f} s -> {t_new:.2f} s, ratio {r:.2f} "
           f"(target <= 0.5: {'PASS' if r <= 0.5 else 'FAIL'}); max relative eta_max difference "
           f"{worst:.1e} (target <= 1e-10: {'PASS' if worst <= 1e-10 else 'FAIL'})")
+    if args.baseline:
+        base = trace_baseline(args.baseline, [list(c) for c in EDGE_CASES])
+        if base is not None:
+            t_base = sum(b[0] for b in base)
+            worst_b = max((abs(new_e - b[1]) / abs(b[1]) for b, new_e in zip(base, etas)
+                           if np.isfinite(b[1])), default=0.0)
+            rb = t_new / t_base
+            for (A, N), b, new_e in zip(EDGE_CASES, base, etas):
+                print(f"  A = {A:6.3f}, N = {N:4.2f}: eta_max {b[1]:.12g} (at {args.baseline}) "
+                      f"{new_e:.12g} (now); {b[0]:6.2f} s")
+            print(f"trace_edge at {args.baseline} (the code when issue 15 was filed), same edges: "
+                  f"{t_base:.2f} s; this commit {t_new:.2f} s, ratio {rb:.2f} (target <= 0.5: "
+                  f"{'PASS' if rb <= 0.5 else 'FAIL'}); max relative eta_max difference "
+                  f"{worst_b:.1e} (target <= 1e-10: {'PASS' if worst_b <= 1e-10 else 'FAIL'})")
     return 0
 
 

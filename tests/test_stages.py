@@ -96,3 +96,54 @@ def test_sweep_block_computes_only_what_is_asked():
         assert np.array_equal(part["res"][ok, slot], full["res"][ok, slot])
     assert np.isnan(part["one_minus"]).all()
     assert part["steps"][:, 1].sum() < full["steps"][:, 1].sum() / 4
+
+
+def test_wall_form_of_D_matches_the_direct_formula_and_is_smooth():
+    """stages._wall_form: D(1) + increment equals yield_D on the dense output to round-off of the
+    O(1) terms, and next to the wall (where D(1) is tiny at the edge) it is smooth in xi where the
+    direct formula is noise."""
+    from cosserat_channel import dense, model
+
+    A, N = 0.0, 2.0
+    eta = 3.7416566781580975 * (1 - 1e-6)  # 1e-6 inside the edge: D(1) ~ 2e-12
+    ws = Workspace()
+    assert ws.run(eta, A, N, 1e-10, 1e-14) == st.OK
+    n1 = int(ws.res[stages.R_N1])
+    T1, Q1, ax = ws.T1, ws.Q1, ws.ax
+    buf = np.empty(1)
+    delta1 = stages._delta_wall(T1, Q1, n1, buf)
+    D1 = model.yield_D(1.0, delta1, A, N, ax)
+    assert 0 < D1 < 1e-10
+    C = stages._wall_increments(T1, Q1, n1)
+
+    def both(s):
+        xi = 1.0 - s
+        k = dense.find_step(T1, n1, xi)
+        d_w, D_w = stages._wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
+        dense.dense_eval_step(T1, Q1, k, xi, buf)
+        d = xi * xi * buf[0]
+        return d_w, D_w, d, model.yield_D(xi, d, A, N, ax)
+
+    for s in (0.5, 0.3, 0.1, 1e-2, 1e-3):
+        d_w, D_w, d, D = both(s)
+        assert d_w == pytest.approx(d, rel=1e-14, abs=1e-15)
+        assert D_w == pytest.approx(D, abs=1e-14)
+    # Next to the wall: second differences of D on a fine, uniform grid in s. A smooth D has
+    # second differences ~ D'' h^2 (h = 1e-9: ~1e-18 at most here); the direct formula's are its
+    # rounding noise, ~1e-16.
+    s = 1e-6 + 1e-9 * np.arange(64)
+    wall = np.array([both(x)[1] for x in s])
+    direct = np.array([both(x)[3] for x in s])
+    assert np.abs(np.diff(wall, 2)).max() < 1e-17
+    assert np.abs(np.diff(direct, 2)).max() > 1e-17  # the noise this form removes
+    assert np.all(wall > 0)
+
+
+def test_stage2_next_to_the_edge_is_cheap():
+    """Within 1e-7 (relative) of the traced edge at A = 0, N = 2, D(1) ~ 1e-13 and stage 2 solves
+    in hundreds of steps (it used to spend its 20,000-step budget on the noise of D there)."""
+    ws = Workspace()
+    for f in (1e-5, 1e-6, 1e-7):
+        eta = 3.7416566781580975 * (1 - f)
+        assert ws.run(eta, 0.0, 2.0, 1e-10, 1e-14) == st.OK
+        assert ws.res[stages.R_N2] < 1000

@@ -3,7 +3,9 @@
 Stage 1 marches the scaled couple stress ``delta`` (see :mod:`cosserat_channel.model`) from the
 axis to the wall with :func:`rk45.dopri5`, stopping at ``D = 0`` if the stress path leaves the
 yield-admissible region. Stage 2 marches ``(log omega_hat, J)`` from the wall towards the axis on
-the dense output of stage 1 and stops once what is left of ``J`` is below the tolerance. Both
+the dense output of stage 1 and stops once what is left of ``J`` is below the tolerance; near the
+wall it evaluates ``D`` as ``D(1)`` plus an increment (:func:`_wall_form`), so that ``B ~ 1/sqrt(D)``
+stays smooth where ``D(1)`` is tiny, next to the edge of solvability. Both
 stages depend on ``(eta = eps L, A, N)`` only (the similarity of model.md); ``eps`` and ``K``
 enter afterwards, through ``eps K`` in the plug-edge condition eq:13, so one integration serves a
 whole ``K`` axis.
@@ -115,7 +117,11 @@ def _stage1_event(xi, y, args):
 W_STEP = 0  # the stage-1 step of the last lookup (stage 2 moves through them in order)
 W_XI = 1  # xi of the last evaluation of the rates ...
 W_H = 2  # ... and h there, which the tail event needs again at the same xi
-N_W = 3
+W_DELTA1 = 3  # delta(1) = w(1), from the last stage-1 step
+W_D1 = 4  # D(1)
+N_W = 5
+# Above this xi stage 2 evaluates D as D(1) + [D(xi) - D(1)] (see _wall_form).
+XI_WALL_FORM = 0.5
 
 
 @njit(**_JIT_INLINE)
@@ -143,12 +149,62 @@ def _stage1_work(n1):
     work[W_STEP] = n1 - 1
     work[W_XI] = math.nan
     work[W_H] = math.nan
+    work[W_DELTA1] = math.nan
+    work[W_D1] = math.nan
     return work
 
 
+@njit(**_JIT)
+def _wall_increments(T1, Q1, n1):
+    """``C[k] = w(T1[k+1]) - w(1)`` for the stage-1 steps that reach above ``XI_WALL_FORM``.
+
+    Summed from the wall over the steps' own increments (the second dense-output row), so that
+    :func:`_wall_form` gets ``w(xi) - w(1)`` without subtracting two O(1) values. Entries below
+    are not filled.
+    """
+    C = np.empty(max(n1, 1))
+    acc = 0.0
+    for k in range(n1 - 1, -1, -1):
+        C[k] = acc
+        if T1[k] < XI_WALL_FORM:
+            break
+        acc -= Q1[k, 1, 0]
+    return C
+
+
 @njit(**_JIT_INLINE)
-def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work):
-    """``(xi B, h)`` of e-60 / e-59 at ``xi``, on the stage-1 solution.
+def _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1):
+    """``(delta, D)`` at ``xi = 1 - s`` (in stage-1 step ``k``, ``xi >= XI_WALL_FORM``), with ``D``
+    as ``D(1)`` plus an increment computed from increments.
+
+    Next to the edge of solvability ``D`` is tiny at the wall (down to ~1e-14) and is the difference
+    of O(1) terms: evaluated directly its rounding noise is ~1e-16, so near the wall
+    ``B ~ 1/sqrt(D)`` became a noisy function of xi and stage 2 spent its whole budget (20,000 steps)
+    on it. Here ``D(xi) - D(1)`` is built from ``delta(xi) - delta(1)`` and ``xi^2 - 1 = -s(2 - s)``,
+    each with a relative error of a few ulps: the rounding of ``D(1)`` itself is then a constant,
+    and ``D`` is smooth in xi down to the wall.
+    """
+    s_end = 1.0 - T1[k + 1]  # exact (Sterbenz): T1[k + 1] >= 1/2
+    om = (s - s_end) / (T1[k + 1] - T1[k])  # 1 - theta in the step
+    th = 1.0 - om
+    # w(xi) - w(T1[k+1]) on the step's polynomial (dense.dense_eval_step's layout), as a multiple
+    # of 1 - theta: no cancellation at the step's end.
+    dw = C[k] - om * (Q1[k, 1, 0] - th * (Q1[k, 2, 0] + th * (Q1[k, 3, 0] + om * Q1[k, 4, 0])))
+    x2m1 = -s * (2.0 - s)  # xi^2 - 1
+    ddelta = x2m1 * (delta1 + dw) + dw  # xi^2 w(xi) - w(1)
+    delta = delta1 + ddelta
+    c0 = ax[AX_C0]
+    dD = c0 * c0 * x2m1 + 2.0 * (A + 1.0) * (
+        2.0 * N * (ddelta - 0.5 * ax[model.AX_Y] * x2m1) - ddelta * (delta + delta1))
+    return delta, D1 + dD
+
+
+@njit(**_JIT_INLINE)
+def _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C):
+    """``(xi B, h)`` of e-60 / e-59 at ``xi = exp(t)``, on the stage-1 solution.
+
+    Above ``XI_WALL_FORM``, ``delta`` and ``D`` come from :func:`_wall_form` (``C`` from
+    :func:`_wall_increments`), below from the dense output (or the axis series) directly.
 
     For A = -1 (Appendix A) ``D`` vanishes identically and the general formulas are 0/0; there
     ``m = -N L`` and the limits ``B = c/xi`` (``c = 2N/eta``) and ``h = 2`` are used instead, so
@@ -157,8 +213,14 @@ def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work):
     """
     if A == -1.0:
         return model.a_minus_one_xi_B(eta, N), model.a_minus_one_h()
-    delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work)
-    D = model.yield_D(xi, delta, A, N, ax)
+    if xi >= XI_WALL_FORM:
+        k = dense.find_step_from(T1, n1, xi, int(work[W_STEP]))
+        work[W_STEP] = k
+        delta, D = _wall_form(xi, -math.expm1(t), k, T1, Q1, C, A, N, ax, work[W_DELTA1],
+                              work[W_D1])
+    else:
+        delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work)
+        D = model.yield_D(xi, delta, A, N, ax)
     h = model.shear_rate_h(xi, D, A)
     work[W_XI] = xi
     work[W_H] = h
@@ -169,9 +231,9 @@ def _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work):
 def _stage2_rhs(t, y, args, out):
     # Independent variable t = ln(xi): near the axis B ~ beta/xi, so d log(omega_hat)/dt -> beta
     # is smooth all the way down, where marching in xi would crawl in geometric steps.
-    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol = args
+    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol, C = args
     xi = math.exp(t)
-    xiB, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work)
+    xiB, h = _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C)
     out[0] = xiB  # d log(omega_hat)/dt   (e-60)
     out[1] = -xi * h * math.exp(y[0])  # dJ/dt   (e-59)
 
@@ -188,7 +250,7 @@ def _h_axis(A, ax):
 def _stage2_event(t, y, args):
     # Positive while the rest of J (from xi down to the axis) can still matter: that rest is at
     # most xi * max(h) * omega_hat(xi), because omega_hat increases with xi (B > 0 near the axis).
-    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol = args
+    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol, C = args
     J = y[1]
     if J <= 0.0:
         return 1.0
@@ -196,7 +258,7 @@ def _stage2_event(t, y, args):
     if xi == work[W_XI]:
         h = work[W_H]  # the step's last stage was evaluated here (FSAL): no second lookup
     else:
-        _, h = _stage2_rates(xi, eta, A, N, ax, xi1, T1, Q1, n1, buf, work)
+        _, h = _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C)
     h_bound = 2.0 * max(h, _h_axis(A, ax))
     return y[0] + t + math.log(h_bound) - math.log(tail_tol * J)
 
@@ -460,10 +522,12 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         res[R_STATUS] = st.INTEGRATION_FAILED
         return st.INTEGRATION_FAILED, False
     # Stage 1 resolves delta to ~rtol1 |delta|, hence D(1) to ~rtol1 * sensitivity: a D(1) well
-    # below that is zero within what stage 1 resolves. Stage 2 there marches B ~ 1/sqrt(D) on
-    # noise (20,000 steps, no answer, seen at D(1) ~ 0.1 of it), so such a point is reported as
-    # reaching D = 0 at the wall, like D(1) <= 0 itself. The stage-2 fallback in solve_eta catches
-    # what this cheap cut lets through; together they move the edge < 1e-5 relative.
+    # below that is zero within what stage 1 resolves (stage 2 would march B ~ 1/sqrt(D) on the
+    # integration error of delta), so such a point is reported as reaching D = 0 at the wall, like
+    # D(1) <= 0 itself. The stage-2 fallback in solve_eta catches what this cheap cut lets through.
+    # Next to a tangential edge D(1) grows like (eta_max - eta)^2, so this band is ~sqrt(D
+    # resolution) wide in eta: ~3e-7 relative at A = 0, N = 2 and rtol 1e-10, where an independent
+    # scipy DOP853 march at rtol 1e-13 puts D(1) = 0 within 6e-8 of the traced edge.
     D_resolution = WALL_D_RESOLUTION * rtol1 * sensitivity
     if not D_wall > D_resolution:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
@@ -523,7 +587,12 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     atol2 = np.empty(2)
     atol2[0] = rtol  # an absolute error in log(omega_hat) is a relative error in omega_hat
     atol2[1] = atol * min(1.0, eta)
-    args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, _stage1_work(n1), TAIL_FRACTION * rtol)
+    work = _stage1_work(n1)
+    C = _wall_increments(T1, Q1, n1)
+    if A != -1.0:
+        work[W_DELTA1] = _delta_wall(T1, Q1, n1, buf)
+        work[W_D1] = model.yield_D(1.0, work[W_DELTA1], A, N, ax)
+    args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, work, TAIL_FRACTION * rtol, C)
     s2, n2, t2 = rk45.dopri5(
         _stage2_rhs, _stage2_event, 0.0, y2, math.log(XI_FLOOR), args2, rtol, atol2, 0.0, 0.0, T2, Q2,
         stats2,

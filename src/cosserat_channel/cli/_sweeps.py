@@ -76,11 +76,18 @@ def _run(args: argparse.Namespace) -> int:
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
     logger.addHandler(handler)
     logger.setLevel(logging.INFO)
+    from ..sweep.engine import SchedulerLost
+
     try:
         run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                  reduce=args.reduce, block_size=args.block_size)
+                  reduce=args.reduce, block_size=args.block_size).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
+    except SchedulerLost as exc:
+        from ..sweep.store import partial_dir
+
+        raise CliError(f"{exc}; finished blocks are kept in {partial_dir(output)}/, rerun the same "
+                       "command to resume", EXIT_FAILURE) from None
     except OSError as exc:
         from ..files import WriteError
         from ..sweep.store import partial_dir

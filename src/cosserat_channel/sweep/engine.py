@@ -74,8 +74,9 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         keeps the block size it started with).
     progress : bool, optional
         Progress bar on stderr; default when stderr is a terminal.
-    compress : bool
-        zlib level 1 on the NetCDF variables.
+    compress : bool or str
+        Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level 1),
+        ``"zlib"`` (level 1, for readers without netCDF-C's zstd filter), or False.
 
     Returns
     -------
@@ -100,6 +101,8 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     if workers is not None and (int(workers) != workers or workers < 1):
         raise SweepError(f"workers must be a positive integer; got {workers!r}")
     n_workers = int(workers or os.cpu_count() or 1)
+    if compress not in (True, False, "zstd", "zlib"):
+        raise SweepError(f"compress must be True, False, 'zstd' or 'zlib'; got {compress!r}")
     try:
         plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers)
     except ValueError as exc:

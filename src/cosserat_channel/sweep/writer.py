@@ -63,14 +63,20 @@ class Tiles:
     def locate(self, flat: np.ndarray):
         """``(tile, local)`` of C-order grid indices ``flat``: the tile's number and the C-order
         index inside that tile (edge tiles are smaller)."""
-        idx = np.unravel_index(flat, self.shape)
+        # Trailing axes a tile spans whole are one axis for this purpose: fewer passes over flat.
+        j = len(self.shape)
+        while j > 1 and self.tile[j - 1] == self.shape[j - 1]:
+            j -= 1
+        inner = math.prod(self.shape[j:])
+        lead, rest = np.divmod(flat, inner)
         tile = np.zeros(flat.shape, dtype=np.int64)
         local = np.zeros(flat.shape, dtype=np.int64)
-        for ix, t, g, n in zip(idx, self.tile, self.grid, self.shape):
+        for ix, t, g, n in zip(np.unravel_index(lead, self.shape[:j]), self.tile, self.grid,
+                               self.shape):
             q, r = np.divmod(ix, t)
             tile = tile * g + q
             local = local * np.minimum(t, n - q * t) + r
-        return tile, local
+        return tile, local * inner + rest
 
 
 class Buckets:
@@ -108,8 +114,10 @@ class Buckets:
         path = self._path(i)
         rec = np.fromfile(path, dtype=BUCKET)
         os.unlink(path)
-        out = np.full(math.prod(shape), np.nan)
-        if rec.size != out.size or np.unique(rec["local"]).size != out.size:
+        out = np.empty(math.prod(shape))
+        seen = np.zeros(out.size, dtype=bool)
+        seen[rec["local"]] = True
+        if rec.size != out.size or not seen.all():  # a bug, never a user's error
             raise RuntimeError(f"tile {i}: {rec.size} plug-edge values for {out.size} points")
         out[rec["local"]] = rec["value"]
         return out.reshape(shape)
@@ -138,7 +146,8 @@ def _create(nc, name, dims, shape, dtype, attrs, is_coord, compress):
     enc = variable_encoding(name, shape, dtype, is_coord, compress)
     # xarray's default fill value for floats is NaN; "_FillValue: None" means none at all.
     fill = enc.pop("_FillValue", np.nan if np.dtype(dtype).kind == "f" else None)
-    var = nc.createVariable(name, dtype, dims, fill_value=fill, zlib=enc.get("zlib", False),
+    codec = enc.get("compression", "zlib" if enc.get("zlib") else None)
+    var = nc.createVariable(name, dtype, dims, fill_value=fill, compression=codec,
                             complevel=enc.get("complevel", 4), shuffle=enc.get("shuffle", False),
                             chunksizes=enc.get("chunksizes"),
                             fletcher32=enc.get("fletcher32", False))

@@ -26,6 +26,7 @@ import re
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from .writer import BUCKET, SCRATCH, Buckets, Tiles, write_tiles
 
 # Seconds to wait for a scheduler to answer before the run is refused (nothing created yet).
 CONNECT_TIMEOUT = 5.0
+# Threads reading the blocks back at assembly (about the cores of a laptop; more gains little,
+# the bucket files are appended one block at a time).
+GATHER_THREADS = 2
 _ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
 
 
@@ -399,7 +403,9 @@ def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=N
         tiles = Tiles(plan.shape, 0 if xi is None else xi.size)
         if need_one_minus:
             buckets = Buckets(os.path.join(store.directory, SCRATCH), tiles)
-    for k, triples in enumerate(plan.blocks):
+
+    def gather(k):
+        triples = plan.blocks[k]
         try:
             b = store.get(k, triples)
         except BlockDamaged as exc:
@@ -408,7 +414,7 @@ def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=N
             store.discard(k, str(exc))
             recompute(k)
             b = store.get(k, triples)
-        per_triple["res"][triples] = b["res"]
+        per_triple["res"][triples] = b["res"]  # blocks hold disjoint triples and grid points
         per_triple["steps"][triples] = b["steps"]
         if profiles is not None:
             profiles[triples] = b["profiles"]
@@ -416,6 +422,12 @@ def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=N
             one_minus[plan.inputs(k).flat] = b["one_minus"]
         elif buckets is not None:
             buckets.add(plan.inputs(k).flat, b["one_minus"])
+
+    # Reading, checking and sorting a block is numpy and hashlib work that leaves the GIL: two
+    # threads.
+    with ThreadPoolExecutor(GATHER_THREADS, thread_name_prefix="cc-gather") as pool:
+        for _ in pool.map(gather, range(len(plan.blocks))):
+            pass
     if output is None:
         if one_minus is not None:
             one_minus = one_minus.reshape(plan.shape)

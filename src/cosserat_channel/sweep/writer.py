@@ -22,6 +22,8 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import netCDF4
 import numpy as np
@@ -86,6 +88,7 @@ class Buckets:
     def __init__(self, directory: str, tiles: Tiles):
         self.directory = directory
         self.tiles = tiles
+        self._lock = threading.Lock()
         # Leftovers of a killed run are never trusted: the buckets are rebuilt from the blocks.
         shutil.rmtree(directory, ignore_errors=True)
         os.makedirs(directory)
@@ -104,9 +107,10 @@ class Buckets:
         rec["local"] = local[order]
         rec["value"] = values[order]
         bounds = np.flatnonzero(np.diff(tile)) + 1
-        for lo, hi in zip(np.concatenate(([0], bounds)), np.concatenate((bounds, [tile.size]))):
-            with open(self._path(int(tile[lo])), "ab") as f:
-                f.write(rec[lo:hi].tobytes())
+        with self._lock:  # blocks are added from several threads (engine.assemble)
+            for lo, hi in zip(np.concatenate(([0], bounds)), np.concatenate((bounds, [tile.size]))):
+                with open(self._path(int(tile[lo])), "ab") as f:
+                    f.write(rec[lo:hi].tobytes())
 
     def take(self, i: int, shape: tuple) -> np.ndarray:
         """Tile ``i``'s values on its box (every point is in exactly one block); the bucket file
@@ -158,13 +162,26 @@ def _create(nc, name, dims, shape, dtype, attrs, is_coord, compress):
 
 def write_tiles(path, spec, plan, per_triple, xi, profiles, tiles: Tiles,
                 buckets: Buckets | None, compress: bool = True) -> None:
-    """Write the result file at ``path`` tile by tile (see the module docstring)."""
-    with netCDF4.Dataset(path, "w", format="NETCDF4") as nc:
+    """Write the result file at ``path`` tile by tile (see the module docstring).
+
+    The next tile's values are derived in a second thread while this one writes (the HDF5
+    library compresses without holding the GIL): two tiles in memory, both cores busy.
+    """
+
+    def derive(i):
+        region = plan.region(tiles.slices(i))
+        one_minus = None if buckets is None else buckets.take(i, region.shape)
+        return region, grid_values(spec, region, per_triple, one_minus, xi, profiles)
+
+    with netCDF4.Dataset(path, "w", format="NETCDF4") as nc, \
+            ThreadPoolExecutor(1, thread_name_prefix="cc-tile") as pool:
+        ahead = pool.submit(derive, 0)
         for i in range(tiles.count):
-            region = plan.region(tiles.slices(i))
-            one_minus = None if buckets is None else buckets.take(i, region.shape)
-            values = grid_values(spec, region, per_triple, one_minus, xi, profiles)
+            region, values = ahead.result()
+            if i + 1 < tiles.count:
+                ahead = pool.submit(derive, i + 1)
             if i == 0:
                 create_variables(nc, spec, plan, xi, values, compress)
             for name, (dims, value, _) in values.items():
                 nc[name][region.slices + (slice(None),) * (len(dims) - len(DIMS))] = value
+            del values

@@ -196,6 +196,8 @@ def test_bad_arguments_raise_sweep_error():
         run_sweep(sweep(SHARED), workers=0)
     with pytest.raises(SweepError):
         run_sweep(sweep(SHARED), block_size=0)
+    with pytest.raises(SweepError, match="compress"):
+        run_sweep(sweep(SHARED), compress="gzip")
 
 
 def test_distributed_scheduler_gives_identical_values(tmp_path):

@@ -33,7 +33,8 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
                    "current directory); unfinished work is kept in OUT.nc.partial/ and resumed")
     p.add_argument("--workers", type=int, metavar="N", help="threads (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run the blocks on this dask.distributed scheduler, e.g. tcp://host:8786")
+                   help="run the blocks on this dask.distributed scheduler, e.g. tcp://host:8786 "
+                   "(checked before anything is written; see README, 'sweeps on a cluster')")
     p.add_argument("--no-reduce", dest="reduce", action="store_false",
                    help="one integration per grid point instead of per distinct (eps L, A, N); "
                    "same values, for checks and benchmarks")

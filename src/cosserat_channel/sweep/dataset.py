@@ -56,17 +56,21 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
     elementwise in the grid point, so a region's values are the whole grid's to the last bit.
     """
     res = per_triple["res"]
-    status = grid.to_grid(res[:, stages.R_STATUS].astype(np.int8))
+    # Per-triple values enter without their K axis (to_grid's spread=False): an output that needs
+    # no eps K (m_wall, the stresses, ...) is computed once per (eps, L, A, N), and derive's final
+    # broadcast spreads it. Elementwise either way: the same bits.
+    status = grid.to_grid(res[:, stages.R_STATUS].astype(np.int8), spread=False)
     inputs = out_.Inputs(
         status,
         grid.eps.reshape(-1, 1, 1, 1, 1), grid.L.reshape(1, -1, 1, 1, 1),
         grid.K.reshape(1, 1, -1, 1, 1), grid.N.reshape(1, 1, 1, 1, -1),
-        J_axis=grid.to_grid(res[:, stages.R_J_AXIS]),
-        mu_wall=grid.to_grid(res[:, stages.R_MU_WALL]),
-        sigma_yx_wall=grid.to_grid(res[:, stages.R_SIGMA_YX_WALL]),
-        xi_stop=grid.to_grid(res[:, stages.R_XI_STOP]),
+        J_axis=grid.to_grid(res[:, stages.R_J_AXIS], spread=False),
+        mu_wall=grid.to_grid(res[:, stages.R_MU_WALL], spread=False),
+        sigma_yx_wall=grid.to_grid(res[:, stages.R_SIGMA_YX_WALL], spread=False),
+        xi_stop=grid.to_grid(res[:, stages.R_XI_STOP], spread=False),
         one_minus=one_minus, material=spec.material,
     )
+    status = np.broadcast_to(status, inputs.shape).copy()
     data_vars = {}
     for name in spec.variables:  # file order = the sweep's order
         if name in out_.OUTPUTS:

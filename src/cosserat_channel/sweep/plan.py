@@ -180,9 +180,10 @@ class Plan:
         flat = ((pair * nK + kk) * nA + a[owner]) * nN + n[owner]
         return BlockInputs(eta, A, N, eps_K, offsets, flat)
 
-    def to_grid(self, per_triple: np.ndarray) -> np.ndarray:
-        """Spread per-triple values (leading axis ``n_triples``) onto the grid (a new array)."""
-        return self.region().to_grid(per_triple)
+    def to_grid(self, per_triple: np.ndarray, spread: bool = True) -> np.ndarray:
+        """Spread per-triple values (leading axis ``n_triples``) onto the grid (a new array);
+        see :meth:`Region.to_grid` for ``spread``."""
+        return self.region().to_grid(per_triple, spread)
 
     def region(self, slices=None) -> "Region":
         """The box of the grid given by one slice per axis (default: the whole grid)."""
@@ -205,8 +206,13 @@ class Region:
         self.shape = (self.eps.size, self.L.size, self.K.size, self.A.size, self.N.size)
         self.reduce = plan.reduce
 
-    def to_grid(self, per_triple: np.ndarray) -> np.ndarray:
-        """Spread per-triple values (leading axis ``n_triples``) onto the box (a new array)."""
+    def to_grid(self, per_triple: np.ndarray, spread: bool = True) -> np.ndarray:
+        """Spread per-triple values (leading axis ``n_triples``) onto the box (a new array).
+
+        ``spread=False``: reduced, the values do not depend on ``K``, so the ``K`` axis is left
+        at length 1 (broadcastable onto the box, a ``K``-th of the memory and of the work of
+        anything computed from it); unreduced, the box as with ``spread=True``.
+        """
         p = self.plan
         trailing = per_triple.shape[1:]
         se, sl, sk, sa, sn = self.slices
@@ -215,6 +221,8 @@ class Region:
         nE, nL, nK, nA, nN = p.shape
         by_u = per_triple.reshape((p.eta_u.size, nA, nN) + trailing)[:, sa, sn]
         by_pair = by_u[p.inv.reshape(nE, nL)[se, sl]]  # (box eps, box L, box A, box N, ...)
+        if not spread:
+            return by_pair[:, :, None]
         out = np.empty(self.shape + trailing, dtype=per_triple.dtype)
         out[...] = by_pair[:, :, None]
         return out

@@ -9,7 +9,7 @@ line on stderr, a non-zero exit and nothing finished lost.
 * damaged working-store blocks (flipped bytes, truncated, edited and saved back, swapped, taken
   from another sweep, empty) and a damaged manifest, found on resume or only at assembly;
 * a damaged result file (flipped bytes in one variable's chunk);
-* a lost dask.distributed worker;
+* every dask.distributed worker lost (and replaced), the scheduler lost, a bad scheduler address;
 * the bad input of issue 13 (items 4 and 8-12).
 
 Subprocess runs pause at a named point of the pipeline through ``HARNESS`` (a wrapper around
@@ -362,31 +362,77 @@ def test_damaged_result_file_fails_to_read_never_changes(tmp_path, sweep_file, c
 # ---------------------------------------------------------------------------------------------
 # A lost worker
 # ---------------------------------------------------------------------------------------------
-def test_lost_distributed_worker_gives_identical_result(tmp_path, sweep_file, reference):
+def test_every_worker_lost_gives_identical_result(tmp_path, sweep_file, reference):
+    """Every worker process killed (by PID) once the first block is home: the nannies start new
+    ones, the tasks (which carry their own inputs) run again there, the result is identical."""
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
-        victim = next(iter(client.scheduler_info()["workers"]))
-        pid = client.run(os.getpid, workers=[victim])[victim]
+        pids = set(client.run(os.getpid).values())
         out = tmp_path / "out.nc"
         spec = load_sweep(str(sweep_file))
         orig = engine.WorkStore.put
         lost = []
 
-        def put(self, k, result):  # the first block home: kill a worker that holds others
+        def put(self, k, result):  # the first block home: kill every worker, which hold others
             orig(self, k, result)
             if not lost:
-                os.kill(pid, signal.SIGKILL)
+                for pid in pids:
+                    os.kill(pid, signal.SIGKILL)
                 lost.append(k)
 
         engine.WorkStore.put = put
         try:
-            run_sweep(spec, str(out), scheduler=client, block_size=1)
+            run_sweep(spec, str(out), scheduler=client, block_size=1).close()
         finally:
             engine.WorkStore.put = orig
         assert lost
+        assert not pids & set(client.run(os.getpid).values())  # the blocks ran on new workers
     assert_identical(out, reference)
+
+
+def test_lost_scheduler_is_one_line_exit_1_then_rerun_resumes(tmp_path, sweep_file, reference,
+                                                              monkeypatch, capsys):
+    distributed = pytest.importorskip("dask.distributed")
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
+    orig = engine.WorkStore.put
+
+    def put(self, k, result):  # the second block home: the scheduler (and its cluster) goes
+        orig(self, k, result)
+        if len(list(Path(self.directory).glob("block_*.npz"))) == 2:
+            cluster.close()
+
+    monkeypatch.setattr(engine.WorkStore, "put", put)
+    out = tmp_path / "out.nc"
+    try:
+        code = cli.main(["run", str(sweep_file), "-o", str(out), "--scheduler",
+                         cluster.scheduler_address, *RUN])
+    finally:
+        cluster.close()
+    assert code == 1
+    line = one_line_error(capsys.readouterr().err)
+    assert "lost the dask scheduler" in line and "rerun the same command to resume" in line
+    kept = len(list(Path(partial_dir(out)).glob("block_*.npz")))
+    assert 2 <= kept < BLOCKS and not out.exists()
+    monkeypatch.setattr(engine.WorkStore, "put", orig)
+    err = rerun(sweep_file, out, capsys)
+    assert f"{kept} done before" in err
+    assert_identical(out, reference)
+
+
+@pytest.mark.parametrize("address, words", [
+    ("foo bar", "is not a dask scheduler address"),
+    ("tcp://127.0.0.1:9", "no dask scheduler answers"),  # the discard port: nothing listens
+])
+def test_bad_scheduler_is_one_line_before_any_store(tmp_path, sweep_file, capsys, address, words):
+    out = tmp_path / "out.nc"
+    t0 = time.perf_counter()
+    assert cli.main(["run", str(sweep_file), "-o", str(out), "--scheduler", address]) == 2
+    assert time.perf_counter() - t0 < engine.CONNECT_TIMEOUT + 10
+    assert words in one_line_error(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 
 # ---------------------------------------------------------------------------------------------

@@ -196,14 +196,17 @@ def test_bad_arguments_raise_sweep_error():
         run_sweep(sweep(SHARED), workers=0)
     with pytest.raises(SweepError):
         run_sweep(sweep(SHARED), block_size=0)
+    with pytest.raises(SweepError, match="compress"):
+        run_sweep(sweep(SHARED), compress="gzip")
 
 
 def test_distributed_scheduler_gives_identical_values(tmp_path):
-    """Blocks run on a dask.distributed cluster come back to the client with the same values."""
+    """Blocks run in worker processes of a dask.distributed cluster come back to the client with
+    the threaded run's values, bit for bit."""
     distributed = pytest.importorskip("distributed")
     spec = load_sweep(sweep(SHARED, profile_points=3))
     out = tmp_path / "d.nc"
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
         ds = run_sweep(spec, out, scheduler=cluster.scheduler_address, block_size=4)
     assert out.exists() and not (tmp_path / "d.nc.partial").exists()

@@ -35,7 +35,7 @@ def write_failure(path, exc: BaseException) -> WriteError:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         try:
             free = shutil.disk_usage(os.path.dirname(os.path.abspath(path)) or ".").free
-            reason += f" (the file system has {_size(free)} free; a full disk is the usual cause)"
+            reason += f" (the file system has {format_size(free)} free; a full disk is the usual cause)"
         except OSError:
             pass
     err = WriteError(f"cannot write {path!r}: {reason}")
@@ -43,7 +43,8 @@ def write_failure(path, exc: BaseException) -> WriteError:
     return err
 
 
-def _size(n: int) -> str:
+def format_size(n: int) -> str:
+    """``n`` bytes for people: ``512 B``, ``1.5 GB``."""
     for unit in ("B", "kB", "MB", "GB", "TB"):
         if n < 1000 or unit == "TB":
             return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
@@ -64,6 +65,22 @@ def output_problem(path) -> str | None:
     if not os.access(directory, os.W_OK | os.X_OK):
         return f"cannot write {path!r}: directory {directory!r} is not writable"
     return None
+
+
+def space_problem(path, need: int) -> str | None:
+    """Why ``need`` more bytes will not fit beside ``path`` (one line), or None when they will
+    (or when the file system cannot say)."""
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    try:
+        free = shutil.disk_usage(directory).free
+    except OSError:
+        return None
+    if need <= free:
+        return None
+    return (f"cannot write {path!r}: the run needs about {format_size(need)} of disk space and "
+            f"the file system of {directory!r} has {format_size(free)} free; free some space or "
+            "write elsewhere")
 
 
 def atomic_output(path, write: Callable[[str], None], tmp_dir=None) -> None:

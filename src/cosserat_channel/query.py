@@ -293,6 +293,7 @@ class Selection:
     row_dims: tuple[str, ...]
     description: str = ""
     snapped: tuple = ()  # (name, value asked, value taken) of each --sel moved by nearest=True
+    index: dict = field(default_factory=dict, repr=False)  # the isel of --sel and --range
     _mask: np.ndarray | None = field(default=None, repr=False)
 
     def mask(self) -> np.ndarray | None:
@@ -358,7 +359,7 @@ def select(ds: xr.Dataset, sel=(), ranges=(), where=(), variables=None,
     for name in (*columns, *(c.name for c in conditions)):
         used.update(ds[name].dims)
     row_dims = tuple(d for d in ds.dims if d in used)
-    return Selection(sub, columns, conditions, row_dims, description, tuple(snapped))
+    return Selection(sub, columns, conditions, row_dims, description, tuple(snapped), index)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -378,6 +379,8 @@ def iter_rows(selection: Selection, limit: int | None = None):
         return
     flat = np.flatnonzero(mask)[:n] if mask is not None else None
     sub = selection.ds[list(selection.columns)]
+    if math.prod(shape) <= ROW_BLOCK:
+        sub = _load_box(selection, list(selection.columns))
     flags = {v: {c: k for k, c in flag_names(sub[v]).items()}
              for v in selection.columns if _is_flag(sub[v])}
     for start in range(0, n, ROW_BLOCK):
@@ -394,6 +397,20 @@ def iter_rows(selection: Selection, limit: int | None = None):
             cols.append(values)
         for k in range(stop - start):
             yield [_python(c[k]) for c in cols]
+
+
+def _load_box(selection: Selection, names: list[str]) -> xr.Dataset:
+    """The selected box of ``names``, in memory: read straight from the file when it is at hand.
+
+    For a box this small (a slice, a curve) dask's task graph costs more than the read itself
+    (~1 s against ~0.1 s for 10^4 points of a 10^8-point file); the file is read only where the
+    box lies either way.
+    """
+    source = selection.ds.encoding.get("source")
+    if source and os.path.isfile(source):
+        with xr.open_dataset(source) as f:
+            return f[names].isel(selection.index).load()
+    return selection.ds[names].compute()
 
 
 def _python(x):

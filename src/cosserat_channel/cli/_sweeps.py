@@ -33,7 +33,8 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
                    "current directory); unfinished work is kept in OUT.nc.partial/ and resumed")
     p.add_argument("--workers", type=int, metavar="N", help="threads (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run the blocks on this dask.distributed scheduler, e.g. tcp://host:8786")
+                   help="run the blocks on this dask.distributed scheduler, e.g. tcp://host:8786 "
+                   "(checked before anything is written; see README, 'sweeps on a cluster')")
     p.add_argument("--no-reduce", dest="reduce", action="store_false",
                    help="one integration per grid point instead of per distinct (eps L, A, N); "
                    "same values, for checks and benchmarks")
@@ -76,11 +77,18 @@ def _run(args: argparse.Namespace) -> int:
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
     logger.addHandler(handler)
     logger.setLevel(logging.INFO)
+    from ..sweep.engine import SchedulerLost
+
     try:
         run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                  reduce=args.reduce, block_size=args.block_size)
+                  reduce=args.reduce, block_size=args.block_size).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
+    except SchedulerLost as exc:
+        from ..sweep.store import partial_dir
+
+        raise CliError(f"{exc}; finished blocks are kept in {partial_dir(output)}/, rerun the same "
+                       "command to resume", EXIT_FAILURE) from None
     except OSError as exc:
         from ..files import WriteError
         from ..sweep.store import partial_dir

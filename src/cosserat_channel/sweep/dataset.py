@@ -7,6 +7,7 @@ Only the variables the sweep asks for are computed; ``status`` is always there.
 
 from __future__ import annotations
 
+import math
 from datetime import datetime, timezone
 
 import numpy as np
@@ -19,11 +20,16 @@ from .. import status as st
 from ..parameters import DIMS, PARAMETERS
 
 XI_LONG_NAME = "distance from the centre line / channel half-width"
+# Uncompressed bytes of one chunk of a result variable: 1 MiB, the HDF5 chunk cache's default
+# size, so one chunk is decompressed once per read however the read crosses it.
+CHUNK_BYTES = 1 << 20
+# The encoding keys of each compression ``variable_encoding`` offers (as xarray spells them).
+CODECS = {"zstd": {"compression": "zstd"}, "zlib": {"zlib": True}}
 
 
 def build_dataset(spec, plan, per_triple: dict, one_minus: np.ndarray | None, xi=None,
                   profiles: np.ndarray | None = None) -> xr.Dataset:
-    """The result Dataset of ``spec``.
+    """The result Dataset of ``spec``, whole, in memory.
 
     Parameters
     ----------
@@ -36,18 +42,35 @@ def build_dataset(spec, plan, per_triple: dict, one_minus: np.ndarray | None, xi
     xi, profiles : ndarray, optional
         Profile abscissae and per-triple profiles (n_triples, N_PROF, xi.size).
     """
+    data_vars = grid_values(spec, plan, per_triple, one_minus, xi, profiles)
+    return xr.Dataset(data_vars, coords=coordinates(spec, xi),
+                      attrs=global_attrs(spec, plan.reduce))
+
+
+def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=None,
+                profiles: np.ndarray | None = None) -> dict:
+    """``{name: (dims, values, attrs)}`` of every result variable on ``grid``.
+
+    ``grid`` is the :class:`.plan.Plan` (the whole grid) or a :class:`.plan.Region` of it (one
+    tile of a file written piece by piece); ``one_minus`` is then on that region. Every value is
+    elementwise in the grid point, so a region's values are the whole grid's to the last bit.
+    """
     res = per_triple["res"]
-    status = plan.to_grid(res[:, stages.R_STATUS].astype(np.int8))
+    # Per-triple values enter without their K axis (to_grid's spread=False): an output that needs
+    # no eps K (m_wall, the stresses, ...) is computed once per (eps, L, A, N), and derive's final
+    # broadcast spreads it. Elementwise either way: the same bits.
+    status = grid.to_grid(res[:, stages.R_STATUS].astype(np.int8), spread=False)
     inputs = out_.Inputs(
         status,
-        spec.eps.reshape(-1, 1, 1, 1, 1), spec.L.reshape(1, -1, 1, 1, 1),
-        spec.K.reshape(1, 1, -1, 1, 1), spec.N.reshape(1, 1, 1, 1, -1),
-        J_axis=plan.to_grid(res[:, stages.R_J_AXIS]),
-        mu_wall=plan.to_grid(res[:, stages.R_MU_WALL]),
-        sigma_yx_wall=plan.to_grid(res[:, stages.R_SIGMA_YX_WALL]),
-        xi_stop=plan.to_grid(res[:, stages.R_XI_STOP]),
+        grid.eps.reshape(-1, 1, 1, 1, 1), grid.L.reshape(1, -1, 1, 1, 1),
+        grid.K.reshape(1, 1, -1, 1, 1), grid.N.reshape(1, 1, 1, 1, -1),
+        J_axis=grid.to_grid(res[:, stages.R_J_AXIS], spread=False),
+        mu_wall=grid.to_grid(res[:, stages.R_MU_WALL], spread=False),
+        sigma_yx_wall=grid.to_grid(res[:, stages.R_SIGMA_YX_WALL], spread=False),
+        xi_stop=grid.to_grid(res[:, stages.R_XI_STOP], spread=False),
         one_minus=one_minus, material=spec.material,
     )
+    status = np.broadcast_to(status, inputs.shape).copy()
     data_vars = {}
     for name in spec.variables:  # file order = the sweep's order
         if name in out_.OUTPUTS:
@@ -56,32 +79,37 @@ def build_dataset(spec, plan, per_triple: dict, one_minus: np.ndarray | None, xi
             data_vars[name] = (DIMS, value, {"units": o.units, "long_name": o.long_name})
         elif name in out_.COUNTERS:
             units, text, stage = out_.COUNTERS[name]
-            value = plan.to_grid(per_triple["steps"][:, stage - 1].astype(np.int32))
+            value = grid.to_grid(per_triple["steps"][:, stage - 1].astype(np.int32))
             data_vars[name] = (DIMS, value, {"units": units, "long_name": text})
     data_vars["status"] = (DIMS, status, {**st.cf_flag_attrs(), "units": "1"})
     if profiles is not None:
-        data_vars.update(_profiles(spec, plan, res, xi, profiles))
+        data_vars.update(_profiles(grid, res, profiles))
+    return data_vars
+
+
+def coordinates(spec, xi=None) -> dict:
+    """The coordinate variables of a result: the five axes (and ``xi`` with profiles)."""
     coords = {d: (d, np.asarray(v, dtype=np.float64),
                   {"units": PARAMETERS[d].units, "long_name": PARAMETERS[d].long_name})
               for d, v in spec.coords().items()}
     if xi is not None:
         coords["xi"] = ("xi", xi, {"units": "1", "long_name": XI_LONG_NAME})
-    return xr.Dataset(data_vars, coords=coords, attrs=global_attrs(spec, plan.reduce))
+    return coords
 
 
-def _profiles(spec, plan, res, xi, profiles) -> dict:
+def _profiles(grid, res, profiles) -> dict:
     """Profiles on (eps, L, K, A, N, xi), as solve._profile computes them for one point."""
     dims = DIMS + ("xi",)
-    eps_K = (spec.eps.reshape(-1, 1, 1, 1, 1) * spec.K.reshape(1, 1, -1, 1, 1))[..., None]
-    L = spec.L.reshape(1, -1, 1, 1, 1, 1)
-    N = spec.N.reshape(1, 1, 1, 1, -1, 1)
-    J = plan.to_grid(profiles[:, stages.P_J])
-    J_axis = plan.to_grid(res[:, stages.R_J_AXIS])[..., None]
+    eps_K = (grid.eps.reshape(-1, 1, 1, 1, 1) * grid.K.reshape(1, 1, -1, 1, 1))[..., None]
+    L = grid.L.reshape(1, -1, 1, 1, 1, 1)
+    N = grid.N.reshape(1, 1, 1, 1, -1, 1)
+    J = grid.to_grid(profiles[:, stages.P_J])
+    J_axis = grid.to_grid(res[:, stages.R_J_AXIS])[..., None]
     out = {
         "u_over_u0": (eps_K + J) / (eps_K + J_axis),
-        "omega_hat": plan.to_grid(profiles[:, stages.P_OMEGA_HAT]),
-        "m": L * (plan.to_grid(profiles[:, stages.P_DELTA]) - N),
-        "sigma_yx": plan.to_grid(profiles[:, stages.P_SIGMA_YX]),
+        "omega_hat": grid.to_grid(profiles[:, stages.P_OMEGA_HAT]),
+        "m": L * (grid.to_grid(profiles[:, stages.P_DELTA]) - N),
+        "sigma_yx": grid.to_grid(profiles[:, stages.P_SIGMA_YX]),
     }
     return {k: (dims, v, dict(zip(("units", "long_name"), out_.PROFILES[k]))) for k, v in out.items()}
 
@@ -103,36 +131,58 @@ def global_attrs(spec, reduced: bool) -> dict:
 
 
 def encoding(ds: xr.Dataset, compress: bool = True) -> dict:
-    """NetCDF encoding: no fill value on status and coordinates; zlib level 1 on large floats;
+    """NetCDF encoding of every variable of ``ds`` (see :func:`variable_encoding`)."""
+    return {name: variable_encoding(name, var.shape, var.dtype, name in ds.coords, compress)
+            for name, var in ds.variables.items()}
+
+
+def variable_encoding(name: str, shape: tuple, dtype, is_coord: bool, compress=True) -> dict:
+    """NetCDF encoding of one variable: no fill value on status and coordinates; large arrays
+    compressed (:data:`CODECS`) in chunks shaped for the reads people do (:func:`chunk_shape`);
     an HDF5 Fletcher-32 checksum on every array variable.
+
+    ``compress``: True or ``"zstd"`` (the default), ``"zlib"``, or False (none). Zstandard at
+    level 1 writes 4-5x faster than zlib at level 1 for the same size (measured on large_5d's
+    outputs, docs/performance.md "Sweeps at scale"); it is one of netCDF-C's standard filters
+    (netCDF-C >= 4.9, and the netCDF4 Python wheels, carry it). ``"zlib"`` is for readers built
+    without it.
 
     With the checksum, a chunk damaged on disk fails to read (netCDF4 raises ``RuntimeError:
     NetCDF: HDF error``) instead of returning changed numbers. It needs chunked storage, which
     HDF5 picks for variables given no chunk sizes here.
     """
-    enc = {}
-    for name, var in ds.variables.items():
-        e = {}
-        if name == "status" or name in ds.coords or var.dtype.kind in "iu":
-            e["_FillValue"] = None
-        if compress and var.dtype.kind in "fiu" and name not in ds.coords and var.size > 4096:
-            chunks = _chunks(var.shape, var.dtype.itemsize)
-            e.update(zlib=True, complevel=1, shuffle=True, chunksizes=chunks)
-        if var.ndim > 0 and var.dtype.kind in "fiub":
-            e["fletcher32"] = True
-        enc[name] = e
-    return enc
+    dtype = np.dtype(dtype)
+    size = math.prod(shape)
+    e = {}
+    if name == "status" or is_coord or dtype.kind in "iu":
+        e["_FillValue"] = None
+    if compress and dtype.kind in "fiu" and not is_coord and size > 4096:
+        e.update(CODECS["zstd" if compress is True else compress], complevel=1, shuffle=True,
+                 chunksizes=chunk_shape(shape, dtype.itemsize))
+    if len(shape) > 0 and dtype.kind in "fiub":
+        e["fletcher32"] = True
+    return e
 
 
-def _chunks(shape, itemsize, target=1 << 20) -> tuple:
-    """Chunks of about ``target`` bytes in C order: whole trailing axes, a slab of the leading."""
-    chunks = list(shape)
-    n = itemsize
-    for i in range(len(shape) - 1, -1, -1):
-        if n * shape[i] > target:
-            chunks[i] = max(1, target // n)
-            for j in range(i):
-                chunks[j] = 1
-            break
-        n *= shape[i]
-    return tuple(int(c) for c in chunks)
+def chunk_shape(shape, itemsize, target=CHUNK_BYTES) -> tuple:
+    """Chunks of about ``target`` bytes with about as many chunks along every axis.
+
+    The reads people do are a 2-D slice (``A`` x ``N`` at fixed ``eps, L, K``) and a curve along
+    one axis; with ``m`` chunks per axis either touches about ``m**2`` or ``m`` chunks whatever
+    the axes, where C-order slabs make the read across the leading axis touch every slab.
+    ``m`` is the smallest count that keeps a chunk within ``target``.
+    """
+    shape = tuple(max(1, int(n)) for n in shape)
+    limit = max(1, target // itemsize)
+
+    def chunks(m):
+        return tuple(-(-n // m) for n in shape)
+
+    lo, hi = 1, max(shape, default=1)  # the chunk count shrinks as m grows: bisect
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if math.prod(chunks(mid)) <= limit:
+            hi = mid
+        else:
+            lo = mid + 1
+    return chunks(lo)

@@ -7,14 +7,26 @@ threaded scheduler keeps every core busy without pickling anything; ``scheduler=
 the same blocks to a ``dask.distributed`` cluster instead, and the results come back to this
 process, which alone writes the store and the file (workers need no shared file system). Every
 finished block is saved at once (see :mod:`.store`), so a killed run resumes where it stopped.
+
+On a cluster each task carries its own block's inputs (:meth:`.plan.Plan.inputs`), nothing
+scattered: a task whose worker dies is simply run again on another (or on the worker a nanny
+starts in its place). Losing the scheduler ends the run with :class:`SchedulerLost`; the
+finished blocks are in the store and the same command resumes.
+
+The result file is written tile by tile (:mod:`.writer`), so memory follows the block and the
+tile sizes, not the grid; the disk space it needs is checked before anything is computed.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
+import re
 import sys
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -22,10 +34,23 @@ from .. import __version__, rk45
 from .. import outputs as out_
 from .. import stages
 from .. import status as st
-from .dataset import build_dataset, encoding
+from ..files import space_problem
+from .dataset import build_dataset
 from .plan import BlockInputs, Plan
 from .spec import SweepError, SweepSpec, load_sweep
-from .store import FORMAT, BlockDamaged, WorkStore, check_writable
+from .store import FORMAT, BlockDamaged, WorkStore, check_writable, partial_dir
+from .writer import BUCKET, SCRATCH, Buckets, Tiles, write_tiles
+
+# Seconds to wait for a scheduler to answer before the run is refused (nothing created yet).
+CONNECT_TIMEOUT = 5.0
+# Threads reading the blocks back at assembly (about the cores of a laptop; more gains little,
+# the bucket files are appended one block at a time).
+GATHER_THREADS = 2
+_ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
+
+
+class SchedulerLost(RuntimeError):
+    """The dask scheduler went away mid-run; the finished blocks are kept in the store."""
 
 log = logging.getLogger("cosserat_channel.sweep")
 
@@ -53,8 +78,9 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         keeps the block size it started with).
     progress : bool, optional
         Progress bar on stderr; default when stderr is a terminal.
-    compress : bool
-        zlib level 1 on the NetCDF variables.
+    compress : bool or str
+        Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level 1),
+        ``"zlib"`` (level 1, for readers without netCDF-C's zstd filter), or False.
 
     Returns
     -------
@@ -79,55 +105,92 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     if workers is not None and (int(workers) != workers or workers < 1):
         raise SweepError(f"workers must be a positive integer; got {workers!r}")
     n_workers = int(workers or os.cpu_count() or 1)
+    if compress not in (True, False, "zstd", "zlib"):
+        raise SweepError(f"compress must be True, False, 'zstd' or 'zlib'; got {compress!r}")
     try:
         plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers)
     except ValueError as exc:
         raise SweepError(str(exc)) from None
-    store = WorkStore.open(output, _manifest(spec, plan), given_block_size=block_size is not None)
+    xi = _profile_xi(spec)
+    if output is not None:
+        problem = space_problem(output, disk_needed(spec, plan, xi, output))
+        if problem:
+            raise SweepError(problem)
+    # The cluster is reached before any store exists: a wrong address leaves nothing behind.
+    client, own_client = (None, False) if scheduler is None else connect(scheduler)
     try:
-        if store.manifest["block_size"] != plan.block_size:
-            plan = Plan(spec.coords(), reduce=reduce, block_size=store.manifest["block_size"])
-        if store.manifest["plan_sha256"] != plan.digest():
-            raise SweepError(
-                f"{store.directory} was planned differently (another cosserat-channel build?); "
-                f"delete {store.directory} to start over, or choose another -o"
-            )
-        done = store.done(plan.blocks)
-        todo = [k for k in range(len(plan.blocks)) if k not in done]
-        log.info(
-            "%s points, %s integrations (%s) in %d blocks of <= %d; "
-            "%d done before, %d to compute%s",
-            f"{plan.size:,}", f"{plan.n_triples:,}", "reduced" if plan.reduce else "unreduced",
-            len(plan.blocks), plan.block_size, len(done), len(todo),
-            f" (resuming {store.directory})" if done else "",
-        )
-        xi = _profile_xi(spec)
-        if progress is None:
-            progress = sys.stderr.isatty()
-        t0 = time.perf_counter()
-        if todo:
-            args = (spec.rtol, spec.atol, xi, out_.needs_stage2(spec.variables),
-                    out_.needs_plug_edge(spec.variables))
-            if scheduler is None:
-                _run_threads(plan, todo, store, args, n_workers, progress)
-            else:
-                _run_distributed(plan, todo, store, args, scheduler, progress)
-        t1 = time.perf_counter()
-        ds = assemble(spec, plan, store, xi, recompute=lambda k: store.put(
-            k, _block_task(plan, k, (spec.rtol, spec.atol, xi))))
-        t2 = time.perf_counter()
-        if output is not None:
-            enc = encoding(ds, compress)
-            store.publish(output, lambda path: ds.to_netcdf(path, engine="netcdf4", encoding=enc))
-            store.remove()
-        t3 = time.perf_counter()
+        store = WorkStore.open(output, _manifest(spec, plan),
+                               given_block_size=block_size is not None)
+        try:
+            ds, times = _run(spec, plan, store, xi, output, client, n_workers, reduce,
+                             progress, compress)
+        finally:
+            store.close()
     finally:
-        store.close()
+        if own_client:
+            client.close()
     log.info(
-        "%s: solve %.2f s (%d blocks computed), assemble %.2f s, write %.2f s, total %.2f s",
-        output or "(not written)", t1 - t0, len(todo), t2 - t1, t3 - t2, t3 - t_start,
+        "%s: solve %.2f s (%d blocks computed), assemble and write %.2f s, total %.2f s",
+        output or "(not written)", times[0], times[1], times[2], time.perf_counter() - t_start,
     )
+    if output is not None:
+        import xarray as xr
+
+        return xr.open_dataset(output, chunks={})
     return ds
+
+
+def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, compress):
+    """Solve what the store lacks, then assemble; returns (Dataset or None, times)."""
+    if store.manifest["block_size"] != plan.block_size:
+        plan = Plan(spec.coords(), reduce=reduce, block_size=store.manifest["block_size"])
+    if store.manifest["plan_sha256"] != plan.digest():
+        raise SweepError(
+            f"{store.directory} was planned differently (another cosserat-channel build?); "
+            f"delete {store.directory} to start over, or choose another -o"
+        )
+    done = store.done(plan.blocks)
+    todo = [k for k in range(len(plan.blocks)) if k not in done]
+    log.info(
+        "%s points, %s integrations (%s) in %d blocks of <= %d; "
+        "%d done before, %d to compute%s",
+        f"{plan.size:,}", f"{plan.n_triples:,}", "reduced" if plan.reduce else "unreduced",
+        len(plan.blocks), plan.block_size, len(done), len(todo),
+        f" (resuming {store.directory})" if done else "",
+    )
+    if progress is None:
+        progress = sys.stderr.isatty()
+    t0 = time.perf_counter()
+    if todo:
+        args = (spec.rtol, spec.atol, xi, out_.needs_stage2(spec.variables),
+                out_.needs_plug_edge(spec.variables))
+        if client is None:
+            _run_threads(plan, todo, store, args, n_workers, progress)
+        else:
+            _run_distributed(plan, todo, store, args, client, progress)
+    t1 = time.perf_counter()
+    ds = assemble(spec, plan, store, xi, recompute=lambda k: store.put(
+        k, _block_task(plan, k, (spec.rtol, spec.atol, xi))), output=output, compress=compress)
+    if output is not None:
+        store.remove()
+    return ds, (t1 - t0, len(todo), time.perf_counter() - t1)
+
+
+def disk_needed(spec: SweepSpec, plan: Plan, xi, output: str) -> int:
+    """Bytes the run will still put on disk at its peak: the result file uncompressed (an upper
+    bound), the working store's blocks and the tile buckets (:mod:`.writer`), less what an
+    earlier run of the same output already left in the store."""
+    n_xi = 0 if xi is None else xi.size
+    plug_edge = out_.needs_plug_edge(spec.variables)
+    per_point = 1 + sum(8 if v in out_.OUTPUTS else 4 for v in spec.variables)  # + status
+    result = plan.size * (per_point + 4 * 8 * n_xi)
+    store = plan.n_triples * (8 * stages.N_R + 16 + 8 + 8 * stages.N_PROF * n_xi)
+    if plug_edge:
+        store += plan.size * (8 + BUCKET.itemsize)
+    have = 0
+    for root, _, files in os.walk(partial_dir(output)):
+        have += sum(os.path.getsize(os.path.join(root, f)) for f in files)
+    return max(0, result + store - have)
 
 
 def _manifest(spec: SweepSpec, plan: Plan) -> dict:
@@ -237,45 +300,112 @@ def _run_threads(plan, todo, store, args, workers, progress) -> None:
         dask.compute(*tasks, scheduler="threads", num_workers=workers)
 
 
-def _run_distributed(plan, todo, store, args, scheduler, progress) -> None:
-    from dask.distributed import Client, as_completed
+def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
+    """``(client, own)`` for a scheduler address (or a ``distributed.Client``, ``own`` False).
 
-    client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
+    SweepError in one line when the address is malformed or nothing answers there within
+    ``timeout`` seconds.
+    """
+    from dask.distributed import Client
+
+    if isinstance(scheduler, Client):
+        return scheduler, False
+    address = scheduler.strip() if isinstance(scheduler, str) else scheduler
+    if not isinstance(address, str) or not _ADDRESS.match(address):
+        raise SweepError(f"scheduler: {scheduler!r} is not a dask scheduler address; expected "
+                         "e.g. tcp://host:8786")
     try:
-        client.run(warm_up)
-        remote_plan = client.scatter(plan, broadcast=True)
-        tag = plan.digest()[:12]  # keys unique per plan: a shared cluster may hold older runs
-        futures = [client.submit(_block_task, remote_plan, k, args, key=f"cc-block-{tag}-{k}")
-                   for k in todo]
-        key_to_block = {f.key: k for f, k in zip(futures, todo)}
-        for i, fut in enumerate(as_completed(futures), 1):
-            store.put(key_to_block[fut.key], fut.result())
-            fut.release()
-            if progress:
-                print(f"\r[{i}/{len(todo)} blocks]", end="", file=sys.stderr, flush=True)
-        if progress:
-            print(file=sys.stderr)
-    finally:
-        if client is not scheduler:
-            client.close()
+        return Client(address, timeout=timeout, set_as_default=False), True
+    except (OSError, TimeoutError, ValueError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise SweepError(f"scheduler: no dask scheduler answers at {address!r} within "
+                         f"{timeout:g} s ({reason}); start one (dask scheduler) or check the "
+                         "address") from None
+
+
+def _solve_remote(inp: BlockInputs, args) -> dict:
+    return solve_block(inp, *args)
+
+
+def _run_distributed(plan, todo, store, args, client, progress) -> None:
+    from dask.distributed import CancelledError, KilledWorker
+
+    address = client.scheduler.address
+    try:
+        with client.as_current():  # as_completed and the progress bar find it
+            _submit_and_store(plan, todo, store, args, client, progress)
+    except KilledWorker as exc:
+        raise SchedulerLost(f"a block killed every worker that ran it ({exc}); see the workers' "
+                            "logs") from None
+    except (CancelledError, OSError, TimeoutError) as exc:
+        # A block that cannot be written (a full disk) is the store's error, not the cluster's.
+        if client.status == "running" and not isinstance(exc, CancelledError):
+            raise
+        raise SchedulerLost(f"lost the dask scheduler at {address} "
+                            f"({type(exc).__name__})") from None
+
+
+def _submit_and_store(plan, todo, store, args, client, progress) -> None:
+    from dask.distributed import as_completed
+
+    client.run(warm_up)
+    tag = plan.digest()[:12]  # keys unique per plan: a shared cluster may hold older runs
+    futures = []
+    for k in todo:
+        # The block's own inputs, without the grid indices only this process needs.
+        inp = dataclasses.replace(plan.inputs(k), flat=np.empty(0, dtype=np.int64))
+        futures.append(client.submit(_solve_remote, inp, args, key=f"cc-block-{tag}-{k}"))
+    key_to_block = {f.key: k for f, k in zip(futures, todo)}
+    if progress:
+        _progress_thread(futures)
+    for fut in as_completed(futures):
+        k = key_to_block[fut.key]
+        out = fut.result()
+        out["triples"] = plan.blocks[k]
+        store.put(k, out)
+        fut.release()
+
+
+def _progress_thread(futures) -> None:
+    """dask.distributed's own progress bar, in a thread while this one stores the blocks."""
+    from dask.distributed import progress
+
+    def show():
+        try:
+            progress(futures, multi=False)
+        except Exception:  # noqa: BLE001 (a lost scheduler ends the bar; the run says why)
+            pass
+
+    threading.Thread(target=show, name="cc-progress", daemon=True).start()
 
 
 # ---------------------------------------------------------------------------------------------
 # Blocks -> grid
 # ---------------------------------------------------------------------------------------------
-def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=None):
-    """Gather every block from the store onto the grid and build the Dataset.
+def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=None,
+             output=None, compress=True):
+    """Gather every block from the store and build the result: in memory (``output`` None,
+    returns the Dataset) or tile by tile into the file ``output`` (:mod:`.writer`; returns None).
 
     Each block is checked against its digest as it is read (:meth:`WorkStore.get`); one that
     fails (damaged on disk since the run began) is computed again here by ``recompute(k)`` when
     given, and otherwise raises :class:`SweepError`.
     """
+    t0 = time.perf_counter()
     n = plan.n_triples
     per_triple = {"res": np.empty((n, stages.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
     need_one_minus = out_.needs_plug_edge(spec.variables)
-    one_minus = np.empty(plan.size) if need_one_minus else None
     profiles = np.empty((n, stages.N_PROF, xi.size)) if xi is not None else None
-    for k, triples in enumerate(plan.blocks):
+    one_minus = buckets = None
+    if output is None:
+        one_minus = np.empty(plan.size) if need_one_minus else None
+    else:
+        tiles = Tiles(plan.shape, 0 if xi is None else xi.size)
+        if need_one_minus:
+            buckets = Buckets(os.path.join(store.directory, SCRATCH), tiles)
+
+    def gather(k):
+        triples = plan.blocks[k]
         try:
             b = store.get(k, triples)
         except BlockDamaged as exc:
@@ -284,12 +414,30 @@ def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=N
             store.discard(k, str(exc))
             recompute(k)
             b = store.get(k, triples)
-        per_triple["res"][triples] = b["res"]
+        per_triple["res"][triples] = b["res"]  # blocks hold disjoint triples and grid points
         per_triple["steps"][triples] = b["steps"]
         if profiles is not None:
             profiles[triples] = b["profiles"]
-        if need_one_minus:
+        if one_minus is not None:
             one_minus[plan.inputs(k).flat] = b["one_minus"]
-    if one_minus is not None:
-        one_minus = one_minus.reshape(plan.shape)
-    return build_dataset(spec, plan, per_triple, one_minus, xi, profiles)
+        elif buckets is not None:
+            buckets.add(plan.inputs(k).flat, b["one_minus"])
+
+    # Reading, checking and sorting a block is numpy and hashlib work that leaves the GIL: two
+    # threads.
+    with ThreadPoolExecutor(GATHER_THREADS, thread_name_prefix="cc-gather") as pool:
+        for _ in pool.map(gather, range(len(plan.blocks))):
+            pass
+    if output is None:
+        if one_minus is not None:
+            one_minus = one_minus.reshape(plan.shape)
+        return build_dataset(spec, plan, per_triple, one_minus, xi, profiles)
+    t1 = time.perf_counter()
+    store.publish(output, lambda path: write_tiles(path, spec, plan, per_triple, xi, profiles,
+                                                   tiles, buckets, compress))
+    if buckets is not None:
+        buckets.remove()
+    log.info("%s: gathered %d blocks in %.2f s, wrote %d tiles of <= %s points in %.2f s",
+             output, len(plan.blocks), t1 - t0, tiles.count, f"{np.prod(tiles.tile):,}",
+             time.perf_counter() - t1)
+    return None

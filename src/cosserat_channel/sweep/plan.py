@@ -180,14 +180,49 @@ class Plan:
         flat = ((pair * nK + kk) * nA + a[owner]) * nN + n[owner]
         return BlockInputs(eta, A, N, eps_K, offsets, flat)
 
-    def to_grid(self, per_triple: np.ndarray) -> np.ndarray:
-        """Spread per-triple values (leading axis ``n_triples``) onto the grid (a new array)."""
+    def to_grid(self, per_triple: np.ndarray, spread: bool = True) -> np.ndarray:
+        """Spread per-triple values (leading axis ``n_triples``) onto the grid (a new array);
+        see :meth:`Region.to_grid` for ``spread``."""
+        return self.region().to_grid(per_triple, spread)
+
+    def region(self, slices=None) -> "Region":
+        """The box of the grid given by one slice per axis (default: the whole grid)."""
+        return Region(self, slices)
+
+
+class Region:
+    """A box of a plan's grid, one ``slice`` per axis: its axis values, and per-triple values
+    spread onto it, so that a result can be built (and written) one box at a time.
+
+    Attributes ``eps``, ``L``, ``K``, ``A``, ``N`` (the box's axis values), ``shape`` and
+    ``reduce`` mirror :class:`Plan`'s, so the functions of :mod:`.dataset` take either.
+    """
+
+    def __init__(self, plan: Plan, slices=None):
+        self.plan = plan
+        self.slices = tuple(slices) if slices is not None else (slice(None),) * 5
+        self.eps, self.L, self.K, self.A, self.N = (
+            axis[s] for axis, s in zip((plan.eps, plan.L, plan.K, plan.A, plan.N), self.slices))
+        self.shape = (self.eps.size, self.L.size, self.K.size, self.A.size, self.N.size)
+        self.reduce = plan.reduce
+
+    def to_grid(self, per_triple: np.ndarray, spread: bool = True) -> np.ndarray:
+        """Spread per-triple values (leading axis ``n_triples``) onto the box (a new array).
+
+        ``spread=False``: reduced, the values do not depend on ``K``, so the ``K`` axis is left
+        at length 1 (broadcastable onto the box, a ``K``-th of the memory and of the work of
+        anything computed from it); unreduced, the box as with ``spread=True``.
+        """
+        p = self.plan
         trailing = per_triple.shape[1:]
-        if not self.reduce:
-            return per_triple.reshape(self.shape + trailing)
-        nE, nL, nK, nA, nN = self.shape
-        by_u = per_triple.reshape((self.eta_u.size, nA, nN) + trailing)
-        by_pair = by_u[self.inv.reshape(nE, nL)]  # (nE, nL, nA, nN, ...)
+        se, sl, sk, sa, sn = self.slices
+        if not p.reduce:
+            return per_triple.reshape(p.shape + trailing)[se, sl, sk, sa, sn].copy()
+        nE, nL, nK, nA, nN = p.shape
+        by_u = per_triple.reshape((p.eta_u.size, nA, nN) + trailing)[:, sa, sn]
+        by_pair = by_u[p.inv.reshape(nE, nL)[se, sl]]  # (box eps, box L, box A, box N, ...)
+        if not spread:
+            return by_pair[:, :, None]
         out = np.empty(self.shape + trailing, dtype=per_triple.dtype)
         out[...] = by_pair[:, :, None]
         return out

@@ -58,8 +58,11 @@ from ..parameters import (
     check_values,
 )
 
-# Memory guard: a float64 output over this many points is already 1.6 GB.
-MAX_POINTS = 200_000_000
+# A guard against a typo in ``num``, not a memory limit: results are written in tiles (see
+# .writer), so memory does not grow with the grid, and the real limit is the free disk space,
+# which :func:`.engine.run_sweep` checks before computing. Beyond this the plan's per-triple
+# arrays (one entry per distinct (eps L, A, N)) would outgrow a single machine's memory.
+MAX_POINTS = 10_000_000_000
 PROFILE_POINTS_RANGE = (2, 10001)
 
 TABLES = ("grid", "material", "solver", "output")

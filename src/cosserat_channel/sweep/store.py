@@ -7,6 +7,8 @@ A run writing ``OUT.nc`` keeps its finished work in ``OUT.nc.partial/``::
       lock                 flock'ed by the live run: two runs never share a store
       block_00000.npz      one file per finished block: triples, res, steps, one_minus[, profiles],
       ...                  and the sha256 digest of all of them (see below)
+      scratch/             while the result is written: the plug-edge values regrouped by tile
+                           (see .writer), rebuilt from the blocks by every run that gets there
 
 Every file is written under a temporary name and ``os.replace``'d, so a block file is either
 complete or absent, whatever kills the process (``kill -9`` included; the files are not fsync'ed,

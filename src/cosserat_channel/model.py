@@ -33,7 +33,7 @@ import math
 
 from numba import njit
 
-from . import status as st
+from . import analytic
 
 # Slots of the axis-constants array returned by `axis_constants`.
 AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)
@@ -46,15 +46,10 @@ N_AX = 4
 # --------------------------------------------------------------------------------------------
 # Regimes (Appendix A) and the axis condition (eq:20)
 # --------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
-def axis_margin(eta, A, N):
-    """Axis existence condition of eq:20, ``(A-1) eta + 2(A+1) N``.
-
-    The smaller root ``x`` of ``eps^2 x^2 - 2(A+1)(eps + N/L) x + 2(A+1) = 0`` exists and satisfies
-    ``eps x <= A + 1`` (the root choice the paper prescribes) exactly when this is ``>= 0`` (derived in
-    model.md; checked in the tests).
-    """
-    return (A - 1.0) * eta + 2.0 * (A + 1.0) * N
+# The plain-Python originals live in analytic.py (the atlas classifies without numba); these are
+# their compiled copies for the kernels.
+axis_margin = njit(nogil=True, cache=True)(analytic.axis_margin)
+_classify_margin = njit(nogil=True, cache=True)(analytic.classify_margin)
 
 
 @njit(nogil=True, cache=True)
@@ -62,20 +57,9 @@ def classify(eta, A, N):
     """Status decided before any integration, for the regimes of Appendix A.
 
     Returns ``OK`` when stage 1 must be integrated (A > -1, axis series admissible) or when the
-    A = -1 closed form applies.
+    A = -1 closed form applies (:func:`cosserat_channel.analytic.classify_margin`).
     """
-    if A < 1.0 - 2.0 * N * N:
-        return st.WALL_INADMISSIBLE
-    if A < -1.0:
-        return st.AXIS_SPIN_UNBOUNDED
-    if A == -1.0:
-        return st.OK
-    # On the edge itself (margin exactly 0) the root of eq:20 is admissible but c0 = 0: sqrt(D)
-    # vanishes to first order at the axis and the spin exponent beta is infinite, so no regular
-    # solution leaves the axis; the edge belongs to the infeasible side.
-    if axis_margin(eta, A, N) <= 0.0:
-        return st.EPS_TOO_LARGE_AXIS
-    return st.OK
+    return _classify_margin(axis_margin(eta, A, N), A, N)
 
 
 @njit(nogil=True, cache=True)

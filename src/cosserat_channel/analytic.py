@@ -3,10 +3,13 @@
 :mod:`cosserat_channel.model` compiles these two functions with numba for the kernels; the
 solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so that reading an atlas
 and classifying points never imports numba. They are the one home of the analytic regime logic.
-Both take scalars; :func:`axis_margin` also takes arrays.
+Both take scalars; :func:`axis_margin` also takes arrays, and :func:`axis_edge_eta` (the atlas and
+the figures need it without the solver) takes arrays.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from . import status as st
 
@@ -40,3 +43,11 @@ def classify_margin(margin, A, N):
     if margin <= 0.0:
         return st.EPS_TOO_LARGE_AXIS
     return st.OK
+
+
+def axis_edge_eta(A, N):
+    """``eta`` of the axis condition, ``2(A+1) N / (1 - A)``, for ``-1 < A < 1``; ``inf`` for ``A >= 1``."""
+    A = np.asarray(A, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = 2.0 * (A + 1.0) * np.asarray(N, dtype=float) / (1.0 - A)
+    return np.where(A >= 1.0, np.inf, np.where(A > -1.0, e, np.nan))

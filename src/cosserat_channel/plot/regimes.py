@@ -343,9 +343,10 @@ def solvable_region_figure(bds, path=None):
 
     Left, the largest ``eta = eps L`` with a solution (log colour scale; hatched where every
     searched ``eta`` is ok, so ``eta_max`` is beyond the range); right, the smallest, where small
-    ``eta`` fails too. Both carry the analytic lines ``A = 1 - 2N^2`` and ``A = -1``, and ``A = 1``,
-    above which the axis condition never binds; grey where there is no solution for any ``eta``,
-    white where the data do not decide (an unresolved atlas cell).
+    ``eta`` fails too (hatched where the lowest searched ``eta`` is ok). Both carry the analytic
+    lines ``A = 1 - 2N^2`` and ``A = -1``, and ``A = 1``, above which the axis condition never
+    binds; grey where there is no solution for any ``eta``, white where the data do not decide
+    (an unresolved atlas cell).
 
     Parameters
     ----------
@@ -366,7 +367,7 @@ def solvable_region_figure(bds, path=None):
     eta_max = np.where(kind == rc.EDGE_BOUNDED, bds["eta_max"].values.T, np.nan)
     eta_min = bds["eta_min"].values.T
     eta_min = np.where((kind != rc.EDGE_NONE) & (eta_min > lo), eta_min, np.nan)
-    fig = new_figure(figsize=(13.0, 6.0))
+    fig = new_figure(figsize=(13.0, 7.5))
     axes = fig.subplots(1, 2, sharey=True)
     norm = LogNorm(lo, hi)
     AA, NN = np.meshgrid(A, N)
@@ -378,12 +379,16 @@ def solvable_region_figure(bds, path=None):
                              rasterized=True)
         handles = [Patch(facecolor="#d9d9d9", edgecolor="0.5", label="no solution for any "
                          r"$\eta$ in range")]
+        # Beyond the searched range: hatched, so that it is not mistaken for undecided (white).
         if ax is axes[0]:
-            unb = np.where(resolved & (kind == rc.EDGE_UNBOUNDED), 1.0, np.nan)
-            if np.isfinite(unb).any():
-                ax.contourf(AA, NN, unb, levels=[0.5, 1.5], colors="none", hatches=["//"])
-                handles.append(Patch(facecolor="none", edgecolor="0.3", hatch="//",
-                                     label=rf"ok up to $\eta$ = {hi:g}"))
+            beyond, hatch, text = kind == rc.EDGE_UNBOUNDED, "//", rf"ok up to $\eta$ = {hi:g}"
+        else:
+            beyond = (kind != rc.EDGE_NONE) & (bds["eta_min"].values.T <= lo)
+            hatch, text = "\\\\", rf"ok down to $\eta$ = {lo:g}"
+        beyond = np.where(resolved & beyond, 1.0, np.nan)
+        if np.isfinite(beyond).any():
+            ax.contourf(AA, NN, beyond, levels=[0.5, 1.5], colors="none", hatches=[hatch])
+            handles.append(Patch(facecolor="none", edgecolor="0.3", hatch=hatch, label=text))
         if (~resolved).any():
             handles.append(Patch(facecolor="white", edgecolor="0.5", label="undecided (atlas)"))
         wall = ax.plot(1.0 - 2.0 * N**2, N, **{k: v for k, v in BOUNDARY_STYLES["wall"].items()},
@@ -400,7 +405,8 @@ def solvable_region_figure(bds, path=None):
         ax.set_title(f"{name}" + (r": largest $\varepsilon L$ with a solution" if ax is axes[0]
                                   else r": smallest $\varepsilon L$ with a solution (where > "
                                   rf"{lo:g})"))
-        ax.legend(handles=handles, loc="upper right", fontsize="x-small", framealpha=0.85)
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=2,
+                  fontsize="small", frameon=False)
     axes[0].set_ylabel(DIM_LABELS["N"])
     fig.colorbar(mesh, ax=axes, label=r"$\eta = \varepsilon L$ (-)", shrink=0.9)
     tol = bds.attrs.get("atlas_tol")

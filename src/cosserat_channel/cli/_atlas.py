@@ -41,8 +41,8 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
                      help="write the cached atlas that 'plot --regime' uses when no --atlas is "
                      "given ($XDG_CACHE_HOME/cosserat-channel/atlas.nc)")
     p.add_argument("--A", default=f"{DEFAULT_A[0]:g}:{DEFAULT_A[1]:g}", metavar="LO:HI",
-                   help=f"range of A (default {DEFAULT_A[0]:g}:{DEFAULT_A[1]:g}; A <= -1 and the wall "
-                   "line are analytic)")
+                   help=f"range of A (default {DEFAULT_A[0]:g}:{DEFAULT_A[1]:g}; write --A=-1:5 when "
+                   "it starts below 0; A <= -1 and the wall line are analytic)")
     p.add_argument("--N", default=f"{DEFAULT_N[0]:g}:{DEFAULT_N[1]:g}", metavar="LO:HI",
                    help=f"range of N > 0 (default {DEFAULT_N[0]:g}:{DEFAULT_N[1]:g})")
     p.add_argument("--tol", type=float, default=1e-8,

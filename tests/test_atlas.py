@@ -180,3 +180,9 @@ def test_cli_atlas_and_regime_map_from_it(tmp_path, capsys, monkeypatch, atlas_f
     bnd = tmp_path / "b.nc"
     assert main(["boundary", "--A", "0.3,0.4", "--N", "0.85", "--atlas", str(atlas_file),
                  "-o", str(bnd), "--plot", str(tmp_path / "b.png")]) == 0
+
+
+def test_scalars_give_scalars(atlas):
+    leaf, low, eta, err = atlas.transitions(0.3, 0.85)
+    assert leaf.shape == low.shape == err.shape == () and eta.shape == (2,)
+    assert at.classify(0.01, 10.0, 0.5, 0.3, 0.85, atlas=atlas).shape == ()

@@ -207,6 +207,8 @@ class Atlas:
             The leaf's error estimate (NaN where unknown).
         """
         A, N = np.broadcast_arrays(np.asarray(A, dtype=float), np.asarray(N, dtype=float))
+        shape = A.shape  # worked on flat copies: scalars too (0-d arrays take no masked assignment)
+        A, N = A.ravel(), N.ravel()
         leaf = self.leaf_of(A, N)
         kmax = self.coef.shape[1]
         eta = np.full(A.shape + (kmax,), np.nan)
@@ -222,7 +224,7 @@ class Atlas:
             eta[known] = np.exp(np.einsum("pi,pkij,pj->pk", ta, self.coef[lf], tn))
         low[known] = self.leaf_low[leaf[known]]
         err[known] = self.leaf_error[leaf[known]]
-        return leaf, low, eta, err
+        return leaf.reshape(shape), low.reshape(shape), eta.reshape(shape + (kmax,)), err.reshape(shape)
 
     def boundary(self, A, N):
         """The atlas on the grid ``A x N`` as a :func:`regimes.trace_boundary`-style Dataset.

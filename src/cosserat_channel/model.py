@@ -33,7 +33,7 @@ import math
 
 from numba import njit
 
-from . import status as st
+from . import analytic
 
 # error_model="numpy": a division by zero gives inf/NaN, which the integrators handle as a
 # non-finite trial step, instead of a branch and a Python exception around every division.
@@ -50,15 +50,10 @@ N_AX = 4
 # --------------------------------------------------------------------------------------------
 # Regimes (Appendix A) and the axis condition (eq:20)
 # --------------------------------------------------------------------------------------------
-@njit(**_JIT)
-def axis_margin(eta, A, N):
-    """Axis existence condition of eq:20, ``(A-1) eta + 2(A+1) N``.
-
-    The smaller root ``x`` of ``eps^2 x^2 - 2(A+1)(eps + N/L) x + 2(A+1) = 0`` exists and satisfies
-    ``eps x <= A + 1`` (the root choice the paper prescribes) exactly when this is ``>= 0`` (derived in
-    model.md; checked in the tests).
-    """
-    return (A - 1.0) * eta + 2.0 * (A + 1.0) * N
+# The plain-Python originals live in analytic.py (the atlas classifies without numba); these are
+# their compiled copies for the kernels.
+axis_margin = njit(**_JIT)(analytic.axis_margin)
+_classify_margin = njit(**_JIT)(analytic.classify_margin)
 
 
 @njit(**_JIT)
@@ -66,20 +61,9 @@ def classify(eta, A, N):
     """Status decided before any integration, for the regimes of Appendix A.
 
     Returns ``OK`` when stage 1 must be integrated (A > -1, axis series admissible) or when the
-    A = -1 closed form applies.
+    A = -1 closed form applies (:func:`cosserat_channel.analytic.classify_margin`).
     """
-    if A < 1.0 - 2.0 * N * N:
-        return st.WALL_INADMISSIBLE
-    if A < -1.0:
-        return st.AXIS_SPIN_UNBOUNDED
-    if A == -1.0:
-        return st.OK
-    # On the edge itself (margin exactly 0) the root of eq:20 is admissible but c0 = 0: sqrt(D)
-    # vanishes to first order at the axis and the spin exponent beta is infinite, so no regular
-    # solution leaves the axis; the edge belongs to the infeasible side.
-    if axis_margin(eta, A, N) <= 0.0:
-        return st.EPS_TOO_LARGE_AXIS
-    return st.OK
+    return _classify_margin(axis_margin(eta, A, N), A, N)
 
 
 @njit(**_JIT)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import model
+from .analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
 from . import status as st
 from .parameters import PARAMETERS, ParameterError, check_point
 # The codes of the data this module produces live in regime_codes (the figures read them from
@@ -85,14 +86,6 @@ def axis_line_N(A, eta):
     with np.errstate(divide="ignore", invalid="ignore"):
         N = (1.0 - A) * eta / (2.0 * (A + 1.0))
     return np.where(A > -1.0, N, np.nan)
-
-
-def axis_edge_eta(A, N):
-    """``eta`` of the axis condition, ``2(A+1) N / (1 - A)``, for ``-1 < A < 1``; ``inf`` for ``A >= 1``."""
-    A = np.asarray(A, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        e = 2.0 * (A + 1.0) * np.asarray(N, dtype=float) / (1.0 - A)
-    return np.where(A >= 1.0, np.inf, np.where(A > -1.0, e, np.nan))
 
 
 def yield_D(xi, m, L, A, N):

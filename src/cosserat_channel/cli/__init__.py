@@ -5,7 +5,7 @@ parser and a function that runs it and returns the exit code. Add a subcommand w
 :func:`register`; :func:`main` needs no change. This module holds what the commands share (the
 parser, the error and progress lines, the point and material arguments, the output checks); the
 commands live by theme in ``_point`` (point, phase-plane), ``_sweeps`` (run, query, info),
-``_regimes`` (boundary, plot) and ``_reports`` (stability, bench).
+``_regimes`` (boundary, plot), ``_atlas`` (atlas) and ``_reports`` (stability, bench).
 
 Exit codes: 0 for an answer (a point without solution is an answer: its status says why), 1 for
 a failure after the input was accepted (e.g. the plot file could not be written), 2 for input
@@ -350,5 +350,5 @@ def _figure_output(path: str, option: str = "-o") -> None:
 
 
 # The commands register themselves on import; they come last because they import the pieces above.
-from . import _point, _sweeps, _regimes, _reports  # noqa: E402, F401, I001 (this order is --help's)
+from . import _point, _sweeps, _regimes, _atlas, _reports  # noqa: E402, F401, I001 (this order is --help's)
 

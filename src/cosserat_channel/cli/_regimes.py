@@ -72,6 +72,8 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
                    help="log-spaced samples before bisection (default 48)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
     p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
+    p.add_argument("--atlas", metavar="ATLAS.nc",
+                   help="draw the edges from this atlas (written by 'atlas') instead of tracing")
     p.add_argument("--overwrite", action="store_true",
                    help="trace again and replace OUT.nc if it exists (without it an OUT.nc "
                    "traced with the same arguments is reused, any other is kept)")
@@ -107,9 +109,16 @@ def _boundary(args: argparse.Namespace) -> int:
     from .. import regimes
     from ..status import Status
 
-    ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
-    traced = ds is None
-    if traced:
+    if args.atlas is not None:
+        check_not_input(args.output, [args.atlas], "-o")
+        if os.path.exists(args.output) and not args.overwrite:
+            raise CliError(f"{args.output} exists; kept: add --overwrite to replace it, or "
+                           "choose another -o")
+        ds = _boundary_from_atlas(args.atlas, A, N, lo, hi)
+    else:
+        ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
+    traced = ds is None or args.atlas is not None
+    if ds is None:
         with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
             ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
                                         progress=lambda k, n: bar.update(f"{k}/{n} edges traced"))
@@ -139,6 +148,24 @@ def _boundary(args: argparse.Namespace) -> int:
         raise CliError(str(exc) if isinstance(exc, WriteError) else f"cannot write: {exc}",
                        EXIT_FAILURE) from None
     return EXIT_OK
+
+
+def _boundary_from_atlas(path, A, N, lo, hi):
+    """The boundary Dataset of ``A x N`` drawn from the atlas in ``path``; CliError if it cannot
+    answer for the whole ``--eta-range``."""
+    from .. import atlas as atlas_mod
+
+    try:
+        atlas = atlas_mod.load_atlas(path)
+    except ParameterError as exc:
+        raise CliError(f"--atlas: {exc}") from None
+    if (lo, hi) != atlas.eta_range:
+        raise CliError(f"--eta-range: {lo:g}:{hi:g} differs from the atlas's "
+                       f"{atlas.eta_range[0]:g}:{atlas.eta_range[1]:g}; give that or none")
+    if not atlas.covers((min(A), max(A)), (min(N), max(N))):
+        _note(f"--atlas: {path} covers A in [{atlas.box[0]:g}, {atlas.box[1]:g}], N in "
+              f"[{atlas.box[2]:g}, {atlas.box[3]:g}]; outside it eta_max is NaN")
+    return atlas.boundary(A, N)
 
 
 def _same_boundary(path, A, N, lo, hi, coarse):
@@ -185,6 +212,9 @@ def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--boundary", metavar="BOUNDARY.nc",
                    help="with --regime: traced edge from 'boundary' (default: traced here on a "
                    "coarse grid)")
+    p.add_argument("--atlas", metavar="ATLAS.nc",
+                   help="with --regime: draw the edges from this atlas (written by 'atlas'; "
+                   "default: the cached atlas if it covers the map, else traced here)")
     p.add_argument("--no-asymptote", dest="asymptote", action="store_false",
                    help="do not overlay the Appendix C asymptotics (N = 1)")
     p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
@@ -245,10 +275,14 @@ def _plot(args: argparse.Namespace) -> int:
     at = parse_at(args.at)
     if args.boundary is not None and not args.regime:
         raise CliError("--boundary goes with --regime")
+    if args.atlas is not None and not args.regime:
+        raise CliError("--atlas goes with --regime")
+    if args.atlas is not None and args.boundary is not None:
+        raise CliError("--atlas and --boundary are two sources of the same edge: give one")
     if args.regime and args.hue is not None:
         raise CliError("--hue does not go with --regime")
     _figure_output(args.output)
-    check_not_input(args.output, [args.results, args.boundary], "-o")
+    check_not_input(args.output, [args.results, args.boundary, args.atlas], "-o")
     from ..plot import lines as plot_lines
     from ..plot import regimes as plot_regimes
     ds = open_results(args.results)
@@ -273,6 +307,8 @@ def _plot(args: argparse.Namespace) -> int:
             with Progress("plot", "drawing " + _FIRST_RUN * args.regime, delay=1.0) as bar:
                 if args.regime:
                     if boundary is None:
+                        boundary = _atlas_boundary(ds, args, at)
+                    if boundary is None:
                         # The figure only draws data: the traced edge is computed here, on the
                         # coarse (A, N) grid the map asks for.
                         grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at)
@@ -295,3 +331,45 @@ def _plot(args: argparse.Namespace) -> int:
     finally:
         ds.close()
     return EXIT_OK
+
+
+# The atlas is evaluated on this many (A, N) values per plotted direction: the map interpolates
+# the edge onto its own 400 x 400 grid, and 200 keep that interpolation far inside a pixel.
+ATLAS_GRID = 200
+
+
+def _atlas_boundary(ds, args, at):
+    """The edge of a regime map from ``--atlas`` or the cached atlas, as a boundary Dataset.
+
+    None when the map has no (A, N) direction, or no atlas is given and the cached one is absent
+    or does not cover the map (the caller then traces). An ``--atlas`` that does not cover the
+    map is drawn where it does, with a note.
+    """
+    from .. import atlas as atlas_mod
+    from ..plot import regimes as plot_regimes
+
+    path = args.atlas
+    if path is None:
+        path = atlas_mod.cache_path()
+        if not os.path.exists(path):
+            return None
+    grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at, n=ATLAS_GRID)
+    if grid is None:
+        return None
+    try:
+        atlas = atlas_mod.load_atlas(path)
+    except ParameterError as exc:
+        if args.atlas is None:
+            _note(f"the cached atlas is not usable ({exc}); tracing instead")
+            return None
+        raise CliError(f"--atlas: {exc}") from None
+    A, N = grid
+    span = ((float(A.min()), float(A.max())), (float(N.min()), float(N.max())))
+    if not atlas.covers(*span):
+        if args.atlas is None:
+            return None
+        _note(f"--atlas: {path} covers A in [{atlas.box[0]:g}, {atlas.box[1]:g}], N in "
+              f"[{atlas.box[2]:g}, {atlas.box[3]:g}]; the edge is drawn only there")
+    elif args.atlas is None:
+        _note(f"edges drawn from the cached atlas {path}")
+    return atlas.boundary(A, N)

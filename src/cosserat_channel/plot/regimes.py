@@ -336,3 +336,81 @@ def boundary_figure(bds, path=None):
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+def solvable_region_figure(bds, path=None):
+    """Where the model has a solution in ``(A, N)``: ``eta_max`` shaded, ``eta_min`` beside it.
+
+    Left, the largest ``eta = eps L`` with a solution (log colour scale; hatched where every
+    searched ``eta`` is ok, so ``eta_max`` is beyond the range); right, the smallest, where small
+    ``eta`` fails too (hatched where the lowest searched ``eta`` is ok). Both carry the analytic
+    lines ``A = 1 - 2N^2`` and ``A = -1``, and ``A = 1``, above which the axis condition never
+    binds; grey where there is no solution for any ``eta``, white where the data do not decide
+    (an unresolved atlas cell).
+
+    Parameters
+    ----------
+    bds : xarray.Dataset
+        A boundary Dataset on a fine ``(A, N)`` grid, e.g. from
+        :meth:`cosserat_channel.atlas.Atlas.boundary` (this function never solves).
+    path : path-like, optional
+        Where to save the figure.
+    """
+    from matplotlib.colors import LogNorm
+
+    A = bds["A"].values.astype(float)
+    N = bds["N"].values.astype(float)
+    kind = bds["edge_kind"].values.T
+    resolved = bds["resolved"].values.T if "resolved" in bds else np.ones(kind.shape, bool)
+    lo = float(bds.attrs.get("eta_search_min", rc.ETA_SEARCH_MIN))
+    hi = float(bds.attrs.get("eta_search_max", rc.ETA_SEARCH_MAX))
+    eta_max = np.where(kind == rc.EDGE_BOUNDED, bds["eta_max"].values.T, np.nan)
+    eta_min = bds["eta_min"].values.T
+    eta_min = np.where((kind != rc.EDGE_NONE) & (eta_min > lo), eta_min, np.nan)
+    fig = new_figure(figsize=(13.0, 7.5))
+    axes = fig.subplots(1, 2, sharey=True)
+    norm = LogNorm(lo, hi)
+    AA, NN = np.meshgrid(A, N)
+    none = resolved & (kind == rc.EDGE_NONE)
+    for ax, field, name in ((axes[0], eta_max, r"$\eta_{\max}$"), (axes[1], eta_min, r"$\eta_{\min}$")):
+        ax.pcolormesh(A, N, np.where(none, 1.0, np.nan), cmap=ListedColormap(["#d9d9d9"]),
+                      shading="nearest", rasterized=True)
+        mesh = ax.pcolormesh(A, N, field, norm=norm, cmap="viridis", shading="nearest",
+                             rasterized=True)
+        handles = [Patch(facecolor="#d9d9d9", edgecolor="0.5", label="no solution for any "
+                         r"$\eta$ in range")]
+        # Beyond the searched range: hatched, so that it is not mistaken for undecided (white).
+        if ax is axes[0]:
+            beyond, hatch, text = kind == rc.EDGE_UNBOUNDED, "//", rf"ok up to $\eta$ = {hi:g}"
+        else:
+            beyond = (kind != rc.EDGE_NONE) & (bds["eta_min"].values.T <= lo)
+            hatch, text = "\\\\", rf"ok down to $\eta$ = {lo:g}"
+        beyond = np.where(resolved & beyond, 1.0, np.nan)
+        if np.isfinite(beyond).any():
+            ax.contourf(AA, NN, beyond, levels=[0.5, 1.5], colors="none", hatches=[hatch])
+            handles.append(Patch(facecolor="none", edgecolor="0.3", hatch=hatch, label=text))
+        if (~resolved).any():
+            handles.append(Patch(facecolor="white", edgecolor="0.5", label="undecided (atlas)"))
+        wall = ax.plot(1.0 - 2.0 * N**2, N, **{k: v for k, v in BOUNDARY_STYLES["wall"].items()},
+                       label=BOUNDARY_LABELS["wall"])[0]
+        handles.append(wall)
+        for value, label, style in ((-1.0, BOUNDARY_LABELS["A=-1"], BOUNDARY_STYLES["A=-1"]),
+                                    (1.0, r"$A = 1$ (axis condition binds only for $A < 1$)",
+                                     dict(color="#0033cc", ls="--", lw=1.5, zorder=4))):
+            if A.min() <= value <= A.max():
+                handles.append(ax.axvline(value, label=label, **style))
+        ax.set_xlim(A.min(), A.max())
+        ax.set_ylim(N.min(), N.max())
+        ax.set_xlabel(DIM_LABELS["A"])
+        ax.set_title(f"{name}" + (r": largest $\varepsilon L$ with a solution" if ax is axes[0]
+                                  else r": smallest $\varepsilon L$ with a solution (where > "
+                                  rf"{lo:g})"))
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=2,
+                  fontsize="small", frameon=False)
+    axes[0].set_ylabel(DIM_LABELS["N"])
+    fig.colorbar(mesh, ax=axes, label=r"$\eta = \varepsilon L$ (-)", shrink=0.9)
+    tol = bds.attrs.get("atlas_tol")
+    fig.suptitle("Solvable region in (A, N)" + (f" (atlas, tolerance {tol:g})" if tol else ""))
+    if path is not None:
+        save_figure(fig, path)
+    return fig

@@ -1,0 +1,53 @@
+"""The regimes of Appendix A that are decided without integrating: plain Python, no numba.
+
+:mod:`cosserat_channel.model` compiles these two functions with numba for the kernels; the
+solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so that reading an atlas
+and classifying points never imports numba. They are the one home of the analytic regime logic.
+Both take scalars; :func:`axis_margin` also takes arrays, and :func:`axis_edge_eta` (the atlas and
+the figures need it without the solver) takes arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import status as st
+
+
+def axis_margin(eta, A, N):
+    """Axis existence condition of eq:20, ``(A-1) eta + 2(A+1) N``.
+
+    The smaller root ``x`` of ``eps^2 x^2 - 2(A+1)(eps + N/L) x + 2(A+1) = 0`` exists and satisfies
+    ``eps x <= A + 1`` (the root choice the paper prescribes) exactly when this is ``>= 0`` (derived
+    in model.md; checked in the tests).
+    """
+    return (A - 1.0) * eta + 2.0 * (A + 1.0) * N
+
+
+def classify_margin(margin, A, N):
+    """Status decided before any integration from ``A``, ``N`` and the :func:`axis_margin`.
+
+    Returns ``OK`` when stage 1 must be integrated (A > -1, axis series admissible) or when the
+    A = -1 closed form applies. It takes the margin, not ``eta``, because numba cannot call a
+    plain Python function from compiled code: ``model.classify`` composes the two compiled copies.
+    """
+    if A < 1.0 - 2.0 * N * N:
+        return st.WALL_INADMISSIBLE
+    if A < -1.0:
+        return st.AXIS_SPIN_UNBOUNDED
+    if A == -1.0:
+        return st.OK
+    # On the edge itself (margin exactly 0) the root of eq:20 is admissible but c0 = 0: sqrt(D)
+    # vanishes to first order at the axis and the spin exponent beta is infinite, so no regular
+    # solution leaves the axis; the edge belongs to the infeasible side.
+    if margin <= 0.0:
+        return st.EPS_TOO_LARGE_AXIS
+    return st.OK
+
+
+def axis_edge_eta(A, N):
+    """``eta`` of the axis condition, ``2(A+1) N / (1 - A)``, for ``-1 < A < 1``; ``inf`` for ``A >= 1``."""
+    A = np.asarray(A, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = 2.0 * (A + 1.0) * np.asarray(N, dtype=float) / (1.0 - A)
+    return np.where(A >= 1.0, np.inf, np.where(A > -1.0, e, np.nan))

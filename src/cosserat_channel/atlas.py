@@ -1,0 +1,627 @@
+"""The solvability atlas: every change of feasibility in ``eta = eps L`` over a box of ``(A, N)``.
+
+By the similarity of model.md a point's status depends on ``(eta, A, N)`` only. At each ``(A, N)``
+:func:`cosserat_channel.regimes.trace_edge` finds the ``eta`` where feasibility changes (the
+*transitions*: ``eta_max``, and ``eta_min`` where small ``eta`` fails too) and whether the lowest
+searched ``eta`` is feasible. Together, the *signature* ``(feasible_low, n_transitions)`` and the
+transitions say the status of every ``eta`` at that ``(A, N)``.
+
+The atlas interpolates them. The box is cut into a quadtree of cells; on each cell the transitions
+are sampled on a tensor grid of Chebyshev-Lobatto nodes (``degree + 1`` per side) and interpolated
+in ``log eta`` by the tensor Chebyshev polynomial through them. A cell is split into four when
+
+* its nodes do not all have the same signature (a transition enters or leaves the searched range,
+  an ``eta_min`` appears, the wall line crosses it), or
+* the error estimate of its interpolant, the sum of the magnitudes of its Chebyshev coefficients
+  of the two highest degrees (they decay geometrically where the edge is smooth, and the sum of
+  the omitted ones is smaller), exceeds ``tol``,
+
+down to ``max_depth`` splits. A cell still mixed there is *unresolved* (every point in it is
+undecided); a smooth cell whose estimate is still above ``tol`` keeps its own estimate, which
+:func:`classify` uses in place of ``tol``.
+
+Why not python-adaptive's ``Learner2D``: it interpolates piecewise-linearly on a triangulation, so
+its error falls like ``h^2``; the edge is analytic, and the Chebyshev cells reach 1e-8 with a few
+thousand traces where a linear interpolant needs millions (measured in ``benchmarks/bench_atlas.py``
+and ``docs/performance.md``). It also learns one scalar, while a point here has zero to two
+transitions and the number changes across the plane.
+
+Numerics. The transitions are bisected by :func:`~cosserat_channel.regimes.bisect_edge` to
+``regimes.ETA_XTOL`` (1e-10 relative) with the solver at ``regimes.EDGE_RTOL``; where the edge
+lies is known to about 1e-8 relative (how far it moves with the solver's tolerance), so ``tol``
+is at least :data:`TOL_MIN`. The traces search twice the claimed range of ``eta`` each way, so
+that a transition just outside the claimed range keeps the signature of the cells next to it and
+is interpolated, not lost.
+
+Reading an atlas (:func:`load_atlas`, :func:`classify`, :meth:`Atlas.boundary`) imports numpy
+and xarray only: building one (:func:`build_atlas`) imports the solver.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import analytic
+from . import regime_codes as rc
+from . import status as st
+from .parameters import ETA_MAX, ETA_MIN, ParameterError, check_values
+
+UNDECIDED = -1  # classify's code for a point the atlas cannot decide: a solve decides it
+TOL_MIN = 1e-8  # how well the edge itself is known (regimes.EDGE_RTOL), relative in eta
+TOL_MAX = 1e-1
+DEGREE = 8  # Chebyshev degree per cell and direction: 81 nodes, 1e-8 on cells ~0.25 wide
+MAX_DEPTH = 6  # splits of a root cell; the raster of leaves is (roots * 2^depth)^2
+MAX_DEPTH_LIMIT = 8
+SAFETY = 2.0  # undecided band: SAFETY * max(tol, the cell's error estimate), relative in eta
+TRACE_WIDEN = 2.0  # traces search [lo / TRACE_WIDEN, hi * TRACE_WIDEN] (see the module notes)
+DEFAULT_A = (-1.0, 5.0)
+DEFAULT_N = (0.3, 3.0)
+ROOT_CELL = 1.0  # the root cells are about this wide in A and N
+FORMAT = "cosserat-channel atlas 1"
+
+
+def cache_path():
+    """Where ``atlas --cache`` writes and ``plot --regime`` looks: ``$XDG_CACHE_HOME`` or ``~/.cache``,
+    then ``cosserat-channel/atlas.nc``."""
+    import os
+    from pathlib import Path
+
+    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "cosserat-channel"
+    return str(base / "atlas.nc")
+
+
+# ---------------------------------------------------------------------------------------------
+# Chebyshev cells
+# ---------------------------------------------------------------------------------------------
+def lobatto(degree):
+    """Chebyshev-Lobatto nodes on [-1, 1], ascending, ends exact."""
+    x = -np.cos(np.pi * np.arange(degree + 1) / degree)
+    x[0], x[-1] = -1.0, 1.0
+    if degree % 2 == 0:
+        x[degree // 2] = 0.0
+    return x
+
+
+def _vandermonde(x, degree):
+    """``T_k(x)`` for k = 0..degree, shape ``x.shape + (degree + 1,)``."""
+    t = np.arccos(np.clip(x, -1.0, 1.0))
+    return np.cos(t[..., None] * np.arange(degree + 1))
+
+
+def _coefficients(values, degree):
+    """Tensor Chebyshev coefficients of node values ``(..., degree+1, degree+1)``."""
+    tinv = np.linalg.inv(_vandermonde(lobatto(degree), degree))
+    return tinv @ values @ tinv.T
+
+
+def _tail(coef):
+    """Error estimate of a cell's interpolant: the coefficients of the two highest degrees."""
+    p = coef.shape[-1] - 1
+    mask = np.zeros(coef.shape[-2:], dtype=bool)
+    mask[p - 1:, :] = True
+    mask[:, p - 1:] = True
+    return np.abs(coef[..., mask]).sum(axis=-1)
+
+
+@dataclass
+class Atlas:
+    """An atlas: the quadtree's leaves with their interpolants, and the samples behind them.
+
+    Attributes
+    ----------
+    box : tuple of float
+        ``(A_min, A_max, N_min, N_max)``.
+    roots : tuple of int
+        Root cells along A and N.
+    degree, max_depth : int
+        Chebyshev degree per cell; splits allowed below a root cell.
+    tol : float
+        Requested relative error of the transitions in ``eta``.
+    eta_range : tuple of float
+        The ``eta`` the atlas answers for; the traces searched ``TRACE_WIDEN`` times wider.
+    leaf_level, leaf_i, leaf_j : ndarray of int
+        Each leaf's depth and index along A and N at that depth.
+    leaf_low : ndarray of int8
+        Feasibility at the lowest traced ``eta`` (1 ok, 0 not).
+    leaf_n : ndarray of int8
+        Number of transitions; -1 for an unresolved leaf.
+    leaf_error : ndarray of float
+        Error estimate of the leaf's transitions in ``log eta`` (~relative in ``eta``).
+    coef : ndarray
+        ``(leaf, transition, degree+1, degree+1)`` Chebyshev coefficients of ``log eta``; NaN
+        beyond ``leaf_n``.
+    samples : dict of ndarray
+        ``A``, ``N``, ``low``, ``n``, ``transitions`` of every trace the build made.
+    attrs : dict
+        Provenance (tolerances of the traces, counts of traces and solves, version).
+    """
+
+    box: tuple
+    roots: tuple
+    degree: int
+    max_depth: int
+    tol: float
+    eta_range: tuple
+    leaf_level: np.ndarray
+    leaf_i: np.ndarray
+    leaf_j: np.ndarray
+    leaf_low: np.ndarray
+    leaf_n: np.ndarray
+    leaf_error: np.ndarray
+    coef: np.ndarray
+    samples: dict
+    attrs: dict
+
+    # -- geometry --------------------------------------------------------------------------
+    def _fine(self):
+        return self.roots[0] << self.max_depth, self.roots[1] << self.max_depth
+
+    def leaf_bounds(self):
+        """``(A_lo, A_hi, N_lo, N_hi)`` arrays of the leaves."""
+        a0, a1, n0, n1 = self.box
+        ma, mn = self._fine()
+        s = np.left_shift(1, self.max_depth - self.leaf_level)
+        return (a0 + (a1 - a0) * (self.leaf_i * s) / ma, a0 + (a1 - a0) * ((self.leaf_i + 1) * s) / ma,
+                n0 + (n1 - n0) * (self.leaf_j * s) / mn, n0 + (n1 - n0) * ((self.leaf_j + 1) * s) / mn)
+
+    def _raster(self):
+        if getattr(self, "_raster_cache", None) is None:
+            ma, mn = self._fine()
+            r = np.full((ma, mn), -1, dtype=np.int32)
+            s = np.left_shift(1, self.max_depth - self.leaf_level)
+            for k, (i, j, w) in enumerate(zip(self.leaf_i * s, self.leaf_j * s, s)):
+                r[i:i + w, j:j + w] = k
+            self._raster_cache = r
+        return self._raster_cache
+
+    def leaf_of(self, A, N):
+        """Index of the leaf holding each ``(A, N)``; -1 outside the box."""
+        a0, a1, n0, n1 = self.box
+        ma, mn = self._fine()
+        A = np.asarray(A, dtype=float)
+        N = np.asarray(N, dtype=float)
+        inside = (A >= a0) & (A <= a1) & (N >= n0) & (N <= n1)
+        with np.errstate(invalid="ignore"):
+            ia = np.clip(np.floor((A - a0) / (a1 - a0) * ma), 0, ma - 1)
+            jn = np.clip(np.floor((N - n0) / (n1 - n0) * mn), 0, mn - 1)
+        ia = np.where(inside, ia, 0).astype(np.intp)
+        jn = np.where(inside, jn, 0).astype(np.intp)
+        return np.where(inside, self._raster()[ia, jn], -1)
+
+    # -- interpolation ---------------------------------------------------------------------
+    def transitions(self, A, N):
+        """Interpolated transitions at ``(A, N)``.
+
+        Returns
+        -------
+        leaf : ndarray of int
+            The leaf (-1 outside the box).
+        low : ndarray of int8
+            Feasibility at the low end (-1 where unknown: outside, or an unresolved leaf).
+        eta : ndarray
+            ``A.shape + (n_max,)`` transitions in ``eta``, ascending, NaN-padded.
+        error : ndarray
+            The leaf's error estimate (NaN where unknown).
+        """
+        A, N = np.broadcast_arrays(np.asarray(A, dtype=float), np.asarray(N, dtype=float))
+        shape = A.shape  # worked on flat copies: scalars too (0-d arrays take no masked assignment)
+        A, N = A.ravel(), N.ravel()
+        leaf = self.leaf_of(A, N)
+        kmax = self.coef.shape[1]
+        eta = np.full(A.shape + (kmax,), np.nan)
+        low = np.full(A.shape, -1, dtype=np.int8)
+        err = np.full(A.shape, np.nan)
+        known = leaf >= 0
+        known[known] = self.leaf_n[leaf[known]] >= 0
+        if known.any() and kmax:
+            lf = leaf[known]
+            alo, ahi, nlo, nhi = (b[lf] for b in self.leaf_bounds())
+            ta = _vandermonde(2.0 * (A[known] - alo) / (ahi - alo) - 1.0, self.degree)
+            tn = _vandermonde(2.0 * (N[known] - nlo) / (nhi - nlo) - 1.0, self.degree)
+            eta[known] = np.exp(np.einsum("pi,pkij,pj->pk", ta, self.coef[lf], tn))
+        low[known] = self.leaf_low[leaf[known]]
+        err[known] = self.leaf_error[leaf[known]]
+        return leaf.reshape(shape), low.reshape(shape), eta.reshape(shape + (kmax,)), err.reshape(shape)
+
+    def boundary(self, A, N):
+        """The atlas on the grid ``A x N`` as a :func:`regimes.trace_boundary`-style Dataset.
+
+        ``eta_max``, ``eta_min``, ``edge_kind``, ``n_transitions`` and ``axis_edge_eta`` mean what
+        they mean there, over the atlas's ``eta_range``, so :func:`plot.regimes.regime_map` and
+        :func:`plot.regimes.boundary_figure` draw it unchanged. Where the atlas does not know (an
+        unresolved leaf, outside the box) ``eta_max`` and ``eta_min`` are NaN, ``n_transitions``
+        is -1 and ``resolved`` is False; ``status_above`` is -1 (the atlas keeps feasibility, not
+        the status beyond an edge).
+        """
+        import xarray as xr
+
+        from . import __version__
+        from .parameters import PARAMETERS
+
+        A = np.atleast_1d(np.asarray(A, dtype=float))
+        N = np.atleast_1d(np.asarray(N, dtype=float))
+        AA, NN = np.meshgrid(A, N, indexing="ij")
+        _, low, eta, _ = self.transitions(AA, NN)
+        lo, hi = self.eta_range
+        # Feasibility at lo: that at the low end of the traces, flipped by each transition below lo
+        # (the traces search a wider range than the atlas answers for).
+        ok_lo = (low == 1) ^ (np.sum(eta <= lo, axis=-1) % 2 == 1)
+        inside = np.where((eta > lo) & (eta < hi), eta, np.nan)
+        n_in = np.sum(np.isfinite(inside), axis=-1)
+        ok_hi = ok_lo ^ (n_in % 2 == 1)
+        if inside.shape[-1]:
+            first = np.nanmin(np.where(n_in[..., None] > 0, inside, np.inf), axis=-1)
+            last = np.nanmax(np.where(n_in[..., None] > 0, inside, -np.inf), axis=-1)
+        else:
+            first = last = np.full(AA.shape, np.nan)
+        kind = np.where(ok_hi, rc.EDGE_UNBOUNDED,
+                        np.where(ok_lo | (n_in > 0), rc.EDGE_BOUNDED, rc.EDGE_NONE)).astype(np.int8)
+        eta_max = np.where(ok_hi, hi, np.where(kind == rc.EDGE_BOUNDED, last, np.nan))
+        eta_min = np.where(ok_lo, lo, np.where(kind == rc.EDGE_NONE, np.nan, first))
+        known = low >= 0
+        # The regimes of Appendix A with no solution at any eta are known everywhere, atlas or not.
+        code = classify_analytic(np.full(AA.shape, lo), AA, NN)
+        none = np.isin(code, (st.WALL_INADMISSIBLE, st.AXIS_SPIN_UNBOUNDED))
+        kind[none] = rc.EDGE_NONE
+        n_in = np.where(none, 0, n_in)
+        known |= none
+        eta_max[~known | none] = np.nan
+        eta_min[~known | none] = np.nan
+        kind[~known] = rc.EDGE_NONE
+        return xr.Dataset(
+            {
+                "eta_max": (("A", "N"), eta_max, {"long_name": "largest eps L with a solution",
+                                                  "units": "1"}),
+                "eta_min": (("A", "N"), eta_min, {"long_name": "smallest eps L with a solution",
+                                                  "units": "1"}),
+                "edge_kind": (("A", "N"), kind, {
+                    "long_name": "kind of the edge (no_solution also where resolved is False)",
+                    "flag_values": np.arange(len(rc.EDGE_KINDS), dtype=np.int8),
+                    "flag_meanings": " ".join(rc.EDGE_KINDS)}),
+                "status_above": (("A", "N"), np.full(AA.shape, -1, dtype=np.int8)),
+                "n_transitions": (("A", "N"), np.where(known, n_in, -1).astype(np.int16), {
+                    "long_name": "changes of feasibility in the atlas's eta range (-1: unknown)"}),
+                "resolved": (("A", "N"), known, {"long_name": "the atlas decides this (A, N)"}),
+                "axis_edge_eta": (("A", "N"), analytic.axis_edge_eta(AA, NN), {
+                    "long_name": "eps L on the axis condition (A-1) eps L + 2(A+1) N = 0",
+                    "units": "1"}),
+            },
+            coords={d: (d, v, {"long_name": PARAMETERS[d].long_name, "units": "1"})
+                    for d, v in (("A", A), ("N", N))},
+            attrs={"title": "cosserat-channel boundary drawn from a solvability atlas",
+                   "eta_search_min": float(lo), "eta_search_max": float(hi),
+                   "atlas_tol": float(self.tol), "cosserat_channel_version": __version__},
+        )
+
+    def covers(self, A_range, N_range):
+        """Whether the box holds ``[A_range] x [N_range]``."""
+        a0, a1, n0, n1 = self.box
+        return a0 <= min(A_range) and max(A_range) <= a1 and n0 <= min(N_range) and max(N_range) <= n1
+
+    # -- files -----------------------------------------------------------------------------
+    def to_dataset(self):
+        """The atlas as an :class:`xarray.Dataset` (what :func:`save_atlas` writes)."""
+        import xarray as xr
+
+        s = self.samples
+        return xr.Dataset(
+            {
+                "sample_A": ("sample", s["A"], {"long_name": "A of a trace"}),
+                "sample_N": ("sample", s["N"], {"long_name": "N of a trace"}),
+                "sample_low": ("sample", s["low"].astype(np.int8), {
+                    "long_name": "1 if the lowest traced eta has a solution"}),
+                "sample_n": ("sample", s["n"].astype(np.int8), {
+                    "long_name": "changes of feasibility found in the traced eta range"}),
+                "sample_transitions": (("sample", "transition"), s["transitions"], {
+                    "long_name": "eta where feasibility changes, ascending (NaN-padded)"}),
+                "leaf_level": ("leaf", self.leaf_level.astype(np.int8)),
+                "leaf_i": ("leaf", self.leaf_i.astype(np.int32)),
+                "leaf_j": ("leaf", self.leaf_j.astype(np.int32)),
+                "leaf_low": ("leaf", self.leaf_low.astype(np.int8)),
+                "leaf_n": ("leaf", self.leaf_n.astype(np.int8), {
+                    "long_name": "transitions in the leaf; -1: unresolved (undecided)"}),
+                "leaf_error": ("leaf", self.leaf_error, {
+                    "long_name": "error estimate of the leaf's log eta interpolant"}),
+                "leaf_coefficients": (("leaf", "transition", "cheb_A", "cheb_N"), self.coef, {
+                    "long_name": "tensor Chebyshev coefficients of log eta on the leaf"}),
+            },
+            attrs={"title": "cosserat-channel solvability atlas", "format": FORMAT,
+                   "A_min": self.box[0], "A_max": self.box[1], "N_min": self.box[2],
+                   "N_max": self.box[3], "roots_A": self.roots[0], "roots_N": self.roots[1],
+                   "degree": self.degree, "max_depth": self.max_depth, "tol": self.tol,
+                   "eta_min": self.eta_range[0], "eta_max": self.eta_range[1], **self.attrs},
+        )
+
+    @classmethod
+    def from_dataset(cls, ds):
+        """The inverse of :meth:`to_dataset`; ParameterError if ``ds`` is not an atlas."""
+        if ds.attrs.get("format") != FORMAT:
+            raise ParameterError(f"not a solvability atlas (format {ds.attrs.get('format')!r}, "
+                                 f"expected {FORMAT!r})")
+        a = dict(ds.attrs)
+        keys = ("title", "format", "A_min", "A_max", "N_min", "N_max", "roots_A", "roots_N",
+                "degree", "max_depth", "tol", "eta_min", "eta_max")
+        v = {k: np.asarray(ds[k].values) for k in ds.data_vars}
+        return cls(
+            box=(float(a["A_min"]), float(a["A_max"]), float(a["N_min"]), float(a["N_max"])),
+            roots=(int(a["roots_A"]), int(a["roots_N"])), degree=int(a["degree"]),
+            max_depth=int(a["max_depth"]), tol=float(a["tol"]),
+            eta_range=(float(a["eta_min"]), float(a["eta_max"])),
+            leaf_level=v["leaf_level"].astype(np.int64), leaf_i=v["leaf_i"].astype(np.int64),
+            leaf_j=v["leaf_j"].astype(np.int64), leaf_low=v["leaf_low"].astype(np.int8),
+            leaf_n=v["leaf_n"].astype(np.int8), leaf_error=v["leaf_error"].astype(float),
+            coef=v["leaf_coefficients"].astype(float),
+            samples={"A": v["sample_A"], "N": v["sample_N"], "low": v["sample_low"],
+                     "n": v["sample_n"], "transitions": v["sample_transitions"]},
+            attrs={k: val for k, val in a.items() if k not in keys},
+        )
+
+
+def save_atlas(atlas, path):
+    """Write ``atlas`` to ``path`` (NetCDF, checksummed) through :func:`files.netcdf_output`."""
+    from .files import netcdf_output
+
+    ds = atlas.to_dataset()
+    enc = {v: {"fletcher32": True} for v in ds.variables
+           if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
+    netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
+
+
+def load_atlas(path):
+    """Read an atlas written by :func:`save_atlas`; ParameterError (one line) if it is not one."""
+    import xarray as xr
+
+    try:
+        ds = xr.load_dataset(path)
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise ParameterError(f"cannot read atlas {str(path)!r}: {' '.join(str(exc).split())}") \
+            from None
+    try:
+        return Atlas.from_dataset(ds)
+    except (KeyError, ParameterError) as exc:
+        raise ParameterError(f"{str(path)!r} is not a solvability atlas ({exc})") from None
+
+
+# ---------------------------------------------------------------------------------------------
+# Classification
+# ---------------------------------------------------------------------------------------------
+_classify_margin = np.vectorize(analytic.classify_margin, otypes=[np.int8])
+
+
+def classify_analytic(eta, A, N):
+    """:func:`analytic.classify_margin` on arrays: the status Appendix A decides, else ``OK``."""
+    eta, A, N = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (eta, A, N)))
+    if eta.size == 0:
+        return np.zeros(eta.shape, dtype=np.int8)
+    return _classify_margin(analytic.axis_margin(eta, A, N), A, N)
+
+
+def classify(eps, L, K, A, N, atlas):
+    """The status of every point ``(eps, L, K, A, N)`` (broadcast) from the atlas, without solving.
+
+    Appendix A's regimes (the wall line, ``A < -1``, ``A = -1``, the axis condition) are decided
+    exactly, by :mod:`cosserat_channel.analytic`. Every other point is decided from the atlas's
+    transitions: ``ok`` or ``eps_too_large_path`` (the status of the solver beyond a traced edge).
+    A point is :data:`UNDECIDED` (-1) when it lies within ``SAFETY * max(tol, error estimate)``
+    (relative) of an interpolated transition, in an unresolved leaf, outside the atlas's box or
+    outside its ``eta_range``: a solve decides those.
+
+    Parameters
+    ----------
+    eps, L, K, A, N : array_like
+        Points; validated as :func:`parameters.check_point` does (``K`` does not enter).
+    atlas : Atlas or path-like
+        An atlas, or the file of one.
+
+    Returns
+    -------
+    ndarray of int8
+        Status codes (:class:`status.Status`) or :data:`UNDECIDED`, of the broadcast shape.
+
+    Notes
+    -----
+    The transitions are the solver's at ``regimes.EDGE_RTOL``. A solve at a looser tolerance moves
+    the edge by up to ~2e-6 relative (regimes.py): such a solve may disagree with a decided
+    point that close to an edge.
+    """
+    if not isinstance(atlas, Atlas):
+        atlas = load_atlas(atlas)
+    eps, L, K, A, N = np.broadcast_arrays(
+        *(check_values(d, v) for d, v in zip(("eps", "L", "K", "A", "N"), (eps, L, K, A, N))))
+    eta = eps * L
+    bad = ~((eta >= ETA_MIN) & (eta <= ETA_MAX))
+    if bad.any():
+        from .parameters import check_eta
+
+        k = np.flatnonzero(bad.ravel())[0]
+        check_eta(float(eps.ravel()[k]), float(L.ravel()[k]))
+    out = classify_analytic(eta, A, N)
+    need = (out == st.OK) & (A != -1.0)
+    if not need.any():
+        return out
+    e, a, n = eta[need], A[need], N[need]
+    _, low, t, err = atlas.transitions(a, n)
+    lo, hi = atlas.eta_range
+    known = (low >= 0) & (e >= lo) & (e <= hi)
+    band = SAFETY * np.fmax(atlas.tol, err)
+    with np.errstate(invalid="ignore"):
+        dist = np.abs(np.log(e)[:, None] - np.log(t))
+        near = np.any(dist <= band[:, None], axis=-1)
+        flips = np.sum(t < e[:, None], axis=-1)
+    feasible = (low == 1) ^ (flips % 2 == 1)
+    code = np.where(feasible, st.OK, st.EPS_TOO_LARGE_PATH).astype(np.int8)
+    out[need] = np.where(known & ~near, code, UNDECIDED)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Building (imports the solver)
+# ---------------------------------------------------------------------------------------------
+def _signatures(trace, na, nn):
+    """The set of ``(feasible_low, n_transitions)`` over the grid ``na x nn``."""
+    return {(low, t.size) for low, t in (trace(a, n) for a in na for n in nn)}
+
+
+class _Counting:
+    """A :class:`solve.Workspace` stand-in for ``trace_edge`` that counts the status solves."""
+
+    def __init__(self, ws):
+        self.ws = ws
+        self.solves = 0
+
+    def status(self, eta, A, N, rtol, atol):
+        self.solves += 1
+        return self.ws.status(eta, A, N, rtol, atol)
+
+
+def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range):
+    """Validate :func:`build_atlas`'s arguments; ParameterError naming the one that is wrong."""
+    a0, a1 = (float(v) for v in A_range)
+    n0, n1 = (float(v) for v in N_range)
+    if not (math.isfinite(a0) and math.isfinite(a1) and -1e3 <= a0 < a1 <= 1e3):
+        raise ParameterError(f"A range must be a < b inside [-1000, 1000]; got {a0:g}:{a1:g}")
+    if not (math.isfinite(n0) and math.isfinite(n1) and 0.0 < n0 < n1 <= 1e6):
+        raise ParameterError(f"N range must be 0 < c < d <= 1e6; got {n0:g}:{n1:g}")
+    if not TOL_MIN <= tol <= TOL_MAX:
+        raise ParameterError(f"tol = {tol!r} is outside [{TOL_MIN:g}, {TOL_MAX:g}] (the edge "
+                             "itself is known to ~1e-8 relative)")
+    if not (isinstance(degree, (int, np.integer)) and 2 <= degree <= 32 and degree % 2 == 0):
+        raise ParameterError(f"degree must be an even integer in [2, 32]; got {degree!r}")
+    if not (isinstance(max_depth, (int, np.integer)) and 0 <= max_depth <= MAX_DEPTH_LIMIT):
+        raise ParameterError(f"max_depth must be an integer in [0, {MAX_DEPTH_LIMIT}]; "
+                             f"got {max_depth!r}")
+    lo, hi = (float(v) for v in eta_range)
+    if not (ETA_MIN * TRACE_WIDEN <= lo < hi <= ETA_MAX / TRACE_WIDEN):
+        raise ParameterError(f"eta range must be lo < hi inside [{ETA_MIN * TRACE_WIDEN:g}, "
+                             f"{ETA_MAX / TRACE_WIDEN:g}]; got {lo:g}:{hi:g}")
+    return (a0, a1), (n0, n1), float(tol), int(degree), int(max_depth), (lo, hi)
+
+
+def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE,
+                max_depth=MAX_DEPTH, roots=None, eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX),
+                uniform=False, progress=None):
+    """Sample every transition of feasibility in ``eta`` over ``A_range x N_range`` adaptively.
+
+    Parameters
+    ----------
+    A_range, N_range : (float, float)
+        The box of ``(A, N)``.
+    tol : float
+        Target relative error of the transitions in ``eta``, in ``[TOL_MIN, TOL_MAX]``.
+    degree : int
+        Chebyshev degree per cell and direction (even: the 3 x 3 sub-grid checked first is then
+        part of the cell's nodes).
+    max_depth : int
+        Splits allowed below a root cell.
+    roots : (int, int), optional
+        Root cells along A and N; default about :data:`ROOT_CELL` wide.
+    eta_range : (float, float)
+        The ``eta`` the atlas answers for; traces search ``TRACE_WIDEN`` times wider each way.
+    uniform : bool
+        Split every cell to ``max_depth`` whatever its error (the benchmark's non-adaptive
+        baseline).
+    progress : callable, optional
+        ``progress(leaves, cells_queued, traces)`` after each cell.
+
+    Returns
+    -------
+    Atlas
+    """
+    from . import __version__, regimes
+    from .solve import Workspace
+
+    A_range, N_range, tol, degree, max_depth, eta_range = check_build_arguments(
+        A_range, N_range, tol, degree, max_depth, eta_range)
+    if roots is None:
+        roots = (max(1, math.ceil((A_range[1] - A_range[0]) / ROOT_CELL)),
+                 max(1, math.ceil((N_range[1] - N_range[0]) / ROOT_CELL)))
+    roots = (int(roots[0]), int(roots[1]))
+    trace_range = (eta_range[0] / TRACE_WIDEN, eta_range[1] * TRACE_WIDEN)
+    ws = _Counting(Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS))
+    cache = {}
+
+    def trace(a, n):
+        key = (a, n)
+        if key not in cache:
+            e = regimes.trace_edge(a, n, eta_range=trace_range, workspace=ws)
+            low = e.kind != rc.EDGE_NONE and e.eta_min == trace_range[0]
+            cache[key] = (bool(low), np.asarray(e.transitions, dtype=float))
+        return cache[key]
+
+    ma, mn = roots[0] << max_depth, roots[1] << max_depth
+    box = (A_range[0], A_range[1], N_range[0], N_range[1])
+
+    def coord(lo, hi, k, m):
+        return lo + (hi - lo) * k / m
+
+    x = lobatto(degree)
+    sub = np.array([0, degree // 2, degree])  # the 3 x 3 sub-grid: corners, edge midpoints, centre
+    leaves = []
+    queue = [(0, i, j) for i in range(roots[0]) for j in range(roots[1])]
+    while queue:
+        level, i, j = queue.pop(0)
+        s = 1 << (max_depth - level)
+        a_lo, a_hi = coord(*A_range, i * s, ma), coord(*A_range, (i + 1) * s, ma)
+        n_lo, n_hi = coord(*N_range, j * s, mn), coord(*N_range, (j + 1) * s, mn)
+        # Nodes from the cell's bounds; the ends are the bounds themselves, so neighbours share
+        # the traces on their common side.
+        na = a_lo + (a_hi - a_lo) * (x + 1.0) / 2.0
+        nn = n_lo + (n_hi - n_lo) * (x + 1.0) / 2.0
+        na[0], na[-1], nn[0], nn[-1] = a_lo, a_hi, n_lo, n_hi
+        can_split = level < max_depth
+        children = [(level + 1, 2 * i + di, 2 * j + dj) for di in (0, 1) for dj in (0, 1)]
+        # A cell whose 3 x 3 sub-grid already mixes signatures is split before its full grid is
+        # traced: along a curve where the signature changes only these nine traces are spent.
+        sig = _signatures(trace, na[sub], nn[sub])
+        if len(sig) == 1 and not (uniform and can_split):
+            sig = _signatures(trace, na, nn)
+        if len(sig) > 1 or (uniform and can_split):
+            if can_split:
+                queue.extend(children)
+            else:
+                leaves.append((level, i, j, 0, -1, math.inf, np.empty((0, degree + 1, degree + 1))))
+        else:
+            low, n_tr = next(iter(sig))
+            coef, err = np.empty((0, degree + 1, degree + 1)), 0.0
+            if n_tr:
+                logt = np.log([[trace(a, b)[1] for b in nn] for a in na])  # (p, q, k)
+                coef = _coefficients(np.moveaxis(logt, -1, 0), degree)  # (k, p, q)
+                err = float(np.max(_tail(coef)))
+            if err > tol and can_split:
+                queue.extend(children)
+            else:
+                leaves.append((level, i, j, int(low), n_tr, err, coef))
+        if progress is not None:
+            progress(len(leaves), len(queue), len(cache))
+
+    kmax = max([lf[4] for lf in leaves] + [0])
+    coef = np.full((len(leaves), kmax, degree + 1, degree + 1), np.nan)
+    for k, lf in enumerate(leaves):
+        coef[k, :lf[6].shape[0]] = lf[6]
+    keys = list(cache)
+    smax = max([cache[k][1].size for k in keys] + [0])
+    transitions = np.full((len(keys), smax), np.nan)
+    for k, key in enumerate(keys):
+        transitions[k, :cache[key][1].size] = cache[key][1]
+    return Atlas(
+        box=box, roots=roots, degree=degree, max_depth=max_depth, tol=tol, eta_range=eta_range,
+        leaf_level=np.array([lf[0] for lf in leaves], dtype=np.int64),
+        leaf_i=np.array([lf[1] for lf in leaves], dtype=np.int64),
+        leaf_j=np.array([lf[2] for lf in leaves], dtype=np.int64),
+        leaf_low=np.array([lf[3] for lf in leaves], dtype=np.int8),
+        leaf_n=np.array([lf[4] for lf in leaves], dtype=np.int8),
+        leaf_error=np.array([lf[5] for lf in leaves], dtype=float),
+        coef=coef,
+        samples={"A": np.array([k[0] for k in keys]), "N": np.array([k[1] for k in keys]),
+                 "low": np.array([cache[k][0] for k in keys], dtype=np.int8),
+                 "n": np.array([cache[k][1].size for k in keys], dtype=np.int8),
+                 "transitions": transitions},
+        attrs={"n_traces": len(cache), "n_solves": ws.solves, "uniform": int(uniform),
+               "trace_eta_min": trace_range[0], "trace_eta_max": trace_range[1],
+               "edge_rtol": regimes.EDGE_RTOL, "edge_atol": regimes.EDGE_ATOL,
+               "edge_xtol": regimes.ETA_XTOL, "n_coarse": regimes.ETA_COARSE,
+               "cosserat_channel_version": __version__},
+    )

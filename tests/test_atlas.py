@@ -1,0 +1,188 @@
+"""The solvability atlas against independent references: direct bisection (``trace_edge``),
+direct status solves (``Workspace.status``) and the analytic lines of Appendix A.
+
+The atlases here are coarse (one cell of degree 6, tolerance 1e-3, a box of 0.25 x 0.1): the module
+costs about a hundred traces; ``benchmarks/bench_atlas.py`` measures the full-size targets.
+"""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cosserat_channel import atlas as at
+from cosserat_channel import regimes
+from cosserat_channel import status as st
+from cosserat_channel.cli import main
+from cosserat_channel.parameters import ParameterError
+from cosserat_channel.solve import Workspace
+
+# A < 1 and N < 1: feasible only between eta_min ~ 0.05 and eta_max ~ 2-4 (two transitions).
+BOX_A = (0.25, 0.5)
+BOX_N = (0.8, 0.9)
+TOL = 1e-3
+
+
+@pytest.fixture(scope="module")
+def atlas():
+    return at.build_atlas(BOX_A, BOX_N, tol=TOL, degree=6, max_depth=0)
+
+
+@pytest.fixture(scope="module")
+def atlas_file(atlas, tmp_path_factory):
+    path = tmp_path_factory.mktemp("atlas") / "atlas.nc"
+    at.save_atlas(atlas, path)
+    return path
+
+
+def _status(eta, A, N, ws):
+    from cosserat_channel import model
+
+    code = model.classify(eta, A, N)
+    if code == st.OK and A != -1.0:
+        code = ws.status(eta, A, N, regimes.EDGE_RTOL, regimes.EDGE_ATOL)
+    return code
+
+
+def test_transitions_agree_with_direct_bisection(atlas):
+    """At random (A, N) the atlas has the traced transitions, each within its stated error."""
+    rng = np.random.default_rng(14)
+    A = rng.uniform(*BOX_A, 8)
+    N = rng.uniform(*BOX_N, 8)
+    leaf, low, eta, err = atlas.transitions(A, N)
+    assert (leaf >= 0).all() and (atlas.leaf_n[leaf] == 2).all()
+    for k in range(A.size):
+        edge = regimes.trace_edge(A[k], N[k], eta_range=(5e-4, 200))
+        assert edge.transitions.size == 2 and not low[k]
+        rel = np.abs(np.log(eta[k] / edge.transitions))
+        assert rel.max() <= max(TOL, err[k]), (A[k], N[k], eta[k], edge.transitions)
+
+
+def test_classify_agrees_with_direct_solves(atlas_file):
+    """Every decided point has the status a solve gives; points within 1e-7 of an edge are
+    undecided, points 1 % from it are decided; K does not enter."""
+    atlas = at.load_atlas(atlas_file)
+    rng = np.random.default_rng(3)
+    n = 120
+    A = rng.uniform(*BOX_A, n)
+    N = rng.uniform(*BOX_N, n)
+    _, _, t, _ = atlas.transitions(A, N)
+    pick = rng.integers(0, 2, n)
+    edge = t[np.arange(n), pick]
+    factor = np.r_[np.full(40, 1 + 1e-7), np.full(40, 1.01), np.full(40, 0.99)]
+    eta = np.r_[edge[:40] * factor[:40], edge[40:] * factor[40:]]
+    eta[::7] = 10 ** rng.uniform(-3, 2, eta[::7].size)  # and some anywhere in the range
+    L = 100.0
+    codes = at.classify(eta / L, L, rng.uniform(0, 5, n), A, N, atlas=atlas_file)
+    ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
+    direct = np.array([_status(e, a, b, ws) for e, a, b in zip(eta, A, N)])
+    decided = codes != at.UNDECIDED
+    assert np.array_equal(codes[decided], direct[decided])
+    near = np.abs(factor - 1) < 1e-6
+    near[::7] = False
+    assert not decided[near].any()
+    assert decided[~near].mean() > 0.95
+    assert {st.OK, st.EPS_TOO_LARGE_PATH} <= set(codes[decided].tolist())
+
+
+def test_classify_decides_analytic_regimes_exactly(atlas):
+    """Outside the atlas's box Appendix A still decides; the rest there is undecided."""
+    A = np.array([-2.0, -0.9, 0.3, -1.0, 3.0, 0.3])
+    N = np.array([0.5, 0.5, 1.0, 2.0, 2.0, 0.85])
+    eta = np.array([0.1, 0.1, 100.0, 1.0, 1.0, 2e-4])  # (0.3, 1): axis edge at 3.71
+    codes = at.classify(eta / 100.0, 100.0, 0.5, A, N, atlas=atlas)
+    assert codes.tolist() == [st.WALL_INADMISSIBLE, st.WALL_INADMISSIBLE, st.EPS_TOO_LARGE_AXIS,
+                              st.OK, at.UNDECIDED, at.UNDECIDED]
+
+
+def test_unresolved_cell_is_undecided():
+    """A box across N = 1 (where eta_min leaves the range) at depth 0 stays unresolved."""
+    a = at.build_atlas((0.25, 0.5), (0.9, 1.1), tol=1e-3, degree=2, max_depth=0)
+    assert a.leaf_n.tolist() == [-1]
+    assert (at.classify(0.1, 1.0, 0.5, [0.3, 0.4], [0.95, 1.05], atlas=a) == at.UNDECIDED).all()
+    bds = a.boundary([0.3], [0.95, 1.05])
+    assert not bds["resolved"].values.any() and np.isnan(bds["eta_max"].values).all()
+
+
+def test_boundary_dataset_matches_traced_boundary(atlas):
+    """Atlas.boundary gives trace_boundary's eta_max, eta_min and kind (within the tolerance)."""
+    A, N = [0.3, 0.45], [0.82, 0.88]
+    got = atlas.boundary(A, N)
+    ref = regimes.trace_boundary(A, N)
+    assert np.array_equal(got["edge_kind"].values, ref["edge_kind"].values)
+    for v in ("eta_max", "eta_min"):
+        np.testing.assert_allclose(got[v].values, ref[v].values, rtol=10 * TOL)
+    np.testing.assert_array_equal(got["axis_edge_eta"].values, ref["axis_edge_eta"].values)
+
+
+def test_boundary_below_the_wall_line_has_no_solution(atlas):
+    bds = atlas.boundary([-0.5, 0.0], [0.3, 0.5])  # all four points: A < 1 - 2 N^2
+    assert (bds["edge_kind"].values == 2).all() and bds["resolved"].values.all()
+
+
+def test_file_round_trip_and_reading_without_numba(atlas, atlas_file, tmp_path):
+    """The file gives back the atlas; reading it and classifying never imports numba."""
+    b = at.load_atlas(atlas_file)
+    for name in ("leaf_level", "leaf_i", "leaf_j", "leaf_n", "leaf_error", "coef"):
+        np.testing.assert_array_equal(getattr(b, name), getattr(atlas, name))
+    assert b.samples["A"].size == atlas.attrs["n_traces"] > 0
+    code = ("import sys, cosserat_channel.atlas as a; "
+            f"print(a.classify(0.1, 10, 0.5, 0.3, 0.85, atlas={str(atlas_file)!r})); "
+            "assert 'numba' not in sys.modules, 'numba imported'")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+    bad = tmp_path / "x.nc"
+    regimes.trace_boundary([0.3], [1.0], n_coarse=4).to_netcdf(bad)
+    with pytest.raises(ParameterError, match="not a solvability atlas"):
+        at.load_atlas(bad)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(tol=1e-9), "tol"), (dict(degree=3), "degree"), (dict(max_depth=9), "max_depth"),
+    (dict(A_range=(1, 0)), "A range"), (dict(N_range=(0, 1)), "N range"),
+])
+def test_build_rejects_bad_arguments(kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        at.build_atlas(**kwargs)
+
+
+def test_classify_rejects_bad_points(atlas):
+    with pytest.raises(ParameterError, match="eps"):
+        at.classify([0.1, 2.0], 1.0, 0.5, 0.3, 0.85, atlas=atlas)
+
+
+def test_cli_atlas_and_regime_map_from_it(tmp_path, capsys, monkeypatch, atlas_file):
+    """atlas: bad input is one line, an existing file is kept; plot --regime --atlas traces
+    nothing; the cached atlas is used when it covers the map."""
+    out = tmp_path / "a.nc"
+    assert main(["atlas", "-o", str(out), "--tol", "1e-12"]) == 2
+    assert "tol = 1e-12 is outside [1e-08, 0.1]" in capsys.readouterr().err
+    out.write_text("keep")
+    assert main(["atlas", "-o", str(out)]) == 2
+    assert "exists; kept" in capsys.readouterr().err and out.read_text() == "keep"
+
+    from cosserat_channel.sweep import run_sweep
+
+    res = tmp_path / "r.nc"
+    ds = run_sweep({"grid": {"eps": 0.1, "L": 10, "K": 0.5, "A": {"linspace": [0.25, 0.5, 4]},
+                             "N": {"linspace": [0.8, 0.9, 3]}}}, workers=1)
+    ds.to_netcdf(res)
+    monkeypatch.setattr(regimes, "trace_boundary", lambda *a, **k: pytest.fail("traced"))
+    png = tmp_path / "map.png"
+    assert main(["plot", str(res), "--regime", "--x", "A", "--y", "N", "--atlas",
+                 str(atlas_file), "-o", str(png)]) == 0
+    assert png.stat().st_size > 0
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    (tmp_path / "cache" / "cosserat-channel").mkdir(parents=True)
+    (tmp_path / "cache" / "cosserat-channel" / "atlas.nc").write_bytes(atlas_file.read_bytes())
+    assert main(["plot", str(res), "--regime", "--x", "A", "--y", "N", "-o", str(png)]) == 0
+    assert "cached atlas" in capsys.readouterr().err
+    bnd = tmp_path / "b.nc"
+    assert main(["boundary", "--A", "0.3,0.4", "--N", "0.85", "--atlas", str(atlas_file),
+                 "-o", str(bnd), "--plot", str(tmp_path / "b.png")]) == 0
+
+
+def test_scalars_give_scalars(atlas):
+    leaf, low, eta, err = atlas.transitions(0.3, 0.85)
+    assert leaf.shape == low.shape == err.shape == () and eta.shape == (2,)
+    assert at.classify(0.01, 10.0, 0.5, 0.3, 0.85, atlas=atlas).shape == ()

@@ -18,6 +18,14 @@ except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0.0.0+unknown"
 
 
+def cache_dir() -> Path:
+    """This package's cache directory: ``$XDG_CACHE_HOME/cosserat-channel`` (``~/.cache`` if unset).
+
+    Read at each call, so a test can point it elsewhere after the package is imported.
+    """
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "cosserat-channel"
+
+
 def _numba_cache_dir() -> str:
     """A Numba cache directory keyed by a hash of every source file of this package.
 
@@ -31,8 +39,7 @@ def _numba_cache_dir() -> str:
     for path in sorted(here.rglob("*.py")):
         digest.update(path.relative_to(here).as_posix().encode())
         digest.update(path.read_bytes())
-    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "cosserat-channel"
-    return str(base / f"numba-{__version__}-{digest.hexdigest()[:16]}")
+    return str(cache_dir() / f"numba-{__version__}-{digest.hexdigest()[:16]}")
 
 
 if not os.environ.get("NUMBA_CACHE_DIR"):

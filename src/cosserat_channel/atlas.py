@@ -64,13 +64,11 @@ FORMAT = "cosserat-channel atlas 1"
 
 
 def cache_path():
-    """Where ``atlas --cache`` writes and ``plot --regime`` looks: ``$XDG_CACHE_HOME`` or ``~/.cache``,
-    then ``cosserat-channel/atlas.nc``."""
-    import os
-    from pathlib import Path
+    """Where ``atlas --cache`` writes and ``plot --regime`` looks: ``atlas.nc`` in the package's
+    cache directory (:func:`cosserat_channel.cache_dir`)."""
+    from . import cache_dir
 
-    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "cosserat-channel"
-    return str(base / "atlas.nc")
+    return str(cache_dir() / "atlas.nc")
 
 
 # ---------------------------------------------------------------------------------------------

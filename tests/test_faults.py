@@ -129,6 +129,10 @@ def harness(tmp_path, mode, *argv, limit=None):
         f.unlink(missing_ok=True)
 
     def limits():
+        # A shell starts background jobs with SIGINT ignored, and an ignored disposition survives
+        # exec: Python would then install no KeyboardInterrupt handler and the SIGINT test would
+        # test nothing. The CLI under test gets the disposition a terminal gives it.
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
         if limit is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
@@ -199,7 +203,7 @@ def test_sigint_is_one_line_and_resumes(tmp_path, sweep_file, reference, capsys)
     time.sleep(0.2)
     release.touch()  # let the paused worker thread finish so the process can exit
     _, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 130
+    assert proc.returncode == 130, stderr
     assert "run the same command again to resume" in one_line_error(stderr)
     assert not out.exists()
     err = rerun(sweep_file, out, capsys)

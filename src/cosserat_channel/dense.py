@@ -30,6 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .roots import find_root
 from .stepping import EPS, STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS
@@ -57,9 +58,6 @@ D6 = -1453857185 / 822651844
 D7 = 69997945 / 29380423
 
 EVENT_MAX_ITER = 200
-
-_JIT = dict(nogil=True, cache=True, error_model="numpy")
-_JIT_INLINE = dict(_JIT, inline="always")
 
 
 @njit(**_JIT)

@@ -33,11 +33,9 @@ def write_failure(path, exc: BaseException) -> WriteError:
         reason = exc.strerror
     else:
         reason = " ".join(str(exc).split()) or type(exc).__name__
-        try:
-            free = shutil.disk_usage(os.path.dirname(os.path.abspath(path)) or ".").free
+        free = free_space(path)
+        if free is not None:
             reason += f" (the file system has {format_size(free)} free; a full disk is the usual cause)"
-        except OSError:
-            pass
     err = WriteError(f"cannot write {path!r}: {reason}")
     err.__cause__ = None
     return err
@@ -67,16 +65,21 @@ def output_problem(path) -> str | None:
     return None
 
 
+def free_space(path) -> int | None:
+    """Free bytes on the file system that would hold ``path``, or None when it cannot say."""
+    try:
+        return shutil.disk_usage(os.path.dirname(os.path.abspath(os.fspath(path)))).free
+    except OSError:
+        return None
+
+
 def space_problem(path, need: int) -> str | None:
     """Why ``need`` more bytes will not fit beside ``path`` (one line), or None when they will
     (or when the file system cannot say)."""
     path = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(path))
-    try:
-        free = shutil.disk_usage(directory).free
-    except OSError:
-        return None
-    if need <= free:
+    free = free_space(path)
+    if free is None or need <= free:
         return None
     return (f"cannot write {path!r}: the run needs about {format_size(need)} of disk space and "
             f"the file system of {directory!r} has {format_size(free)} free; free some space or "

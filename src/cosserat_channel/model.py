@@ -32,12 +32,10 @@ from __future__ import annotations
 import math
 
 from numba import njit
+from ._jit import JIT as _JIT
 
 from . import analytic
 
-# error_model="numpy": a division by zero gives inf/NaN, which the integrators handle as a
-# non-finite trial step, instead of a branch and a Python exception around every division.
-_JIT = dict(nogil=True, cache=True, error_model="numpy")
 
 # Slots of the axis-constants array returned by `axis_constants`.
 AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)

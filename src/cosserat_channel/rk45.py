@@ -48,6 +48,7 @@ import math
 
 import numpy as np
 from numba import njit
+from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import Solution, dense_coefficients, event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
@@ -127,10 +128,6 @@ NONFINITE_MAX_TRIES = 20
 STIFF_THRESHOLD = 3.25
 STIFF_DECLARE = 15
 NONSTIFF_RESET = 6
-
-_JIT = dict(nogil=True, cache=True, error_model="numpy")
-# See the module docstring: inlining keeps jitted callers cacheable.
-_JIT_INLINE = dict(_JIT, inline="always")
 
 
 @njit(**_JIT_INLINE)

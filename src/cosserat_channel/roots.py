@@ -25,10 +25,9 @@ References
 from __future__ import annotations
 
 from numba import njit
+from ._jit import JIT_INLINE as _JIT_INLINE
 
 __all__ = ["find_root"]
-
-_JIT_INLINE = dict(nogil=True, cache=True, error_model="numpy", inline="always")
 
 
 @njit(**_JIT_INLINE)

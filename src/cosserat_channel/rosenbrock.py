@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
+from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
@@ -96,10 +97,6 @@ MAX_SHRINK = 5.0
 # Non-finite trial steps in a row tolerated before giving up (the test is `>`, so one more than
 # rk45 allows).
 NONFINITE_MAX_TRIES = 20
-
-_JIT = dict(nogil=True, cache=True, error_model="numpy")
-# See rk45's module docstring: kernels that receive fun/jac/event are inlined to stay cacheable.
-_JIT_INLINE = dict(_JIT, inline="always")
 
 
 @njit(**_JIT_INLINE)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import numpy as np
 from numba import njit
+from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from . import dense
 from . import model
@@ -31,10 +32,6 @@ from . import rosenbrock
 from . import status as st
 from .model import AX_BETA, AX_C0, N_AX
 
-# error_model="numpy": a division by zero gives inf/NaN, which the integrators handle as a
-# non-finite trial step, instead of a branch and a Python exception around every division.
-_JIT = dict(nogil=True, cache=True, error_model="numpy")
-_JIT_INLINE = dict(_JIT, inline="always")
 # The stage-2 rates and the lookups in stage 1's dense output are inlined into the stage-2 march:
 # as separate functions, each call passing the dense-output arrays cost reference-count updates
 # that made a stage-2 evaluation ~5x the cost of a stage-1 one.
@@ -125,13 +122,20 @@ XI_WALL_FORM = 0.5
 
 
 @njit(**_JIT_INLINE)
+def _stage1_step(xi, T1, n1, work):
+    """The stage-1 step that holds ``xi``; stage 2 asks for nearby, mostly decreasing xi, so the
+    search starts at the step of the previous lookup (kept in ``work``)."""
+    k = dense.find_step_from(T1, n1, xi, int(work[W_STEP]))
+    work[W_STEP] = k
+    return k
+
+
+@njit(**_JIT_INLINE)
 def _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work):
     """Stage-1 solution anywhere in [0, 1]: the axis series below ``xi1``, the dense output above."""
     if xi <= xi1:
         return model.delta_axis_series(xi, ax)
-    # Stage 2 asks for nearby, mostly decreasing xi: start the search at the previous step.
-    k = dense.find_step_from(T1, n1, xi, int(work[W_STEP]))
-    work[W_STEP] = k
+    k = _stage1_step(xi, T1, n1, work)
     dense.dense_eval_step(T1, Q1, k, xi, buf)
     return xi * xi * buf[0]
 
@@ -214,8 +218,7 @@ def _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C):
     if A == -1.0:
         return model.a_minus_one_xi_B(eta, N), model.a_minus_one_h()
     if xi >= XI_WALL_FORM:
-        k = dense.find_step_from(T1, n1, xi, int(work[W_STEP]))
-        work[W_STEP] = k
+        k = _stage1_step(xi, T1, n1, work)
         delta, D = _wall_form(xi, -math.expm1(t), k, T1, Q1, C, A, N, ax, work[W_DELTA1],
                               work[W_D1])
     else:

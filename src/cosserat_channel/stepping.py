@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
+from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 __all__ = [
     "SUCCESS",
@@ -61,9 +62,6 @@ N_STATS = 5
 EPS = 2.220446049250313e-16
 # Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
 NONFINITE_SHRINK = 0.25
-
-_JIT = dict(nogil=True, cache=True, error_model="numpy")
-_JIT_INLINE = dict(_JIT, inline="always")
 
 
 @njit(**_JIT)

@@ -1,0 +1,12 @@
+"""The one set of Numba compile options of the package's kernels.
+
+``error_model="numpy"``: a division by zero gives inf/NaN, which the integrators handle as a
+non-finite trial step, instead of a branch and a Python exception around every division.
+``JIT_INLINE`` adds Numba-IR inlining: kernels that receive ``fun``/``jac``/``event`` stay
+cacheable that way (see :mod:`.rk45`), and small helpers that pass arrays avoid the
+reference-count updates of a call (see :mod:`.stages`). An inlined kernel is compiled with the
+error model of the caller it is inlined into.
+"""
+
+JIT = dict(nogil=True, cache=True, error_model="numpy")
+JIT_INLINE = dict(JIT, inline="always")

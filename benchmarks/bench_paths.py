@@ -37,7 +37,7 @@ def main():
         cells = [f"{eta:g}"]
         for method in (stages.METHOD_EXPLICIT, stages.METHOD_STIFF):
             us = timed(ws, eta, method, reps=2 if (method == stages.METHOD_EXPLICIT and eta < 1e-3) else 20)
-            om = stages.one_minus_xi_p(1 / 3, 1.0, eta, eps * 0.5, ws.res, ws.T2, ws.Q2)
+            om = stages.one_minus_xi_p(eps * 0.5, ws.res, ws.ax, ws.T2, ws.Q2)
             cells += [str(ws.stats1[0]), f"{us:.0f}", f"{abs(om / eps / ref['Delta'] - 1):.1e}"]
         ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_AUTO)
         cells.append("RODAS4P2" if ws.res[stages.R_PATH] else "DP5")

@@ -44,7 +44,7 @@ def _scipy_stage1_run(eps, L, A, N, method, dense):
         return None
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1, w0 = stages.stage1_start(ax)
+    xi1, w0 = stages.ivp_start(ax)
 
     def f1(xi, w):
         return [model.dw_dxi(xi, w[0], eta, A, N, ax)]

@@ -171,3 +171,86 @@ def test_other_root_between_regimes_has_unbounded_axis_spin():
         B = 2 * (A + 1) * (N + p) / (eta * s)
         assert B < 0
         assert B * xi < -1.0  # B ~ beta/xi with beta < 0: omega_hat ~ xi^beta -> infinity
+
+
+def _reference_stage1(eta, A, N, ax):
+    """w(xi) from an independent march: scipy Radau at rtol 1e-13 from next to the axis."""
+    xi0 = 1e-4 * min(1.0, ax[model.AX_C0])
+    w0 = 0.5 * ax[model.AX_Y] + ax[model.AX_K] * xi0 * xi0
+
+    def rhs(xi, w):
+        delta = xi * xi * w[0]
+        D = model.yield_D(xi, delta, A, N, ax)
+        return [((A + 1) * xi - math.sqrt(max(D, 0.0))) / eta / (xi * xi) - 2 * w[0] / xi]
+
+    def hit(xi, w):
+        return model.yield_D(xi, xi * xi * w[0], A, N, ax)
+
+    hit.terminal = True
+    return solve_ivp(rhs, [xi0, 1.0], [w0], method="Radau", rtol=1e-13, atol=1e-15,
+                     dense_output=True, events=hit)
+
+
+def test_axis_series_is_good_to_its_tolerance_where_series_reach_says():
+    """The power series of w at the axis (model.axis_series), used up to model.series_reach, agrees
+    with an independent Radau march to the tolerance asked, at random admissible points."""
+    checked = 0
+    for eta, A, N in _random_admissible(40):
+        ax = _ax(eta, A, N)
+        assert ax[model.AX_W] == pytest.approx(0.5 * ax[model.AX_Y], rel=1e-15)
+        assert ax[model.AX_W + 1] == pytest.approx(ax[model.AX_K], rel=1e-12)
+        tol = 1e-10
+        xi_s = model.series_reach(ax, tol, 0.9)
+        ref = _reference_stage1(eta, A, N, ax)
+        if xi_s == 0.0 or ref.t[-1] < xi_s:
+            continue
+        for xi in (0.3 * xi_s, 0.7 * xi_s, xi_s):
+            w_ref = ref.sol(xi)[0]
+            # the reference's own error is ~1e-12 relative
+            assert model.w_axis_series(xi, ax) == pytest.approx(w_ref, rel=tol + 3e-12)
+        checked += 1
+    assert checked >= 25
+
+
+def _stage2_series_agree(eta, A, N):
+    """Check one point (see the test below); False where it does not apply."""
+    from scipy.integrate import quad
+
+    ax = _ax(eta, A, N)
+    xi_s = model.series_reach(ax, 1e-12, 0.9)
+    if xi_s == 0.0:
+        return False
+    model.stage2_series(eta, A, N, ax)
+    xi2 = model.stage2_series_reach(ax, 1e-10, xi_s)
+    ref = _reference_stage1(eta, A, N, ax)
+    beta = ax[model.AX_BETA]
+    if xi2 < 0.05 or ref.t[-1] < xi2 or beta > 60:
+        return False
+
+    def rates(xi):
+        delta = xi * xi * ref.sol(xi)[0]
+        D = model.yield_D(xi, delta, A, N, ax)
+        return xi * model.spin_rate_B(delta, D, eta, A, N), model.shear_rate_h(xi, D, A)
+
+    xa = 0.5 * xi2
+    # log omega_hat(xi2) - log omega_hat(xa) = int_xa^xi2 B
+    lhs = beta * math.log(xi2 / xa) + model.series_G(xi2, ax) - model.series_G(xa, ax)
+    rhs = quad(lambda x: rates(x)[0] / x, xa, xi2, epsabs=0, epsrel=1e-12)[0]
+    assert lhs == pytest.approx(rhs, rel=1e-8, abs=1e-9)
+
+    # int_0^xi2 h omega_hat / omega_hat(xi2), with omega_hat(xi) / omega_hat(xi2) from G (above)
+    def integrand(x):
+        ratio = (x / xi2) ** beta * math.exp(model.series_G(x, ax) - model.series_G(xi2, ax))
+        return rates(x)[1] * ratio
+
+    series = xi2 * model.series_F(xi2, ax) / math.exp(model.series_G(xi2, ax))
+    direct = quad(integrand, 1e-9, xi2, epsabs=0, epsrel=1e-12, limit=200)[0]
+    assert series == pytest.approx(direct, rel=1e-8)
+    return True
+
+
+def test_stage2_series_are_the_quadratures_of_B_and_h():
+    """model.stage2_series: log omega_hat and int_0^xi h omega_hat from the series equal scipy
+    quadratures of e-60 and e-59 on the independent stage-1 march, below stage2_series_reach."""
+    checked = sum(_stage2_series_agree(eta, A, N) for eta, A, N in _random_admissible(60))
+    assert checked >= 10

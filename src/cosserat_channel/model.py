@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
-from ._jit import JIT as _JIT
+from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from . import analytic
 
@@ -42,7 +42,20 @@ AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)
 AX_C0 = 1  # sqrt(D)/xi at the axis, = A + 1 - eta*y
 AX_K = 2  # fourth-order coefficient of the axis series of delta
 AX_BETA = 3  # B ~ beta / xi near the axis (Appendix B)
-N_AX = 4
+AX_NMAX = 4  # how many terms axis_series computed
+AX_NW = 5  # how many of them are used (series_reach)
+AX_N2 = 6  # how many terms stage2_series computed
+AX_W = 7  # w = delta / xi^2 = sum_k ax[AX_W + k] xi^(2k), k < AX_NW (axis_series)
+N_SERIES = 40  # at most this many terms
+AX_S = AX_W + N_SERIES  # sqrt(D) / xi = sum_k ax[AX_S + k] xi^(2k), the companion series
+AX_G = AX_S + N_SERIES  # int B dxi = beta ln(xi) + sum_k ax[AX_G + k] xi^(2k)   (stage2_series)
+AX_F = AX_G + N_SERIES  # int_0^xi h omega_hat = c xi^(beta+1) sum_k ax[AX_F + k] xi^(2k)
+AX_R = AX_F + N_SERIES  # scratch: 1/S
+AX_E = AX_R + N_SERIES  # scratch: exp(G)
+N_AX = AX_E + N_SERIES
+# The w series stops once its terms are below this (relative to w(0)) at xi = 1: they cannot
+# matter anywhere stage 1 reads it.
+SERIES_NEGLIGIBLE = 1e-18
 
 
 # --------------------------------------------------------------------------------------------
@@ -81,6 +94,226 @@ def axis_constants(eta, A, N, out):
     out[AX_C0] = c0
     out[AX_K] = a1 * y * y / (4.0 * (4.0 * eta * c0 + 2.0 * a1 * N))
     out[AX_BETA] = 2.0 * a1 * N / (eta * c0) if c0 > 0.0 else math.inf
+    axis_series(eta, A, N, out)
+
+
+@njit(**_JIT)
+def axis_series(eta, A, N, ax):
+    """The power series of ``w = delta/xi^2`` at the axis, to up to ``N_SERIES`` terms in ``xi^2``.
+
+    The axis is a regular singular point of stage 1, and its solution is analytic there: with
+    ``x = xi^2``, ``w = sum_k d_k x^k`` and ``sqrt(D)/xi = S = sum_j s_j x^j`` (``s_0 = c0``),
+    e-61 gives ``d_0 = y/2`` and ``2 (m+1) eta d_m = -s_{m-1}``, and ``S^2 = D/xi^2`` (eq:a3)
+    at order ``x^m`` gives
+
+        s_m (2 c0 + 2(A+1)N / ((m+1) eta)) = -2(A+1) sum_{i+l=m-1} d_i d_l - sum_{0<j<m} s_j s_{m-j},
+
+    linear in ``s_m`` because ``d_m`` is ``-s_{m-1}/(2 (m+1) eta)``... one order down: every
+    ``s_m`` needs only ``d`` and ``s`` of lower index. The divisor is positive, so the recursion is
+    stable; its terms shrink geometrically inside the radius of convergence, which is set by the
+    nearest singularity of the path (D = 0 or the outer solution's branch point near ``xi = N``).
+    Stage 1 starts its march where the series stops being accurate (:func:`series_reach`) instead
+    of next to the axis, where an ODE solver must take geometric steps in xi. Fills ``AX_NW``,
+    ``AX_W...`` and ``AX_S...`` of ``ax``; needs ``AX_Y`` and ``AX_C0`` (:func:`axis_constants`).
+    """
+    a1 = A + 1.0
+    c0 = ax[AX_C0]
+    ax[AX_W] = 0.5 * ax[AX_Y]
+    ax[AX_S] = c0
+    n = N_SERIES
+    small = SERIES_NEGLIGIBLE * abs(ax[AX_W])
+    for m in range(1, N_SERIES):
+        acc = _convolve(ax, AX_W, AX_W, 0, m, m - 1)  # sum_{i+l=m-1} d_i d_l
+        acc2 = _convolve(ax, AX_S, AX_S, 1, m, m)  # sum_{0<j<m} s_j s_{m-j}
+        s_m = (-2.0 * a1 * acc - acc2) / (2.0 * c0 + 2.0 * a1 * N / ((m + 1) * eta))
+        ax[AX_S + m] = s_m
+        ax[AX_W + m] = -s_m / (2.0 * (m + 1) * eta)
+        if abs(ax[AX_W + m]) < small and abs(ax[AX_W + m - 1]) < small:
+            n = m + 1
+            break
+    ax[AX_NMAX] = n
+    ax[AX_NW] = n
+
+
+@njit(**_JIT)
+def w_axis_series(xi, ax):
+    """``w = delta / xi^2`` from the axis series (:func:`axis_series`), by Horner in ``xi^2``."""
+    return _horner(ax, AX_W, int(ax[AX_NW]), xi * xi)
+
+
+@njit(**_JIT)
+def stage2_series(eta, A, N, ax):
+    """Stage 2 below the reach of the axis series, in closed form: fills ``AX_G`` and ``AX_F``.
+
+    With ``x = xi^2``, ``1/S`` (``S = sqrt(D)/xi``), ``xi B = 2(A+1)(N - x w)/(eta S) = beta +
+    sum_k p_k x^k`` (e-60) and ``h = (A+1)(1 - (A-1)/S)`` (e-59) are power series, so
+
+        log omega_hat(xi) = const + beta ln(xi) + G(x),            G = sum_k p_k x^k / (2k),
+        int_0^xi h omega_hat dxi' = c xi^(beta+1) F(x),           F = sum_k H_k x^k / (beta+1+2k),
+
+    with ``H = h exp(G)`` and ``c`` fixed by omega_hat at one point (:func:`stage2_series_at`).
+    Each series costs one Cauchy product; ``exp(G)`` follows from ``x E' = x G' E``. Needs
+    :func:`axis_series` and :func:`series_reach` (``AX_NW``); sets ``AX_N2``.
+    """
+    # A few more terms than w needs where the march starts: these series converge alike.
+    n = min(int(ax[AX_NMAX]), int(ax[AX_NW]) + 6)
+    ax[AX_N2] = n
+    a1 = A + 1.0
+    c = 2.0 * a1 / eta
+    ax[AX_R] = 1.0 / ax[AX_S]
+    for m in range(1, n):
+        ax[AX_R + m] = -_convolve(ax, AX_S, AX_R, 1, m + 1, m) * ax[AX_R]
+    ax[AX_G] = 0.0
+    for m in range(1, n):
+        p = N * ax[AX_R + m] - _convolve(ax, AX_W - 1, AX_R, 1, m + 1, m)
+        ax[AX_G + m] = c * p / (2.0 * m)
+    # exp(G): m E_m = sum_k (k g_k) E_(m-k); k g_k waits in the F slots, filled last.
+    ax[AX_F] = 0.0
+    for k in range(1, n):
+        ax[AX_F + k] = k * ax[AX_G + k]
+    ax[AX_E] = 1.0
+    for m in range(1, n):
+        ax[AX_E + m] = _convolve(ax, AX_F, AX_E, 1, m + 1, m) / m
+    beta = ax[AX_BETA]
+    for m in range(n):
+        conv = _convolve(ax, AX_R, AX_E, 0, m + 1, m)
+        ax[AX_F + m] = a1 * (ax[AX_E + m] - (A - 1.0) * conv) / (beta + 1.0 + 2.0 * m)
+
+
+@njit(**_JIT_INLINE)
+def _convolve(ax, a, b, j0, j1, m):
+    """``sum_{j0 <= j < j1} ax[a + j] ax[b + m - j]``, in four independent sums (the latency of
+    one chain of additions, not the arithmetic, is what a Cauchy product of 40 terms waits on)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    j = j0
+    while j + 3 < j1:
+        s0 += ax[a + j] * ax[b + m - j]
+        s1 += ax[a + j + 1] * ax[b + m - j - 1]
+        s2 += ax[a + j + 2] * ax[b + m - j - 2]
+        s3 += ax[a + j + 3] * ax[b + m - j - 3]
+        j += 4
+    while j < j1:
+        s0 += ax[a + j] * ax[b + m - j]
+        j += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(**_JIT)
+def _horner(ax, start, n, x):
+    acc = ax[start + n - 1]
+    for k in range(n - 2, -1, -1):
+        acc = acc * x + ax[start + k]
+    return acc
+
+
+@njit(**_JIT)
+def _series_good(ax, start, n, x, tol, floor):
+    """Whether the ``n``-term series in slots ``start...`` is good to ``tol`` at ``x``.
+
+    Its tail is estimated from the geometric decay of the kept terms: ``rho``, the largest ratio
+    ``|c_k / c_(k-1)|`` among the last eight, estimates ``1/radius``, and the tail is below ``T rho
+    x / (1 - rho x)``, with ``T`` the largest of the last four terms at ``x``; ``x`` must stay below
+    ``0.8/rho``, well inside the radius. The tail and the rounding (``1e-16`` times the sum of the
+    terms' sizes, which catches cancelling terms) must be below ``tol * max(|sum|, floor)``.
+    """
+    # A series whose terms vanished (axis_series stopped early) is a polynomial: no tail.
+    complete = n == int(ax[AX_NMAX]) and n < N_SERIES
+    rho = 0.0
+    for k in range(max(1, n - 8), n):
+        prev = abs(ax[start + k - 1])
+        if prev > 0.0:
+            rho = max(rho, abs(ax[start + k]) / prev)
+    if not (complete or rho * x < 0.8):
+        return False
+    total = 0.0
+    size = 0.0
+    last = 0.0
+    xk = 1.0
+    for k in range(n):
+        term = ax[start + k] * xk
+        total += term
+        size += abs(term)
+        if k >= n - 4:
+            last = max(last, abs(term))
+        xk *= x
+    tail = last if complete else last * rho * x / (1.0 - rho * x)
+    return tail + 1e-16 * size <= tol * max(abs(total), floor)
+
+
+@njit(**_JIT)
+def stage2_series_reach(ax, tol, xi_max):
+    """How far from the axis :func:`stage2_series` is good to ``tol`` (``G`` absolutely, ``F``
+    relatively): ``xi`` in ``(0, xi_max]``, shrunk by 0.8 from ``xi_max``; 0 when none."""
+    n = int(ax[AX_N2])
+    x = xi_max * xi_max
+    for _ in range(60):
+        if (_series_good(ax, AX_G, n, x, tol, 1.0) and _series_good(ax, AX_F, n, x, tol, 0.0)
+                and _positive(ax, AX_F, n, x)):
+            return math.sqrt(x)
+        x *= 0.64
+    return 0.0
+
+
+@njit(**_JIT)
+def series_G(xi, ax):
+    """``G(xi^2)`` of :func:`stage2_series`: ``log omega_hat - beta ln(xi)`` up to a constant."""
+    return _horner(ax, AX_G, int(ax[AX_N2]), xi * xi)
+
+
+@njit(**_JIT)
+def series_F(xi, ax):
+    """``F(xi^2)`` of :func:`stage2_series`."""
+    return _horner(ax, AX_F, int(ax[AX_N2]), xi * xi)
+
+
+@njit(**_JIT)
+def series_reach(ax, tol, xi_max):
+    """How far from the axis the w series is good to ``tol`` (relative): ``xi`` in ``(0, xi_max]``.
+
+    Starting at ``xi_max``, ``xi^2`` shrinks by 0.7 until :func:`_series_good` accepts the series
+    there and ``sqrt(D)/xi`` is positive at 16 points up to it (the path has not met D = 0).
+    Then keeps (``AX_NW``) only the terms that matter there: the dropped ones add at most
+    ``tol/10``. Returns 0 when no ``xi`` qualifies.
+    """
+    n = int(ax[AX_NMAX])
+    x = xi_max * xi_max
+    for _ in range(100):
+        if not x > 1e-300:
+            break
+        if _series_good(ax, AX_W, n, x, tol, 0.0) and _positive(ax, AX_S, n, x):
+            ax[AX_NW] = _terms_needed(ax, AX_W, n, x, 0.1 * tol)
+            return math.sqrt(x)
+        x *= 0.7
+    ax[AX_NW] = n
+    return 0.0
+
+
+@njit(**_JIT)
+def _terms_needed(ax, start, n, x, tol):
+    """The fewest leading terms of the series in slots ``start...`` whose dropped rest, summed in
+    size at ``x``, is below ``tol`` times the sum."""
+    total = abs(_horner(ax, start, n, x))
+    dropped = 0.0
+    k = n - 1
+    while k > 1:
+        size = abs(ax[start + k]) * x ** k
+        if dropped + size > tol * total:
+            break
+        dropped += size
+        k -= 1
+    return k + 1
+
+
+@njit(**_JIT)
+def _positive(ax, start, n, x_end):
+    """The series in slots ``start...`` is positive at 16 points of ``(0, x_end]``."""
+    for i in range(1, 17):
+        if not _horner(ax, start, n, x_end * i / 16.0) > 0.0:
+            return False
+    return True
 
 
 @njit(**_JIT)
@@ -97,9 +330,9 @@ def axis_relative_margin(A, N, ax):
 
 @njit(**_JIT)
 def delta_axis_series(xi, ax):
-    """``delta`` near the axis: ``m = -N L + x xi^2 / 2`` (eq:54, eq:20) plus the quartic term."""
-    x2 = xi * xi
-    return x2 * (0.5 * ax[AX_Y] + ax[AX_K] * x2)
+    """``delta`` near the axis: ``m = -N L + x xi^2 / 2`` (eq:54, eq:20) and the higher terms of
+    :func:`axis_series`."""
+    return xi * xi * w_axis_series(xi, ax)
 
 
 # --------------------------------------------------------------------------------------------

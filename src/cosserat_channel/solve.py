@@ -226,7 +226,7 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     res = ws.res
     one_minus = math.nan
     if code == st.OK and plug_edge:
-        one_minus = float(stages.one_minus_xi_p(A, N, eta, eps * K, res, ws.T2, ws.Q2))
+        one_minus = float(stages.one_minus_xi_p(eps * K, res, ws.ax, ws.T2, ws.Q2))
     inputs = out_.Inputs(
         code, eps, L, K, N, J_axis=res[stages.R_J_AXIS], mu_wall=res[stages.R_MU_WALL],
         sigma_yx_wall=res[stages.R_SIGMA_YX_WALL], xi_stop=res[stages.R_XI_STOP],

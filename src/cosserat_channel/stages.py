@@ -66,7 +66,11 @@ R_T_TAIL = 6  # ln(xi) where stage 2 stopped
 R_N1 = 7  # accepted steps kept in the stage-1 dense output
 R_N2 = 8
 R_PATH = 9  # stage 1 took the explicit (0) or the stiff (1) path; -1: not integrated
-N_R = 10
+# Below XI2 stage 2 is the closed form of model.stage2_series (NaN: marched down to R_T_TAIL)
+R_XI2 = 10
+R_LOGW2 = 11  # log(omega_hat) at XI2
+R_J2 = 12  # J at XI2
+N_R = 13
 PATH_EXPLICIT = 0.0
 PATH_STIFF = 1.0
 PATH_NONE = -1.0  # no stage-1 integration: a regime without solution, or A = -1 (exact)
@@ -75,8 +79,8 @@ PATH_NAMES = {PATH_EXPLICIT: "explicit", PATH_STIFF: "stiff", PATH_NONE: "none"}
 METHOD_AUTO = 0
 METHOD_EXPLICIT = 1
 METHOD_STIFF = 2
-# Stage 1 switches to RODAS4P2 when its stiffness exceeds this (see use_stiff_path and
-# docs/performance.md for the measurement behind it).
+# Stage 1 switches to RODAS4P2 when the stiffness left to march exceeds this at rtol 1e-6, and
+# sqrt(1e-6/rtol) times this at other rtol (see use_stiff_path and docs/performance.md).
 STIFF_LAMBDA = 20.0
 
 # Rows of a triple's profile array (see profile_kernel).
@@ -217,7 +221,7 @@ def _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C):
     """
     if A == -1.0:
         return model.a_minus_one_xi_B(eta, N), model.a_minus_one_h()
-    if xi >= XI_WALL_FORM:
+    if xi >= XI_WALL_FORM and xi > xi1:
         k = _stage1_step(xi, T1, n1, work)
         delta, D = _wall_form(xi, -math.expm1(t), k, T1, Q1, C, A, N, ax, work[W_DELTA1],
                               work[W_D1])
@@ -270,16 +274,21 @@ def _stage2_event(t, y, args):
 # The kernel for one (eta, A, N)
 # ---------------------------------------------------------------------------------------------
 @njit(**_JIT)
-def use_stiff_path(eta, ax):
-    """Whether stage 1 should take the stiff path: the Jacobian is known in closed form.
+def use_stiff_path(eta, ax, xi1, rtol1):
+    """Whether stage 1 should take the stiff path (RODAS4P2, the Jacobian known in closed form).
 
-    It is ``-B - 2/xi`` in ``w``: about ``-2/eta`` in the interior. An explicit method needs
-    O(1/eta) steps there (stability, and accuracy along the slow manifold) and O(beta) steps per
-    decade of xi near the axis, where the Jacobian is ``-(beta + 2)/xi``; RODAS4P2 a number set by
-    the smoothness of the solution alone. beta is large for small eta and also next to the axis
-    edge, where c0 -> 0.
+    The Jacobian is ``-B - 2/xi`` in ``w``: about ``-2/eta`` in the interior and ``-(beta + 2)/xi``
+    near the axis, where ``beta`` is large for small eta and next to the axis edge. An explicit
+    method is held to ``h < 3.3/|lambda|`` by stability, so over what is left to march from
+    ``xi1`` it needs about ``(1 - xi1) |lambda| / 3.3`` steps whatever the tolerance, while the
+    steps that accuracy asks for grow as rtol shrinks (and RODAS4P2, order 4, needs more of them
+    than Dormand-Prince, order 5). Measured on the bench_point grid and 1000 random points, the
+    stiff path pays where ``(1 - xi1) max(2/eta, beta/xi1)`` exceeds ``STIFF_LAMBDA`` at rtol 1e-6
+    and a threshold growing like ``rtol^(-1/2)`` below (within 1-15 % of the better of the two
+    paths on average).
     """
-    return max(2.0 / eta, ax[AX_BETA]) > STIFF_LAMBDA
+    lam = max(2.0 / eta, ax[AX_BETA] / xi1)
+    return (1.0 - xi1) * lam > STIFF_LAMBDA * math.sqrt(1e-6 / rtol1)
 
 
 @njit(**_JIT)
@@ -322,20 +331,41 @@ def axis_crossing_xi2(eta, A, N, ax):
 
 @njit(**_JIT)
 def start_xi(ax):
-    """Where stage 1 leaves the axis series: small enough that the neglected O(xi^6) term is far
-    below round-off, scaled with ``c0`` because the series' radius shrinks at the axis edge."""
+    """Next to the axis, where two terms of the axis series are exact to round-off: the neglected
+    O(xi^6) term is far below it, scaled with ``c0`` because the series' radius shrinks at the axis
+    edge. The floor of :func:`stage1_start`."""
     return 1e-3 * min(1.0, ax[AX_C0])
 
 
 @njit(**_JIT)
-def stage1_start(ax):
-    """Where and with what value the stage-1 march starts: ``(xi1, w(xi1))`` from the axis series.
+def ivp_start(ax):
+    """Stage 1 as a plain initial value problem: ``(xi1, w(xi1))`` next to the axis (:func:`start_xi`).
 
-    ``ax`` holds :func:`model.axis_constants` of the point. The one set-up of stage 1's initial
-    value problem: the solver and every peer the benchmarks run on the same problem start here.
+    ``ax`` holds :func:`model.axis_constants` of the point. The set-up the benchmarks give every
+    peer ODE solver, and the scipy references of the tests: they march the whole of stage 1,
+    where our own solve starts from the series as far out as it is accurate (:func:`stage1_start`).
     """
     xi1 = start_xi(ax)
-    return xi1, model.delta_axis_series(xi1, ax) / (xi1 * xi1)
+    return xi1, model.w_axis_series(xi1, ax)
+
+
+# The march starts where the axis series is good to this fraction of stage 1's rtol ...
+SERIES_TOL = 1e-2
+# ... but never beyond this xi: the last stretch, where D(1) may be tiny, is always marched.
+XI_SERIES_MAX = 0.9
+
+
+@njit(**_JIT)
+def stage1_start(ax, rtol1):
+    """Where and with what value our stage-1 march starts: ``(xi1, w(xi1))`` from the axis series.
+
+    As far out as the series of :func:`model.axis_series` is good to ``SERIES_TOL * rtol1``
+    (:func:`model.series_reach`), never beyond ``XI_SERIES_MAX`` nor closer to the axis than
+    :func:`start_xi`. Near the axis stage 1 is a regular singular point (Jacobian ``-(beta+2)/xi``)
+    where any ODE solver takes geometric steps in xi: 40-60 % of the steps before this start.
+    """
+    xi1 = max(start_xi(ax), model.series_reach(ax, SERIES_TOL * rtol1, XI_SERIES_MAX))
+    return xi1, model.w_axis_series(xi1, ax)
 
 
 @njit(**_JIT)
@@ -477,18 +507,27 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         # integrated (at the floor tolerance) instead.
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
         return st.EPS_TOO_LARGE_PATH, False
-    xi1, w1 = stage1_start(ax)
+    # Next to the axis edge D/xi^2 ~ c0^2 is the small difference that decides where the path
+    # meets D = 0; an error in w of rtol would swamp it, so stage 1 runs at rtol ~ c0^2/1000 there.
+    rtol1 = stage1_rtol(rtol, A, N, ax)
+    xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
     buf = np.empty(1)
     atol1 = np.empty(1)
     atol1[0] = atol
     args1 = (eta, A, N, ax)
-    # Next to the axis edge D/xi^2 ~ c0^2 is the small difference that decides where the path
-    # meets D = 0; an error in w of rtol would swamp it, so stage 1 runs at rtol ~ c0^2/1000 there.
-    rtol1 = stage1_rtol(rtol, A, N, ax)
-    stiff = use_stiff_path(eta, ax) if method == METHOD_AUTO else method == METHOD_STIFF
+    stiff = use_stiff_path(eta, ax, xi1, rtol1) if method == METHOD_AUTO else method == METHOD_STIFF
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
     s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
+    if s1 == rk45.EVENT and rtol1 > STAGE1_RTOL_FLOOR:
+        # Where the path meets D = 0, D often falls to zero nearly tangentially (D ~ (xi_stop -
+        # xi)^2 over the last percent), so xi_stop moves by ~sqrt(the error of D): 2.6e-4 at
+        # rtol 1e-8 for eps L = 3.8, A = 1/3, N = 1, from the few wide steps of a march that
+        # starts on the axis series. The status is certain; for xi_stop, march again 1000x tighter.
+        rtol1 = max(STAGE1_RTOL_FLOOR, 1e-3 * rtol1)
+        xi1, w1 = stage1_start(ax, rtol1)
+        res[R_XI1] = xi1
+        s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
     if s1 == rk45.SUCCESS:
         delta_wall = _delta_wall(T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
@@ -501,6 +540,8 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         rtol_cond = rtol * D_wall / sensitivity if sensitivity > 0.0 else rtol1
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
+            xi1, w1 = stage1_start(ax, rtol1)
+            res[R_XI1] = xi1
             s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
             if s1 == rk45.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
@@ -587,6 +628,13 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     """
     buf = np.empty(1)
     y2 = np.zeros(2)
+    # Below xi2 the axis series give stage 2 in closed form (model.stage2_series): the march
+    # ends there unless the tail event ends it first.
+    xi2 = 0.0
+    if A != -1.0:
+        model.stage2_series(eta, A, N, ax)
+        xi2 = model.stage2_series_reach(ax, SERIES_TOL * rtol, xi1)
+    t_end = math.log(xi2) if xi2 > 0.0 else math.log(XI_FLOOR)
     atol2 = np.empty(2)
     atol2[0] = rtol  # an absolute error in log(omega_hat) is a relative error in omega_hat
     atol2[1] = atol * min(1.0, eta)
@@ -596,9 +644,11 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         work[W_DELTA1] = _delta_wall(T1, Q1, n1, buf)
         work[W_D1] = model.yield_D(1.0, work[W_DELTA1], A, N, ax)
     args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, work, TAIL_FRACTION * rtol, C)
+    # First step: stage 1's last one, which the same smoothness near the wall set (the generic
+    # guess, built on J(1) = 0 and a tiny atol, starts ~100x smaller and climbs for 3-4 steps).
+    h0 = -math.log(T1[n1 - 1]) if n1 > 0 else 0.0
     s2, n2, t2 = rk45.dopri5(
-        _stage2_rhs, _stage2_event, 0.0, y2, math.log(XI_FLOOR), args2, rtol, atol2, 0.0, 0.0, T2, Q2,
-        stats2,
+        _stage2_rhs, _stage2_event, 0.0, y2, t_end, args2, rtol, atol2, h0, 0.0, T2, Q2, stats2,
     )
     res[R_N2] = n2
     if s2 != rk45.SUCCESS and s2 != rk45.EVENT:
@@ -608,6 +658,12 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     dense.dense_eval(T2, Q2, n2, t2, yb)
     res[R_T_TAIL] = t2
     res[R_J_AXIS] = yb[1]
+    if s2 == rk45.SUCCESS and xi2 > 0.0:
+        # J(0) = J(xi2) + int_0^xi2 h omega_hat
+        res[R_XI2] = xi2
+        res[R_LOGW2] = yb[0]
+        res[R_J2] = yb[1]
+        res[R_J_AXIS] = yb[1] + _series_I(xi2, xi2, yb[0], ax)
     if not (math.isfinite(yb[1]) and yb[1] > 0.0):
         res[R_STATUS] = st.INTEGRATION_FAILED
         return st.INTEGRATION_FAILED
@@ -615,14 +671,61 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
 
 
 @njit(**_JIT)
-def one_minus_xi_p(A, N, eta, eps_K, res, T2, Q2):
-    """``1 - xi_p`` from eq:13 (see :func:`_one_minus_xi_p`, which the batch kernel calls with scratch)."""
-    return _one_minus_xi_p(eps_K, res, T2, Q2, np.empty(2))
+def _series_log_I(xi, xi2, logw2, ax):
+    """``log int_0^xi h omega_hat`` below ``xi2`` (:func:`model.stage2_series`), with
+    ``log omega_hat(xi2) = logw2``: in logs, because ``(xi/xi2)^(beta+1)`` underflows for large beta."""
+    return (logw2 - model.series_G(xi2, ax) + math.log(xi2)
+            + (ax[AX_BETA] + 1.0) * math.log(xi / xi2) + math.log(model.series_F(xi, ax)))
 
 
 @njit(**_JIT)
-def _one_minus_xi_p(eps_K, res, T2, Q2, scratch):
-    """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi).
+def _series_I(xi, xi2, logw2, ax):
+    return math.exp(_series_log_I(xi, xi2, logw2, ax))
+
+
+@njit(**_JIT)
+def _series_plug_level(t, packed):
+    # log I(e^t) - log(level): increasing in t (I is)
+    xi2, logw2, ax, log_level = packed
+    return _series_log_I(math.exp(t), xi2, logw2, ax) - log_level
+
+
+@njit(**_JIT)
+def _series_plug_edge(target, res, ax):
+    """``ln xi_p`` below ``R_XI2``, where ``J = J(0) - I(xi)`` is closed form: ``I(xi_p) = J(0) - target``."""
+    xi2 = res[R_XI2]
+    logw2 = res[R_LOGW2]
+    packed = (xi2, logw2, ax, math.log(res[R_J_AXIS] - target))
+    b = math.log(xi2)
+    fb = _series_plug_level(b, packed)
+    if not fb > 0.0:
+        return b
+    # I ~ xi^(beta+1) F with F slowly varying: step down by what that power needs, plus one.
+    slope = ax[AX_BETA] + 1.0
+    a = b
+    fa = fb
+    for _ in range(60):
+        a = max(a - (fa + 1.0) / slope, math.log(XI_FLOOR))
+        fa = _series_plug_level(a, packed)
+        if fa <= 0.0 or a == math.log(XI_FLOOR):
+            break
+    if fa > 0.0:
+        return a
+    x, _ = roots.find_root(_series_plug_level, packed, a, b, fa, fb, 4e-16 * max(abs(a), abs(b)),
+                           ROOT_MAX_ITER)
+    return x
+
+
+@njit(**_JIT)
+def one_minus_xi_p(eps_K, res, ax, T2, Q2):
+    """``1 - xi_p`` from eq:13 (see :func:`_one_minus_xi_p`, which the batch kernel calls with scratch)."""
+    return _one_minus_xi_p(eps_K, res, ax, T2, Q2, np.empty(2))
+
+
+@njit(**_JIT)
+def _one_minus_xi_p(eps_K, res, ax, T2, Q2, scratch):
+    """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi),
+    or below ``R_XI2`` on stage 2's closed form (:func:`_series_plug_edge`).
 
     The bracket comes from the stored step starts (``J(T2[k])`` is the first dense-output row, no
     interpolation needed), the root from :func:`roots.find_root` on that one step's polynomial.
@@ -633,6 +736,8 @@ def _one_minus_xi_p(eps_K, res, T2, Q2, scratch):
     target = model.plug_target(J_axis, eps_K)
     if target <= 0.0:
         return 0.0
+    if target > res[R_J2]:  # False when R_J2 is NaN: no closed form below the march
+        return -math.expm1(_series_plug_edge(target, res, ax))
     n2 = int(res[R_N2])
     # T2 (= ln xi) runs from 0 down, J from 0 up: the last step start with J below the target.
     lo = 0
@@ -697,7 +802,7 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
                          stats[i, 1], res[i], METHOD_AUTO, stage2 or plug_edge or xi_profile.size > 0)
         for j in range(offsets[i], offsets[i + 1]):
             if code == st.OK and plug_edge:
-                one_minus[j] = _one_minus_xi_p(eps_K[j], res[i], T2, Q2, scratch)
+                one_minus[j] = _one_minus_xi_p(eps_K[j], res[i], ax, T2, Q2, scratch)
             else:
                 one_minus[j] = math.nan
         if xi_profile.size > 0:
@@ -735,6 +840,10 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
             dense.dense_eval(T2, Q2, n2, t, yb)
             logw = yb[0]
             J = yb[1]
+        elif res[R_XI2] > 0.0:
+            logw = res[R_LOGW2] + ax[AX_BETA] * (t - t_tail) + model.series_G(xi, ax) \
+                - model.series_G(res[R_XI2], ax)
+            J = J_axis - (_series_I(xi, res[R_XI2], res[R_LOGW2], ax) if xi > 0.0 else 0.0)
         else:
             logw = logw_tail + ax[AX_BETA] * (t - t_tail)
             J = J_axis

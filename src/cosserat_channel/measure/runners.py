@@ -4,7 +4,7 @@
   whole set in one kernel call, on one thread, warmed up, best of ``repeat`` calls;
 - scipy ``solve_ivp`` (RK45, DOP853, LSODA, Radau): stage 1 alone, point by point in a Python
   loop, in the formulation of ``benchmarks/bench_point.py``'s ``scipy_stage1`` (state
-  ``w = delta / xi^2`` from the axis series of :func:`stages.stage1_start`, the ``D = 0``
+  ``w = delta / xi^2`` from the axis series of :func:`stages.ivp_start`, the ``D = 0``
   event); Radau and LSODA get the exact Jacobian. One pass (a loop over many points averages
   the noise). A point that needs more than ``max_nfev`` right-hand-side evaluations is abandoned
   (explicit methods need O(1/eta) steps on the stiff points) and counted as failed; the time
@@ -116,7 +116,7 @@ def scipy_stage1(eps, L, A, N, method, rtol, atol=ATOL, max_nfev=60_000):
         return math.nan
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1, w0 = stages.stage1_start(ax)
+    xi1, w0 = stages.ivp_start(ax)
     calls = [0]
 
     def f1(xi, w):
@@ -196,7 +196,7 @@ def _numbalsoda_kernels(nbs):
 
     axis_constants = model.axis_constants
     classify = model.classify
-    stage1_start = stages.stage1_start
+    stage1_start = stages.ivp_start
     OK = st.OK
 
     @njit

@@ -75,7 +75,11 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
     for name in spec.variables:  # file order = the sweep's order
         if name in out_.OUTPUTS:
             o = out_.OUTPUTS[name]
-            value = out_.derive([name], inputs)[name]
+            # derive's values, without its copy of those already on the whole grid (a tile's
+            # Delta, slip, ...: one pass over the tile fewer each).
+            value = inputs.get(name)
+            if value.shape != inputs.shape:
+                value = out_.derive([name], inputs)[name]
             data_vars[name] = (DIMS, value, {"units": o.units, "long_name": o.long_name})
         elif name in out_.COUNTERS:
             units, text, stage = out_.COUNTERS[name]

@@ -13,7 +13,7 @@ import pytest
 from cosserat_channel import cli
 from cosserat_channel import files
 from cosserat_channel.sweep import engine, run_sweep, writer
-from cosserat_channel.sweep.dataset import chunk_shape
+from cosserat_channel.sweep.dataset import chunk_shape, variable_encoding
 from cosserat_channel.sweep.plan import block_plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import partial_dir
@@ -80,6 +80,19 @@ def test_large_file_has_those_chunks(tmp_path):
         shape = nc["slip"].shape
         assert nc["slip"].chunking() == list(chunk_shape(shape, 8))
         assert nc["slip"].filters()["fletcher32"]
+        assert nc["status"].chunking() == nc["slip"].chunking()
+
+
+def test_grid_variables_of_every_type_share_the_tiles_chunks():
+    """int8 status and int32 counters are chunked like the float64 outputs, so that no chunk
+    straddles two tiles (it would be compressed, and read back, once per tile)."""
+    shape = (50, 40, 500, 10, 10)
+    f8 = variable_encoding("Delta", shape, np.float64, False)["chunksizes"]
+    assert f8 == chunk_shape(shape, 8) != chunk_shape(shape, 1)
+    for name, dtype in (("status", np.int8), ("stage1_steps", np.int32)):
+        assert variable_encoding(name, shape, dtype, False)["chunksizes"] == f8
+    tiles = writer.Tiles(shape)
+    assert all(t % c == 0 or t == n for t, c, n in zip(tiles.tile, f8, shape))
 
 
 def test_too_little_disk_space_is_refused_before_any_work(tmp_path, monkeypatch, capsys):

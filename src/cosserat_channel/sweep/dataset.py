@@ -161,8 +161,12 @@ def variable_encoding(name: str, shape: tuple, dtype, is_coord: bool, compress=T
     if name == "status" or is_coord or dtype.kind in "iu":
         e["_FillValue"] = None
     if compress and dtype.kind in "fiu" and not is_coord and size > 4096:
+        # Grid variables of every type share the float64 chunks: the file is written in tiles
+        # of whole float64 chunks (.writer.Tiles), and a chunk that straddles tiles would be
+        # compressed again (and read back) each time a tile reaches it.
+        itemsize = 8 if len(shape) == len(DIMS) else dtype.itemsize
         e.update(CODECS["zstd" if compress is True else compress], complevel=1, shuffle=True,
-                 chunksizes=chunk_shape(shape, dtype.itemsize))
+                 chunksizes=chunk_shape(shape, itemsize))
     if len(shape) > 0 and dtype.kind in "fiub":
         e["fletcher32"] = True
     return e

@@ -14,6 +14,12 @@
 
 Targets: (a) peak RSS < 1 GiB, (b) 2 workers >= 1.8x one worker; (c) peak RSS < 2 GiB and
 assembling and writing at most 30 % of the same run's solve time; (d) < 2 s and < 1 GiB.
+
+"solve" and "assemble and write" are the engine's own split (its log): the file is written while
+the blocks are solved, so "solve" is the solving threads' CPU time (block inputs, kernels,
+storing the blocks) over the workers, what the solve alone takes on free cores, and "assemble
+and write" the rest of the wall time from the start of the solve to the finished file. On a
+loaded machine the time spent waiting for a core lands in the second: it is a bound from above.
 Peak RSS is each child's own (``os.wait4``). Everything runs in one invocation so the ratios hold
 on a noisy shared machine.
 

@@ -1,6 +1,8 @@
 """Result-file query and info: selection, filters, formats, every rejection (synthetic files)."""
 
 import csv
+import subprocess
+import sys
 import io
 import json
 
@@ -382,3 +384,93 @@ def test_info_counts_match_data(capsys, results):
     assert eps_line.split()[1:4] == ["3", "0.001", ".."]
     assert "particle diameters" in out and "shear-layer thickness" in out
     assert "0" * 64 in out and "# test sweep" in out and "1e-08" in out
+
+
+# ---------------------------------------------------------------------------------------------
+# Small queries read with netCDF4 alone
+# ---------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def run_results(tmp_path_factory):
+    """The synthetic results as a file of 'run' (its 'source' attribute): the light path."""
+    path = tmp_path_factory.mktemp("light") / "out.nc"
+    ds = make_results()
+    ds.attrs["source"] = "cosserat-channel run"
+    ds.to_netcdf(path, encoding={"status": {"_FillValue": None}})
+    return str(path)
+
+
+@pytest.mark.parametrize("argv", [
+    [],
+    ["--sel", "L=10", "--format", "csv"],
+    ["--range", "eps=:0.01", "--where", "status == ok", "--where", "Delta > 11", "--format", "csv"],
+    ["--where", "status != ok", "--format", "json"],
+    ["--vars", "u_over_u0,Delta", "--sel", "eps=0.01", "--sel", "L=1", "--format", "csv"],
+    ["--where", "eps < 0.05", "--where", "N >= 2", "--vars", "slip", "--format", "csv"],
+    ["--sel", "K=0.4", "--nearest", "--range", "eps=0.005:", "--format", "table"],
+    ["--range", "K=10:20"],
+    ["--where", "stage1_steps >= 30", "--where", "slip != 0.5", "--format", "json"],
+    ["--range", "K=:0.5", "--range", "N=2:"],
+])
+def test_small_query_without_xarray_gives_the_same_answer(capsys, monkeypatch, results,
+                                                          run_results, argv):
+    """The netCDF4-only reading of a file of 'run' answers as xarray's reading of the same data:
+    the same rows, values, flag names, notes and exit code."""
+    from cosserat_channel.cli import _sweeps
+
+    assert query.open_light(results) is None  # no 'source': read through xarray
+    want = run(capsys, "query", results, *argv)
+    monkeypatch.setattr(_sweeps, "open_results", lambda path: pytest.fail("read with xarray"))
+    got = run(capsys, "query", run_results, *argv)
+    assert got == want
+    assert want[0] == 0 and (want[1] or "empty" in want[2])
+
+
+def test_large_boxes_and_netcdf_subsets_go_through_dask(capsys, monkeypatch, run_results, tmp_path):
+    """Above ROW_BLOCK selected points (or for a NetCDF subset) the file is read through dask."""
+    from cosserat_channel.cli import _sweeps
+
+    opened = []
+    real = _sweeps.open_results
+    monkeypatch.setattr(_sweeps, "open_results", lambda path: opened.append(path) or real(path))
+    assert run(capsys, "query", run_results, "--sel", "L=10")[0] == 0
+    assert opened == []
+    monkeypatch.setattr(query, "ROW_BLOCK", 10)
+    code, out, _ = run(capsys, "query", run_results, "--sel", "L=10", "--format", "csv")
+    assert code == 0 and len(csv_rows(out)) == 18 and opened == [run_results]
+    monkeypatch.setattr(query, "ROW_BLOCK", 1_000_000)
+    sub = str(tmp_path / "s.nc")
+    assert run(capsys, "query", run_results, "--sel", "L=10", "--format", "netcdf", "-o", sub)[0] == 0
+    assert opened == [run_results, run_results]
+
+
+def test_a_slice_query_imports_neither_xarray_nor_dask(run_results, tmp_path):
+    """A fresh interpreter answers a slice query without importing xarray, dask or numba."""
+    code = ("import sys; from cosserat_channel import cli; "
+            f"assert cli.main(['query', {run_results!r}, '--sel', 'L=10', '--format', 'csv', "
+            f"'-o', {str(tmp_path / 'q.csv')!r}]) == 0; "
+            "loaded = [m for m in ('xarray', 'dask', 'numba') if m in sys.modules]; "
+            "assert not loaded, loaded")
+    subprocess.run([sys.executable, "-c", code], check=True)
+    assert len(csv_rows((tmp_path / "q.csv").read_text())) == 18
+
+
+def test_files_that_need_decoding_are_read_through_xarray(tmp_path):
+    """A scaled variable, a fill value other than NaN or a foreign file: no light reading."""
+    base = make_results()
+    base.attrs["source"] = "cosserat-channel run"
+    cases = {
+        "scaled": ({}, {"slip": {"scale_factor": 0.5, "dtype": "int16", "_FillValue": -1}}),
+        "fill": ({}, {"Delta": {"_FillValue": -9.0}}),
+        "foreign": ({"source": "elsewhere"}, {}),
+    }
+    for name, (attrs, encoding) in cases.items():
+        path = tmp_path / f"{name}.nc"
+        ds = base.copy()
+        ds.attrs.update(attrs)
+        ds.to_netcdf(path, encoding={"status": {"_FillValue": None}, **encoding})
+        assert query.open_light(path) is None, name
+    plain = tmp_path / "plain.nc"
+    base.to_netcdf(plain, encoding={"status": {"_FillValue": None}})
+    light = query.open_light(plain)
+    assert light is not None
+    light.close()

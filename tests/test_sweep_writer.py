@@ -4,6 +4,7 @@ chunks, and the disk space checked before any work."""
 from __future__ import annotations
 
 import math
+import time
 
 import netCDF4
 import numpy as np
@@ -12,7 +13,8 @@ import pytest
 from cosserat_channel import cli
 from cosserat_channel import files
 from cosserat_channel.sweep import engine, run_sweep, writer
-from cosserat_channel.sweep.dataset import chunk_shape
+from cosserat_channel.sweep.dataset import chunk_shape, variable_encoding
+from cosserat_channel.sweep.plan import block_plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import partial_dir
 
@@ -78,6 +80,19 @@ def test_large_file_has_those_chunks(tmp_path):
         shape = nc["slip"].shape
         assert nc["slip"].chunking() == list(chunk_shape(shape, 8))
         assert nc["slip"].filters()["fletcher32"]
+        assert nc["status"].chunking() == nc["slip"].chunking()
+
+
+def test_grid_variables_of_every_type_share_the_tiles_chunks():
+    """int8 status and int32 counters are chunked like the float64 outputs, so that no chunk
+    straddles two tiles (it would be compressed, and read back, once per tile)."""
+    shape = (50, 40, 500, 10, 10)
+    f8 = variable_encoding("Delta", shape, np.float64, False)["chunksizes"]
+    assert f8 == chunk_shape(shape, 8) != chunk_shape(shape, 1)
+    for name, dtype in (("status", np.int8), ("stage1_steps", np.int32)):
+        assert variable_encoding(name, shape, dtype, False)["chunksizes"] == f8
+    tiles = writer.Tiles(shape)
+    assert all(t % c == 0 or t == n for t, c, n in zip(tiles.tile, f8, shape))
 
 
 def test_too_little_disk_space_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
@@ -108,3 +123,136 @@ def test_disk_estimate_grows_with_the_grid_and_counts_what_is_stored():
     big = load_sweep({"grid": {**GRID, "K": {"linspace": [0, 3, 300]}},
                       "output": {"variables": ["Delta", "slip"]}})
     assert engine.disk_needed(big, engine.Plan(big.coords()), None, "/x") > 50 * need
+
+
+# ---------------------------------------------------------------------------------------------
+# Tile-aligned blocks, and tiles written while the other blocks are solved
+# ---------------------------------------------------------------------------------------------
+# eps L = 1/3 is shared by (1/30, 10), (1/15, 5) and (1/60, 20): with one eps and one L per tile
+# box, the boxes of those three pairs join one group; the other boxes stay groups of their own.
+def _planned(reduce, tile):
+    spec = load_sweep({"grid": GRID})
+    return spec, engine.Plan(spec.coords(), reduce=reduce, block_size=5, tile=tile)
+
+
+@pytest.mark.parametrize("reduce, tile", [(True, (1, 1, 3, 1, 2)), (True, (2, 2, 3, 2, 3)),
+                                          (True, (1, 1, 2, 1, 3)), (False, (1, 2, 2, 1, 2))])
+def test_groups_hold_every_point_of_their_blocks(reduce, tile):
+    """Each block's points lie in the tiles of its group, the groups cut the tile grid into
+    disjoint sets, and plan.tile_local agrees with Tiles.locate."""
+    spec, plan = _planned(reduce, tile)
+    tiles = writer.Tiles.__new__(writer.Tiles)
+    tiles.shape, tiles.tile = spec.shape, tile
+    tiles.grid = tuple(-(-n // t) for n, t in zip(spec.shape, tile))
+    tiles.count = math.prod(tiles.grid)
+    members = np.concatenate(plan.groups)
+    assert np.array_equal(np.sort(members), np.arange(tiles.count))
+    covered = np.zeros(spec.size, dtype=int)
+    for k in range(len(plan.blocks)):
+        flat = plan.inputs(k).flat
+        covered[flat] += 1
+        where, local = tiles.locate(flat)
+        assert np.isin(where, plan.groups[plan.block_group[k]]).all(), k
+        fast = plan.tile_local(k)
+        if fast is not None:
+            assert np.array_equal(fast[0], where) and np.array_equal(fast[1], local), k
+    assert (covered == 1).all()
+    if reduce and tile[2] < spec.shape[2]:  # tiles split K: a triple spans them, one group
+        assert len(plan.groups) == 1 and plan.tile_local(0) is None
+    elif not reduce:  # every point its own triple: every tile its own group
+        assert len(plan.groups) == tiles.count
+    elif tile[:2] == (1, 1):
+        # 12 (eps, L) boxes times 2 x 2 (A, N) boxes, less those joined by a shared eps L
+        assert 1 < len(plan.groups) < 12 * 2 * 2
+
+
+def test_one_group_plans_the_blocks_as_before():
+    """A tile as large as the grid gives the snake deal over the whole grid (and its digest):
+    stores of runs planned that way stay valid."""
+    spec = load_sweep({"grid": GRID})
+    whole = engine.Plan(spec.coords(), block_size=5, tile=spec.shape)
+    none = engine.Plan(spec.coords(), block_size=5)
+    ref = block_plan(none.costs(), 5)
+    assert len(whole.groups) == 1
+    assert all(np.array_equal(a, b) for a, b in zip(whole.blocks, ref))
+    assert whole.digest() == none.digest()
+
+
+@pytest.mark.parametrize("pending, group_points", [(1 << 30, 1 << 30), (0, 1 << 30), (0, 0)])
+def test_streamed_file_equals_the_in_memory_result(tmp_path, monkeypatch, pending, group_points):
+    """Many groups of small tiles; the plug-edge values taken as solved, read back from the
+    store (nothing kept in memory) or regrouped through bucket files: the in-memory values to
+    the last bit."""
+    monkeypatch.setattr(writer, "TILE_POINTS", 16)
+    monkeypatch.setattr(writer, "chunk_shape", lambda shape, size: (1, 1, 2, 1, 2))
+    monkeypatch.setattr(writer, "PENDING_BYTES", pending)
+    monkeypatch.setattr(writer, "GROUP_POINTS", group_points)
+    reads = []
+    real_get = engine.WorkStore.get
+    monkeypatch.setattr(engine.WorkStore, "get", lambda self, k, t=None: (
+        reads.append(k), real_get(self, k, t))[1])
+    spec = load_sweep({"grid": GRID, "output": {"variables": ["Delta", "slip", "m_wall"]}})
+    out = tmp_path / "r.nc"
+    with run_sweep(spec, out, workers=2, block_size=3) as ds:
+        ds.load()
+    read_back = len(reads)
+    ref = run_sweep(spec, workers=1)
+    for v in ref.data_vars:
+        assert np.array_equal(ds[v].values, ref[v].values, equal_nan=True), v
+    blocks = engine.Plan(spec.coords(), block_size=3, tile=engine._tile(spec, None, out)).blocks
+    # Blocks solved in this process are read back only when they were not kept in memory.
+    assert read_back == (0 if pending else len(blocks))
+    assert not (tmp_path / "r.nc.partial").exists()
+
+
+def test_tiles_are_written_while_blocks_are_still_solved(tmp_path, monkeypatch):
+    """The first group's tiles reach the file before the last block is solved."""
+    monkeypatch.setattr(writer, "TILE_POINTS", 16)
+    monkeypatch.setattr(writer, "chunk_shape", lambda shape, size: (1, 1, 3, 2, 3))
+    events = []
+    real_solve, real_write = engine.solve_block, writer.StreamWriter._write_group
+
+    def slow_solve(*args, **kwargs):
+        out = real_solve(*args, **kwargs)
+        time.sleep(0.05)  # leaves the writer's thread time to run even on a loaded machine
+        events.append("solved")
+        return out
+
+    def write_group(self, g):
+        events.append("write")
+        real_write(self, g)
+
+    monkeypatch.setattr(engine, "solve_block", slow_solve)
+    monkeypatch.setattr(writer.StreamWriter, "_write_group", write_group)
+    spec = load_sweep({"grid": GRID})
+    run_sweep(spec, tmp_path / "r.nc", workers=1, block_size=2).close()
+    plan = engine.Plan(spec.coords(), block_size=2, tile=engine._tile(spec, None, "r.nc"))
+    assert len(plan.groups) > 3
+    assert events.count("write") == len(plan.groups)
+    assert events.index("write") < len(events) - 1 - events[::-1].index("solved")
+
+
+def test_a_failed_write_keeps_the_blocks_and_leaves_no_file(tmp_path, monkeypatch):
+    """HDF5 failing mid-run (a full disk): one WriteError naming the output, the earlier file
+    untouched, no temporary file, every block kept; the rerun writes the file from the store."""
+    monkeypatch.setattr(writer, "TILE_POINTS", 16)
+    monkeypatch.setattr(writer, "chunk_shape", lambda shape, size: (1, 1, 3, 2, 3))
+    spec = load_sweep({"grid": GRID, "output": {"variables": ["Delta"]}})
+    out = tmp_path / "r.nc"
+    out.write_bytes(b"an earlier result")
+    real = writer.create_variables
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("NetCDF: HDF error")
+
+    monkeypatch.setattr(writer, "create_variables", fail)
+    with pytest.raises(files.WriteError, match="cannot write .*r.nc.*HDF error"):
+        run_sweep(spec, out, workers=2, block_size=2)
+    assert out.read_bytes() == b"an earlier result"
+    store = tmp_path / "r.nc.partial"
+    assert not list(store.glob("*.tmp")) and not list(tmp_path.glob(".*.tmp"))
+    monkeypatch.setattr(writer, "create_variables", real)
+    with run_sweep(spec, out, workers=2, block_size=2) as ds:
+        ds.load()
+    ref = run_sweep(spec, workers=1)
+    assert np.array_equal(ds.Delta.values, ref.Delta.values, equal_nan=True)

@@ -25,7 +25,10 @@ Choices worth knowing:
   why a point has or has no solution).
 
 The file is opened lazily (dask-backed through ``xr.open_dataset(chunks={})``); a selection reads
-only what it needs, and rows are extracted in blocks of ``ROW_BLOCK`` points.
+only what it needs, and rows are extracted in blocks of ``ROW_BLOCK`` points. A small query of a
+result file written by ``run`` (a slice, a curve: at most ``ROW_BLOCK`` points selected) is
+answered with the ``netCDF4`` library alone (:func:`open_light`): importing xarray and dask
+takes longer than such a query's own work.
 
 The module is long (~580 lines) because parsing, selecting, rendering (table, CSV, JSON, NetCDF)
 and describing a result share the :class:`Selection` and its row iterator; it stays one piece so
@@ -42,11 +45,15 @@ import os
 import re
 from dataclasses import dataclass, field
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import xarray as xr
 
 from .files import atomic_output, netcdf_output
 from .parameters import ParameterError
+
+if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
+    import xarray as xr
 
 RANGE_SLACK = 1e-9
 # --sel: |grid - value| <= SEL_RTOL * max(|grid|, |value|), or <= SEL_RTOL * 1e-3 * max|coordinate|
@@ -84,6 +91,8 @@ def open_results(path) -> xr.Dataset:
         raise QueryError(f"{path}: no such file")
     if os.path.isdir(path):
         raise QueryError(f"{path}: is a directory, not a result file")
+    import xarray as xr
+
     try:
         ds = xr.open_dataset(path, chunks={})
     # Any file can arrive here; the backends raise several types for "not NetCDF".
@@ -300,6 +309,8 @@ class Selection:
         """Boolean array over ``row_dims`` (None when there is no ``--where``); computed once."""
         if not self.conditions:
             return None
+        if self._mask is None and isinstance(self.ds, LightBox):
+            self._mask = self.ds.mask(self.conditions, self.row_dims)
         if self._mask is None:
             m = self.conditions[0].evaluate(self.ds)
             for c in self.conditions[1:]:
@@ -348,7 +359,7 @@ def select(ds: xr.Dataset, sel=(), ranges=(), where=(), variables=None,
         if hi is not None:
             keep &= c <= hi + RANGE_SLACK * abs(hi)
         index[name] = np.flatnonzero(keep)
-    sub = ds.isel(index) if index else ds
+    sub = ds.isel(index) if index or isinstance(ds, LightFile) else ds
 
     if variables is None:
         scalar_dims = set(ds["status"].dims)
@@ -371,6 +382,11 @@ def header(selection: Selection) -> list[str]:
 
 def iter_rows(selection: Selection, limit: int | None = None):
     """Yield rows (lists of Python values: floats, ints, flag names) in C order of ``row_dims``."""
+    if isinstance(selection.ds, LightBox):
+        yield from selection.ds.rows(selection, limit)
+        return
+    import xarray as xr
+
     mask = selection.mask()
     shape = selection.shape
     total = selection.count()
@@ -406,6 +422,8 @@ def _load_box(selection: Selection, names: list[str]) -> xr.Dataset:
     (~1 s against ~0.1 s for 10^4 points of a 10^8-point file); the file is read only where the
     box lies either way.
     """
+    import xarray as xr
+
     source = selection.ds.encoding.get("source")
     if source and os.path.isfile(source):
         with xr.open_dataset(source) as f:
@@ -465,6 +483,8 @@ def write_json(selection: Selection, f) -> None:
 # ---------------------------------------------------------------------------------------------
 def subset_dataset(selection: Selection) -> xr.Dataset:
     """The selection as a result Dataset of the same layout (see the module docstring)."""
+    import xarray as xr
+
     keep = list(selection.columns)
     ds = selection.ds[keep]
     mask = selection.mask()
@@ -549,6 +569,8 @@ def render(selection: Selection, fmt: str) -> str:
 # ---------------------------------------------------------------------------------------------
 def status_counts(ds: xr.Dataset) -> dict[str, int]:
     """Points per status name (lazy reduction; codes outside the flags count as 'other')."""
+    import xarray as xr
+
     flags = flag_names(ds["status"])
     sums = xr.Dataset({n: (ds["status"] == v).sum() for n, v in flags.items()}).compute()
     counts = {n: int(sums[n]) for n in flags}
@@ -601,3 +623,158 @@ def describe(ds: xr.Dataset, path: str = "") -> str:
         lines.append(f"  sweep (first {shown} of {len(sweep_lines)} lines)")
         lines += ["    " + s for s in sweep_lines[:SWEEP_TEXT_LINES]]
     return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------
+# Small queries without xarray
+# ---------------------------------------------------------------------------------------------
+class _LightVariable:
+    """What parsing and selecting read of a variable: dims, attrs, dtype, shape, values."""
+
+    def __init__(self, var, dims):
+        self._var = var
+        self.dims = dims
+        self.attrs = {k: var.getncattr(k) for k in var.ncattrs()}
+        self.dtype = var.dtype
+        self.shape = var.shape
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.asarray(self._var[...])
+
+
+class LightFile:
+    """A result file written by ``run`` (or a NetCDF subset of one) read with ``netCDF4`` alone:
+    the part of an xarray Dataset that :func:`parse_sel`, :func:`parse_range`,
+    :func:`parse_where`, :func:`parse_vars` and :func:`select` use. Open with :func:`open_light`.
+    """
+
+    def __init__(self, nc, path: str):
+        self.nc = nc
+        self.path = path
+        self.dims = tuple(nc.dimensions)
+        self.sizes = {d: len(nc.dimensions[d]) for d in self.dims}
+        self.coords = tuple(d for d in self.dims if d in nc.variables)
+        self.data_vars = tuple(v for v in nc.variables if v not in self.coords)
+
+    def __getitem__(self, name: str) -> _LightVariable:
+        if name not in self.nc.variables:
+            raise KeyError(name)
+        return _LightVariable(self.nc[name], tuple(self.nc[name].dimensions))
+
+    def isel(self, index: dict) -> "LightBox":
+        return LightBox(self, index)
+
+    def close(self) -> None:
+        self.nc.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class LightBox(LightFile):
+    """The box of a :class:`LightFile` that ``--sel`` and ``--range`` select (positions per
+    dimension); it reads only that box, and gives the rows :func:`iter_rows` gives."""
+
+    def __init__(self, parent: LightFile, index: dict):
+        super().__init__(parent.nc, parent.path)
+        self.index = {d: np.asarray(i, dtype=np.int64) for d, i in index.items()}
+        self.sizes = {d: int(self.index[d].size) if d in self.index else n
+                      for d, n in self.sizes.items()}
+
+    def read(self, name: str, row_dims: tuple) -> np.ndarray:
+        """Variable or coordinate ``name`` on the box, broadcast over ``row_dims``."""
+        var = self.nc[name]
+        shape = tuple(self.sizes[d] for d in row_dims)
+        if 0 in shape:
+            return np.empty(shape, dtype=var.dtype)
+        key = tuple(_slice_or_positions(self.index.get(d)) for d in var.dimensions)
+        values = np.asarray(var[key]) if key else np.asarray(var[...])
+        values = values.reshape(tuple(self.sizes[d] if d in var.dimensions else 1
+                                      for d in row_dims))
+        return np.broadcast_to(values, shape)
+
+    def mask(self, conditions, row_dims) -> np.ndarray:
+        """The ``--where`` clauses ANDed, over ``row_dims`` (as :meth:`Selection.mask`)."""
+        m = np.ones(tuple(self.sizes[d] for d in row_dims), dtype=bool)
+        for c in conditions:
+            m &= _OPS[c.op](self.read(c.name, row_dims), c.value)
+        return m
+
+    def rows(self, selection: "Selection", limit: int | None):
+        """:func:`iter_rows` of a selection of this box (at most ``ROW_BLOCK`` points)."""
+        mask = selection.mask()
+        total = selection.count()
+        n = total if limit is None else min(limit, total)
+        if n == 0:
+            return
+        flat = np.flatnonzero(mask)[:n] if mask is not None else np.arange(n)
+        idx = np.unravel_index(flat, selection.shape)
+        cols = [self.read(d, (d,))[i] for d, i in zip(selection.row_dims, idx)]
+        for v in selection.columns:
+            values = self.read(v, selection.row_dims)[idx]
+            da = self[v]
+            if _is_flag(da):
+                names = {c: k for k, c in flag_names(da).items()}
+                values = np.array([names.get(int(c), str(int(c))) for c in values], dtype=object)
+            cols.append(values)
+        for k in range(n):
+            yield [_python(c[k]) for c in cols]
+
+
+def _slice_or_positions(positions):
+    """A netCDF4 index for one dimension: all, a slice for consecutive positions, or them."""
+    if positions is None:
+        return slice(None)
+    if positions.size and np.array_equal(positions, np.arange(positions[0],
+                                                              positions[0] + positions.size)):
+        return slice(int(positions[0]), int(positions[0]) + positions.size)
+    return positions
+
+
+# Attributes that make xarray's decoding change values; a file with any is read through xarray.
+_DECODED = ("scale_factor", "add_offset", "missing_value", "calendar")
+
+
+def open_light(path) -> LightFile | None:
+    """``path`` as a :class:`LightFile` when it is a result file of ours that needs none of
+    xarray's decoding (else None: read it with :func:`open_results`, which also says what is
+    wrong with a file it cannot read).
+
+    The values are then those xarray gives: our float variables' fill value is NaN (masking
+    NaN with NaN changes nothing), integer ones have none, and no variable is scaled.
+    """
+    import netCDF4
+
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        return None
+    try:
+        nc = netCDF4.Dataset(path)
+    except (OSError, RuntimeError, ValueError):
+        return None
+    try:
+        nc.set_auto_maskandscale(False)
+        f = LightFile(nc, path)
+        if getattr(nc, "source", None) != "cosserat-channel run" or nc.groups or \
+                "status" not in f.data_vars or not _is_flag(f["status"]):
+            raise LookupError
+        order = {d: i for i, d in enumerate(f.dims)}
+        for var in nc.variables.values():
+            attrs = var.ncattrs()
+            dims = var.dimensions
+            fill = var.getncattr("_FillValue") if "_FillValue" in attrs else None
+            if any(a in attrs for a in _DECODED) or var.dtype.kind not in "fiu" or \
+                    "since" in str(getattr(var, "units", "")) or \
+                    [order[d] for d in dims] != sorted(order[d] for d in dims) or \
+                    (fill is not None and not (var.dtype.kind == "f" and np.isnan(fill))):
+                raise LookupError
+        if any(d not in f.coords or nc[d].dimensions != (d,) for d in f.dims):
+            raise LookupError
+    except (LookupError, OSError, RuntimeError, ValueError):
+        nc.close()
+        return None
+    return f

@@ -324,7 +324,11 @@ def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | N
     from .. import query
     from ..files import WriteError
 
-    problem = query.read_problem(ds)
+    if isinstance(ds, query.LightFile):  # read through in chunks, with dask
+        with open_results(results) as chunked:
+            problem = query.read_problem(chunked)
+    else:
+        problem = query.read_problem(ds)
     if problem:
         return CliError(f"{results}: {problem}", EXIT_FAILURE)
     if isinstance(exc, WriteError):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import logging
 import sys
@@ -168,8 +169,8 @@ def _query(args: argparse.Namespace) -> int:
         check_output_path(args.output, "-o")
         check_not_input(args.output, [args.results], "-o")
     from .. import query
-    ds = open_results(args.results)
-    try:
+
+    def select(ds):
         try:
             sel = [query.parse_sel(t, ds) for t in args.sel]
             ranges = [query.parse_range(t, ds) for t in args.range]
@@ -177,10 +178,23 @@ def _query(args: argparse.Namespace) -> int:
             variables = query.parse_vars(args.vars, ds)
             clauses = [f"--sel {t}" for t in args.sel] + [f"--range {t}" for t in args.range]
             clauses += [f"--where '{c.text}'" for c in where]
-            selection = query.select(ds, sel, ranges, where, variables, " ".join(clauses),
-                                     nearest=args.nearest)
+            return query.select(ds, sel, ranges, where, variables, " ".join(clauses),
+                                nearest=args.nearest)
         except ParameterError as exc:
+            ds.close()
             raise CliError(str(exc)) from None
+
+    # A slice or a curve of a result file is read with netCDF4 alone (importing xarray and dask
+    # takes longer than such a query); a larger box, a NetCDF subset or a file that needs
+    # xarray's decoding is read through xarray and dask, in chunks.
+    ds = query.open_light(args.results) if args.format != "netcdf" else None
+    selection = None if ds is None else select(ds)
+    if selection is None or math.prod(selection.ds.sizes.values()) > query.ROW_BLOCK:
+        if ds is not None:
+            ds.close()
+        ds = open_results(args.results)
+        selection = select(ds)
+    try:
         for name, asked, taken in selection.snapped:
             _note(f"--nearest: --sel {name}={asked:.10g} is not a grid value; took the nearest, "
                   f"{name}={taken:.10g}")

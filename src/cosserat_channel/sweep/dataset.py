@@ -75,7 +75,11 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
     for name in spec.variables:  # file order = the sweep's order
         if name in out_.OUTPUTS:
             o = out_.OUTPUTS[name]
-            value = out_.derive([name], inputs)[name]
+            # derive's values, without its copy of those already on the whole grid (a tile's
+            # Delta, slip, ...: one pass over the tile fewer each).
+            value = inputs.get(name)
+            if value.shape != inputs.shape:
+                value = out_.derive([name], inputs)[name]
             data_vars[name] = (DIMS, value, {"units": o.units, "long_name": o.long_name})
         elif name in out_.COUNTERS:
             units, text, stage = out_.COUNTERS[name]
@@ -157,8 +161,12 @@ def variable_encoding(name: str, shape: tuple, dtype, is_coord: bool, compress=T
     if name == "status" or is_coord or dtype.kind in "iu":
         e["_FillValue"] = None
     if compress and dtype.kind in "fiu" and not is_coord and size > 4096:
+        # Grid variables of every type share the float64 chunks: the file is written in tiles
+        # of whole float64 chunks (.writer.Tiles), and a chunk that straddles tiles would be
+        # compressed again (and read back) each time a tile reaches it.
+        itemsize = 8 if len(shape) == len(DIMS) else dtype.itemsize
         e.update(CODECS["zstd" if compress is True else compress], complevel=1, shuffle=True,
-                 chunksizes=chunk_shape(shape, dtype.itemsize))
+                 chunksizes=chunk_shape(shape, itemsize))
     if len(shape) > 0 and dtype.kind in "fiub":
         e["fletcher32"] = True
     return e

@@ -14,7 +14,9 @@ starts in its place). Losing the scheduler ends the run with :class:`SchedulerLo
 finished blocks are in the store and the same command resumes.
 
 The result file is written tile by tile (:mod:`.writer`), so memory follows the block and the
-tile sizes, not the grid; the disk space it needs is checked before anything is computed.
+tile sizes, not the grid; the disk space it needs is checked before anything is computed. Blocks
+are planned tile-aligned where the grid allows it (:class:`.plan.Plan`'s groups), and a group's
+tiles are written while the other blocks are solved.
 """
 
 from __future__ import annotations
@@ -26,7 +28,6 @@ import re
 import sys
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -39,13 +40,10 @@ from .dataset import build_dataset
 from .plan import BlockInputs, Plan
 from .spec import SweepError, SweepSpec, load_sweep
 from .store import FORMAT, BlockDamaged, WorkStore, check_writable, partial_dir
-from .writer import BUCKET, SCRATCH, Buckets, Tiles, write_tiles
+from .writer import BUCKET, StreamWriter, Tiles
 
 # Seconds to wait for a scheduler to answer before the run is refused (nothing created yet).
 CONNECT_TIMEOUT = 5.0
-# Threads reading the blocks back at assembly (about the cores of a laptop; more gains little,
-# the bucket files are appended one block at a time).
-GATHER_THREADS = 2
 _ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
 
 
@@ -107,11 +105,12 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     n_workers = int(workers or os.cpu_count() or 1)
     if compress not in (True, False, "zstd", "zlib"):
         raise SweepError(f"compress must be True, False, 'zstd' or 'zlib'; got {compress!r}")
+    xi = _profile_xi(spec)
     try:
-        plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers)
+        plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers,
+                    tile=_tile(spec, xi, output))
     except ValueError as exc:
         raise SweepError(str(exc)) from None
-    xi = _profile_xi(spec)
     if output is not None:
         problem = space_problem(output, disk_needed(spec, plan, xi, output))
         if problem:
@@ -140,10 +139,17 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     return ds
 
 
+def _tile(spec, xi, output):
+    """The tile shape of the result file (None without a file: nothing to align to)."""
+    return None if output is None else Tiles(spec.shape, 0 if xi is None else xi.size).tile
+
+
 def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, compress):
-    """Solve what the store lacks, then assemble; returns (Dataset or None, times)."""
+    """Solve what the store lacks, writing the file as groups complete, then finish it; returns
+    (Dataset or None, (solve s, blocks computed, assemble and write s))."""
     if store.manifest["block_size"] != plan.block_size:
-        plan = Plan(spec.coords(), reduce=reduce, block_size=store.manifest["block_size"])
+        plan = Plan(spec.coords(), reduce=reduce, block_size=store.manifest["block_size"],
+                    tile=_tile(spec, xi, output))
     if store.manifest["plan_sha256"] != plan.digest():
         raise SweepError(
             f"{store.directory} was planned differently (another cosserat-channel build?); "
@@ -160,20 +166,55 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     )
     if progress is None:
         progress = sys.stderr.isatty()
-    t0 = time.perf_counter()
-    if todo:
-        args = (spec.rtol, spec.atol, xi, out_.needs_stage2(spec.variables),
-                out_.needs_plug_edge(spec.variables))
-        if client is None:
-            _run_threads(plan, todo, store, args, n_workers, progress)
-        else:
-            _run_distributed(plan, todo, store, args, client, progress)
-    t1 = time.perf_counter()
-    ds = assemble(spec, plan, store, xi, recompute=lambda k: store.put(
-        k, _block_task(plan, k, (spec.rtol, spec.atol, xi))), output=output, compress=compress)
+
+    def recompute(k):
+        store.put(k, _block_task(plan, k, (spec.rtol, spec.atol, xi)))
+
+    writer = None
+    if output is not None:
+        writer = StreamWriter(output, spec, plan, store, xi, Tiles(spec.shape, 0 if xi is None
+                                                                   else xi.size),
+                              compress, recompute)
+    cpu = []  # the solving threads' CPU seconds per block: inputs, kernels, storing
+    if todo and client is None:
+        import dask.diagnostics  # noqa: F401 (imported and the kernels loaded before the clock)
+
+        warm_up()
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        if writer is not None:
+            for k in sorted(done):
+                writer.add(k)
+        if todo:
+            args = (spec.rtol, spec.atol, xi, out_.needs_stage2(spec.variables),
+                    out_.needs_plug_edge(spec.variables))
+            if client is None:
+                _run_threads(plan, todo, store, args, n_workers, progress, writer, cpu)
+            else:
+                _run_distributed(plan, todo, store, args, client, progress, writer)
+        t1 = time.perf_counter()
+        during = 0 if writer is None else writer.tiles_written
+        ds = assemble(spec, plan, store, xi, recompute=recompute, output=output,
+                      compress=compress, writer=writer)
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+    t2 = time.perf_counter()
     if output is not None:
         store.remove()
-    return ds, (t1 - t0, len(todo), time.perf_counter() - t1)
+    # The solving threads' CPU time (the blocks' inputs, the kernels, storing the blocks) over
+    # the workers: what the solve alone takes on free cores. The solve phase's wall time would
+    # count the writing done meanwhile as solving; what assembling and writing add is the rest
+    # of the wall time. (On a cluster the threads are elsewhere: the solve phase's wall time.)
+    solve = sum(cpu) / n_workers if cpu else t1 - t0
+    if writer is not None:
+        log.info("%s: solve phase %.2f s (solving threads %.2f s CPU on %d workers; the process %.2f s "
+                 "CPU until the file was complete), %d of %d tiles written during it; writer "
+                 "busy %.2f s (%.2f s CPU), %.2f s after the solve", output, t1 - t0, sum(cpu),
+                 n_workers, time.process_time() - c0, during, writer.tiles.count, writer.busy,
+                 writer.cpu, t2 - t1)
+    return ds, (solve, len(todo), t2 - t0 - solve)
 
 
 def disk_needed(spec: SweepSpec, plan: Plan, xi, output: str) -> int:
@@ -283,16 +324,27 @@ def warm_up() -> None:
 # ---------------------------------------------------------------------------------------------
 # Schedulers
 # ---------------------------------------------------------------------------------------------
-def _run_threads(plan, todo, store, args, workers, progress) -> None:
+def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=None) -> None:
     import dask
     from dask.diagnostics import ProgressBar
 
     warm_up()
 
     def task(k):
-        store.put(k, _block_task(plan, k, args))
+        c0 = time.thread_time()
+        out = _block_task(plan, k, args)
+        store.put(k, out)
+        if cpu is not None:
+            cpu.append(time.thread_time() - c0)
+        if writer is not None:
+            writer.add(k, out)
 
-    tasks = [dask.delayed(task, pure=False)(k, dask_key_name=f"block-{k}") for k in todo]
+    # dask's threaded scheduler runs independent tasks in descending order of their keys: the
+    # keys count down so that blocks run in plan order, group after group, and each group's
+    # tiles are written soon after it starts.
+    n = len(todo)
+    tasks = [dask.delayed(task, pure=False)(k, dask_key_name=f"block-{n - 1 - i:09d}-{k}")
+             for i, k in enumerate(todo)]
     if progress:
         with ProgressBar(out=sys.stderr, dt=0.5):
             dask.compute(*tasks, scheduler="threads", num_workers=workers)
@@ -327,13 +379,13 @@ def _solve_remote(inp: BlockInputs, args) -> dict:
     return solve_block(inp, *args)
 
 
-def _run_distributed(plan, todo, store, args, client, progress) -> None:
+def _run_distributed(plan, todo, store, args, client, progress, writer=None) -> None:
     from dask.distributed import CancelledError, KilledWorker
 
     address = client.scheduler.address
     try:
         with client.as_current():  # as_completed and the progress bar find it
-            _submit_and_store(plan, todo, store, args, client, progress)
+            _submit_and_store(plan, todo, store, args, client, progress, writer)
     except KilledWorker as exc:
         raise SchedulerLost(f"a block killed every worker that ran it ({exc}); see the workers' "
                             "logs") from None
@@ -345,7 +397,7 @@ def _run_distributed(plan, todo, store, args, client, progress) -> None:
                             f"({type(exc).__name__})") from None
 
 
-def _submit_and_store(plan, todo, store, args, client, progress) -> None:
+def _submit_and_store(plan, todo, store, args, client, progress, writer=None) -> None:
     from dask.distributed import as_completed
 
     client.run(warm_up)
@@ -363,6 +415,8 @@ def _submit_and_store(plan, todo, store, args, client, progress) -> None:
         out = fut.result()
         out["triples"] = plan.blocks[k]
         store.put(k, out)
+        if writer is not None:
+            writer.add(k, out)
         fut.release()
 
 
@@ -383,29 +437,27 @@ def _progress_thread(futures) -> None:
 # Blocks -> grid
 # ---------------------------------------------------------------------------------------------
 def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=None,
-             output=None, compress=True):
-    """Gather every block from the store and build the result: in memory (``output`` None,
-    returns the Dataset) or tile by tile into the file ``output`` (:mod:`.writer`; returns None).
+             output=None, compress=True, writer: StreamWriter | None = None):
+    """Build the result once every block is in the store: in memory (``output`` None, returns
+    the Dataset), or by finishing ``writer``'s file (the groups not yet written) and renaming
+    it onto ``output`` (returns None).
 
-    Each block is checked against its digest as it is read (:meth:`WorkStore.get`); one that
-    fails (damaged on disk since the run began) is computed again here by ``recompute(k)`` when
+    Each block read from the store is checked against its digest (:meth:`WorkStore.get`); one
+    that fails (damaged on disk since the run began) is computed again by ``recompute(k)`` when
     given, and otherwise raises :class:`SweepError`.
     """
-    t0 = time.perf_counter()
+    if output is not None:
+        def publish(path):
+            writer.finish()
+            os.replace(writer.tmp, path)
+
+        store.publish(output, publish)
+        return None
     n = plan.n_triples
     per_triple = {"res": np.empty((n, stages.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
-    need_one_minus = out_.needs_plug_edge(spec.variables)
     profiles = np.empty((n, stages.N_PROF, xi.size)) if xi is not None else None
-    one_minus = buckets = None
-    if output is None:
-        one_minus = np.empty(plan.size) if need_one_minus else None
-    else:
-        tiles = Tiles(plan.shape, 0 if xi is None else xi.size)
-        if need_one_minus:
-            buckets = Buckets(os.path.join(store.directory, SCRATCH), tiles)
-
-    def gather(k):
-        triples = plan.blocks[k]
+    one_minus = np.empty(plan.size) if out_.needs_plug_edge(spec.variables) else None
+    for k, triples in enumerate(plan.blocks):
         try:
             b = store.get(k, triples)
         except BlockDamaged as exc:
@@ -420,24 +472,6 @@ def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=N
             profiles[triples] = b["profiles"]
         if one_minus is not None:
             one_minus[plan.inputs(k).flat] = b["one_minus"]
-        elif buckets is not None:
-            buckets.add(plan.inputs(k).flat, b["one_minus"])
-
-    # Reading, checking and sorting a block is numpy and hashlib work that leaves the GIL: two
-    # threads.
-    with ThreadPoolExecutor(GATHER_THREADS, thread_name_prefix="cc-gather") as pool:
-        for _ in pool.map(gather, range(len(plan.blocks))):
-            pass
-    if output is None:
-        if one_minus is not None:
-            one_minus = one_minus.reshape(plan.shape)
-        return build_dataset(spec, plan, per_triple, one_minus, xi, profiles)
-    t1 = time.perf_counter()
-    store.publish(output, lambda path: write_tiles(path, spec, plan, per_triple, xi, profiles,
-                                                   tiles, buckets, compress))
-    if buckets is not None:
-        buckets.remove()
-    log.info("%s: gathered %d blocks in %.2f s, wrote %d tiles of <= %s points in %.2f s",
-             output, len(plan.blocks), t1 - t0, tiles.count, f"{np.prod(tiles.tile):,}",
-             time.perf_counter() - t1)
-    return None
+    if one_minus is not None:
+        one_minus = one_minus.reshape(plan.shape)
+    return build_dataset(spec, plan, per_triple, one_minus, xi, profiles)

@@ -15,9 +15,18 @@ Triples are numbered so that per-triple arrays reshape onto the grid:
 * unreduced: ``t`` is the C-order flat index of the grid point.
 
 Blocks are dealt so that every block costs about the same (see :func:`block_plan`). The blocks
-are a function of the grid, the reduction and the block size alone; only the *default* block
-size looks at the number of workers, and a resumed run takes its block size from its store, so
-it finds the same blocks whatever ``--workers`` it is given.
+are a function of the grid, the reduction, the block size and the tile shape of the result file
+alone; only the *default* block size looks at the number of workers, and a resumed run takes its
+block size from its store, so it finds the same blocks whatever ``--workers`` it is given.
+
+*Groups*: with a tile shape (the boxes the result file is written in, :class:`.writer.Tiles`),
+the tiles are joined into groups such that every triple's grid points lie in one group, and
+each block holds triples of one group only. A group's tiles can then be written as soon as its
+own blocks are done, while the other blocks are still being solved. A triple's points span its
+``(eps, L)`` pairs times every ``K`` times its ``(A, N)``: the groups are the tiles' ``(A, N)``
+boxes times the classes of ``(eps, L)`` boxes linked by a shared ``eta`` (reduced, and only when
+a tile spans the whole ``K`` axis; otherwise one group holds every tile); unreduced, every tile
+is a group.
 """
 
 from __future__ import annotations
@@ -86,10 +95,21 @@ class Plan:
         Integrations per block; default from :data:`DEFAULT_BLOCKS` and the size bounds.
     workers : int
         Only sets the default block size (a resumed run takes the block size from its store).
+    tile : tuple of int, optional
+        Shape of the tiles the result is written in: blocks are dealt group by group (see the
+        module docstring). Default: one group, the whole grid.
+
+    Attributes
+    ----------
+    groups : list of ndarray
+        Tile indices (C order of the tile grid) of each group.
+    block_group : ndarray
+        The group of each block; blocks are numbered group after group, the costliest groups
+        first (the cheap ones finish the run, so little is left to write after the solve).
     """
 
     def __init__(self, axes: dict, reduce: bool = True, block_size: int | None = None,
-                 workers: int = 1):
+                 workers: int = 1, tile=None):
         self.eps, self.L, self.K, self.A, self.N = (
             np.ascontiguousarray(axes[d], dtype=np.float64) for d in ("eps", "L", "K", "A", "N")
         )
@@ -113,7 +133,12 @@ class Plan:
         if block_size is None:
             block_size = self._default_block_size(max(DEFAULT_BLOCKS, BLOCKS_PER_WORKER * workers))
         self.block_size = int(block_size)
-        self.blocks = block_plan(self.costs(), self.block_size)
+        self.tile = self.shape if tile is None else tuple(min(int(t), n) for t, n in
+                                                         zip(tile, self.shape))
+        self.tile_grid = tuple(-(-n // t) for n, t in zip(self.shape, self.tile))
+        triple_group, self.groups = self._groups()
+        self.blocks, self.block_group = grouped_block_plan(self.costs(), triple_group,
+                                                           self.block_size)
 
     # -- triples ------------------------------------------------------------------------------
     def triple_params(self, t: np.ndarray):
@@ -142,6 +167,47 @@ class Plan:
             cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
         return cost + COST_PER_ENTRY * self.entries_per_triple(t)
 
+    def _groups(self):
+        """``(group of every triple, tile indices of every group)``; see the module docstring."""
+        nE, nL, nK, nA, nN = self.shape
+        te, tl, tk, ta, tn = self.tile
+        ge, gl, gk, ga, gn = self.tile_grid
+        all_tiles = np.arange(math.prod(self.tile_grid), dtype=np.int64).reshape(self.tile_grid)
+        if not self.reduce:
+            # Every triple is a grid point: its tile is its group.
+            e, l, k, a, n = np.unravel_index(np.arange(self.size, dtype=np.int64), self.shape)
+            tile = np.ravel_multi_index((e // te, l // tl, k // tk, a // ta, n // tn),
+                                        self.tile_grid)
+            return tile, [np.array([i]) for i in range(all_tiles.size)]
+        if gk != 1:
+            return np.zeros(self.n_triples, dtype=np.int64), [all_tiles.ravel()]
+        # Classes of (eps, L) boxes: union-find over the boxes of the pairs sharing an eta.
+        box = ((np.arange(nE)[:, None] // te) * gl + np.arange(nL)[None, :] // tl).ravel()
+        parent = np.arange(ge * gl)
+
+        def root(i):
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = parent[i]
+            return i
+
+        pair_box = box[self.pair_order]
+        shared = np.flatnonzero(np.diff(self.inv[self.pair_order]) == 0)
+        for j in shared[pair_box[shared] != pair_box[shared + 1]]:
+            parent[root(pair_box[j])] = root(pair_box[j + 1])
+        roots = np.array([root(i) for i in range(ge * gl)])
+        _, cls = np.unique(roots, return_inverse=True)
+        n_cls = int(cls.max()) + 1
+        # eta u's class: that of its first pair (all its pairs are in one class).
+        u_cls = cls[box[self.pair_order[self.pair_start[:-1]]]]
+        t = np.arange(self.n_triples, dtype=np.int64)
+        u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
+        group = (u_cls[u] * ga + a // ta) * gn + n // tn
+        tiles_el = all_tiles[:, :, 0].reshape(ge * gl, ga, gn)
+        groups = [tiles_el[cls == c, i, j].ravel() for c in range(n_cls)
+                  for i in range(ga) for j in range(gn)]
+        return group, groups
+
     def _default_block_size(self, n_blocks: int) -> int:
         n = self.n_triples
         entries_per = max(1.0, self.size / n)
@@ -156,6 +222,9 @@ class Plan:
         for b in self.blocks:
             h.update(np.int64(b.size).tobytes())
             h.update(b.tobytes())
+        if len(self.groups) > 1:  # one group: the digest of the plan before groups existed
+            h.update(np.asarray(self.tile, dtype=np.int64).tobytes())
+            h.update(self.block_group.tobytes())
         return h.hexdigest()
 
     # -- blocks -------------------------------------------------------------------------------
@@ -179,6 +248,38 @@ class Plan:
         eps_K = self.eps[pair // nL] * self.K[kk]
         flat = ((pair * nK + kk) * nA + a[owner]) * nN + n[owner]
         return BlockInputs(eta, A, N, eps_K, offsets, flat)
+
+    def tile_local(self, k: int):
+        """``(tile, local)`` of block ``k``'s entries, in :meth:`inputs` order: the tile (C order
+        of the tile grid) and the C-order index inside that tile (edge tiles are smaller), or
+        None where this shortcut does not apply (unreduced, or tiles that split ``K``).
+
+        A reduced block's entries come in runs of ``nK`` (one triple, one ``(eps, L)`` pair,
+        every ``K``), so the indices are computed per run and spread: a few passes over the
+        entries instead of the dozen that unravelling their grid indices takes.
+        """
+        nE, nL, nK, nA, nN = self.shape
+        te, tl, tk, ta, tn = self.tile
+        if not self.reduce or tk != nK:
+            return None
+        t = self.blocks[k]
+        u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
+        pairs = self.pair_start[u + 1] - self.pair_start[u]
+        owner = np.repeat(np.arange(t.size), pairs)  # one per run
+        first = np.concatenate(([0], np.cumsum(pairs)))[:-1]
+        pair = self.pair_order[self.pair_start[u[owner]] + np.arange(owner.size) - first[owner]]
+        e, l = pair // nL, pair % nL
+        a, n = a[owner], n[owner]
+        ge, gl, _, ga, gn = self.tile_grid
+        tile = (((e // te) * gl + l // tl) * ga + a // ta) * gn + n // tn
+        ext_l = np.minimum(tl, nL - (l // tl) * tl)
+        ext_a = np.minimum(ta, nA - (a // ta) * ta)
+        ext_n = np.minimum(tn, nN - (n // tn) * tn)
+        stride = ext_a * ext_n  # of K inside the tile
+        base = ((e % te) * ext_l + l % tl) * nK * stride + (a % ta) * ext_n + n % tn
+        kk = np.tile(np.arange(nK, dtype=np.int64), owner.size)
+        local = np.repeat(base, nK) + np.repeat(stride, nK) * kk
+        return np.repeat(tile, nK), local
 
     def to_grid(self, per_triple: np.ndarray, spread: bool = True) -> np.ndarray:
         """Spread per-triple values (leading axis ``n_triples``) onto the grid (a new array);
@@ -226,6 +327,23 @@ class Region:
         out = np.empty(self.shape + trailing, dtype=per_triple.dtype)
         out[...] = by_pair[:, :, None]
         return out
+
+
+def grouped_block_plan(cost: np.ndarray, group: np.ndarray, block_size: int):
+    """``(blocks, block_group)``: the triples of each group dealt into blocks by :func:`block_plan`,
+    groups in order of falling total cost (empty groups get no block)."""
+    n_groups = int(group.max()) + 1 if group.size else 0
+    total = np.bincount(group, weights=cost, minlength=n_groups)
+    order = np.argsort(group, kind="stable")  # triples by group, ascending within each
+    bounds = np.searchsorted(group[order], np.arange(n_groups + 1))
+    blocks, block_group = [], []
+    for g in np.argsort(-total, kind="stable"):
+        members = order[bounds[g]:bounds[g + 1]]
+        if members.size:
+            for b in block_plan(cost[members], block_size):
+                blocks.append(members[b])
+                block_group.append(g)
+    return blocks, np.asarray(block_group, dtype=np.int64)
 
 
 def block_plan(cost: np.ndarray, block_size: int) -> list[np.ndarray]:

@@ -2,38 +2,59 @@
 
 A result variable is grid-sized (10^8 points of float64 are 800 MB), but everything it is derived
 from is per *triple* (a few per cent of the points with the similarity reduction), except the
-plug edge ``1 - xi_p``, which has one value per grid point. So the file is written as follows:
+plug edge ``1 - xi_p``, which has one value per grid point. The file is cut into *tiles*
+(:class:`Tiles`, boxes of whole chunks, spanning the whole ``K`` axis when that fits), the tiles
+are joined into *groups* (:class:`.plan.Plan`: every triple's points lie in one group) and every
+block holds triples of one group. :class:`StreamWriter` writes a group's tiles as soon as its
+blocks are done, in a thread of its own while the other blocks are solved:
 
-1. every block is read once from the working store (:func:`.engine.assemble`); its per-triple
-   arrays go into memory, its ``1 - xi_p`` values are appended to the *bucket* file of the tile
-   they fall in (``scratch/`` inside the store: 12 bytes a point on disk, one block in memory);
-2. for each tile, a box of the grid made of whole chunks of the file, the values are derived by
-   :func:`.dataset.grid_values` (the function the in-memory result uses, elementwise, hence the
-   same bits) and written with the ``netCDF4`` library into the file, each chunk compressed once.
+1. a finished block's per-triple arrays go into memory (:meth:`StreamWriter.add`), its
+   ``1 - xi_p`` values too (as they came from the kernel: the store's copy is not read back)
+   until its group is complete, or, past :data:`PENDING_BYTES`, are read back from the store
+   (checked against its digest) when the group is written;
+2. the group's values are placed in its tiles (in memory; a group larger than
+   :data:`GROUP_POINTS`, e.g. one that holds every tile because ``eta`` values are shared across
+   the grid, goes through per-tile *bucket* files in ``scratch/`` instead);
+3. each tile's values are derived by :func:`.dataset.grid_values` (the function the in-memory
+   result uses, elementwise, hence the same bits) and written with the ``netCDF4`` library, each
+   chunk compressed once.
 
-Blocks cannot go into the file as they finish: the plan deals triples to blocks by cost across
-the whole grid (:func:`.plan.block_plan`), so every block touches every chunk, and a chunk can
-be compressed only once all blocks are in. The file is written under a temporary name inside the
-store and renamed when complete (:meth:`.store.WorkStore.publish`).
+The file is written under a temporary name inside the store and renamed when complete
+(:meth:`.store.WorkStore.publish`); a killed run leaves only that temporary file, which the next run
+deletes, and writes the whole file again from the stored blocks.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import queue
 import shutil
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import netCDF4
 import numpy as np
 
+from .. import outputs as out_
+from .. import stages
+from ..files import write_failure
 from ..parameters import DIMS
 from .dataset import chunk_shape, coordinates, global_attrs, grid_values, variable_encoding
+from .store import BlockDamaged
 
 # Points of one tile (times the profile length): its derived variables, a dozen grid-sized
 # temporaries, stay near 200 MB.
 TILE_POINTS = 1 << 21
+# A tile spans the whole K axis (so that blocks can be tile-aligned, see .plan) when that makes
+# it at most this many times TILE_POINTS.
+WHOLE_K_FACTOR = 2
+# Plug-edge values of finished blocks kept in memory until their group is written; beyond this,
+# a group's blocks are read back from the store (blocks finishing out of group order).
+PENDING_BYTES = 256 << 20
+# A group with more points than this is regrouped through bucket files on disk, not in memory.
+GROUP_POINTS = 4 * TILE_POINTS
 SCRATCH = "scratch"
 BUCKET = np.dtype([("local", "<i4"), ("value", "<f8")])
 
@@ -50,7 +71,13 @@ class Tiles:
         chunks = chunk_shape(self.shape, 8)
         target = max(math.prod(chunks), TILE_POINTS // max(1, n_xi))
         tile = list(chunks)
+        K = DIMS.index("K")
+        whole_K = math.prod(chunks) // chunks[K] * self.shape[K] <= WHOLE_K_FACTOR * target
+        if whole_K:
+            tile[K] = self.shape[K]
         for i in reversed(range(len(tile))):  # grow along the trailing axes first (C order)
+            if i == K and whole_K:
+                continue
             rest = math.prod(tile) // tile[i]
             tile[i] = min(self.shape[i], chunks[i] * max(1, target // (rest * chunks[i])))
         self.tile = tuple(tile)
@@ -160,28 +187,231 @@ def _create(nc, name, dims, shape, dtype, attrs, is_coord, compress):
     return var
 
 
-def write_tiles(path, spec, plan, per_triple, xi, profiles, tiles: Tiles,
-                buckets: Buckets | None, compress: bool = True) -> None:
-    """Write the result file at ``path`` tile by tile (see the module docstring).
+class StreamWriter:
+    """The result file of a run, written group by group as the blocks finish (module docstring).
 
-    The next tile's values are derived in a second thread while this one writes (the HDF5
-    library compresses without holding the GIL): two tiles in memory, both cores busy.
+    Blocks are announced with :meth:`add` (from the solving threads, or the main thread on a
+    cluster); a group complete is written by this object's thread, while other blocks are still
+    being solved. :meth:`finish` writes what is left and closes the file (at :attr:`tmp`, inside
+    the store, for the run to rename onto the output); :meth:`abort` stops and removes it.
+
+    Parameters
+    ----------
+    output : str
+        The result file (named in errors).
+    spec : SweepSpec
+    plan : Plan
+        Planned with ``tile=tiles.tile``.
+    store : WorkStore
+        The run's store: holds the temporary file, and every block (read back when needed).
+    xi : ndarray or None
+        Profile abscissae.
+    tiles : Tiles
+    compress : bool or str
+        See :func:`.dataset.variable_encoding`.
+    recompute : callable
+        ``recompute(k)`` solves block ``k`` again and puts it into the store (a stored block
+        found damaged when it is read back).
     """
 
-    def derive(i):
-        region = plan.region(tiles.slices(i))
-        one_minus = None if buckets is None else buckets.take(i, region.shape)
-        return region, grid_values(spec, region, per_triple, one_minus, xi, profiles)
+    def __init__(self, output, spec, plan, store, xi, tiles: Tiles, compress, recompute):
+        self.output, self.spec, self.plan, self.store = output, spec, plan, store
+        self.xi, self.tiles, self.compress, self.recompute = xi, tiles, compress, recompute
+        self.tmp = temp_path(store.directory, output)
+        n = plan.n_triples
+        # Zeros, not empty: a tile's derivation casts the whole status column, rows of blocks
+        # not yet finished included (they are never used, but garbage would warn on the cast).
+        self.per_triple = {"res": np.zeros((n, stages.N_R)),
+                           "steps": np.empty((n, 2), dtype=np.int64)}
+        self.profiles = None if xi is None else np.empty((n, stages.N_PROF, xi.size))
+        self.need_one_minus = out_.needs_plug_edge(spec.variables)
+        self._left = np.bincount(plan.block_group, minlength=len(plan.groups))
+        order = np.argsort(plan.block_group, kind="stable")
+        bounds = np.searchsorted(plan.block_group[order], np.arange(len(plan.groups) + 1))
+        self._blocks_of = [order[bounds[g]:bounds[g + 1]] for g in range(len(plan.groups))]
+        self._pending: dict[int, np.ndarray] = {}
+        self._pending_bytes = 0
+        self._lock = threading.Lock()
+        self._queue: queue.Queue = queue.Queue()
+        self._stop = False
+        self._error: BaseException | None = None
+        self._nc = None
+        self.tiles_written = 0
+        self.busy = 0.0  # seconds this writer's thread spent placing, deriving and writing
+        self.cpu = 0.0  # and its CPU seconds (the tile-deriving thread's not included)
+        self._thread = threading.Thread(target=self._loop, name="cc-writer", daemon=True)
+        self._thread.start()
 
-    with netCDF4.Dataset(path, "w", format="NETCDF4") as nc, \
-            ThreadPoolExecutor(1, thread_name_prefix="cc-tile") as pool:
-        ahead = pool.submit(derive, 0)
-        for i in range(tiles.count):
-            region, values = ahead.result()
-            if i + 1 < tiles.count:
-                ahead = pool.submit(derive, i + 1)
-            if i == 0:
-                create_variables(nc, spec, plan, xi, values, compress)
-            for name, (dims, value, _) in values.items():
-                nc[name][region.slices + (slice(None),) * (len(dims) - len(DIMS))] = value
-            del values
+    # -- called by the run ----------------------------------------------------------------------
+    def add(self, k: int, block: dict | None = None) -> None:
+        """Block ``k`` is finished: ``block`` its arrays as solved, or None to read them from the
+        store (a block of an earlier run). Raises the writer's error if it has failed."""
+        self._raise_if_failed()
+        if block is None:
+            block = self._read(k)
+        triples = self.plan.blocks[k]
+        self.per_triple["res"][triples] = block["res"]  # blocks hold disjoint triples
+        self.per_triple["steps"][triples] = block["steps"]
+        if self.profiles is not None:
+            self.profiles[triples] = block["profiles"]
+        g = int(self.plan.block_group[k])
+        with self._lock:
+            if self.need_one_minus:
+                values = block["one_minus"]
+                if self._pending_bytes + values.nbytes <= PENDING_BYTES:
+                    self._pending[k] = values
+                    self._pending_bytes += values.nbytes
+            self._left[g] -= 1
+            if self._left[g] == 0:
+                self._queue.put(g)
+
+    def finish(self) -> None:
+        """Write the groups still queued and close the file; every block must have been added."""
+        self._queue.put(None)
+        self._thread.join()
+        self._raise_if_failed()
+        if self._left.any() or self.tiles_written != self.tiles.count:  # a bug, not a user's error
+            raise RuntimeError(f"{self.tiles_written} of {self.tiles.count} tiles written, "
+                               f"{int(self._left.sum())} blocks missing")
+        try:
+            self._nc.close()
+        except (OSError, RuntimeError) as exc:
+            raise write_failure(self.output, exc) from None
+        finally:
+            self._nc = None
+
+    def abort(self) -> None:
+        """Stop the thread (after the group it is writing) and delete the unfinished file."""
+        self._stop = True
+        self._queue.put(None)
+        self._thread.join()
+        if self._nc is not None:
+            try:
+                self._nc.close()
+            except (OSError, RuntimeError):
+                pass
+            self._nc = None
+        try:
+            os.unlink(self.tmp)
+        except OSError:
+            pass
+
+    # -- the writer's thread --------------------------------------------------------------------
+    def _raise_if_failed(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def _loop(self) -> None:
+        try:
+            while not self._stop:
+                g = self._queue.get()
+                if g is None or self._stop:
+                    return
+                t0, c0 = time.perf_counter(), time.thread_time()
+                self._write_group(g)
+                self.busy += time.perf_counter() - t0
+                self.cpu += time.thread_time() - c0
+        except BaseException as exc:  # noqa: BLE001 (handed to the run, which raises it)
+            # As files.netcdf_output: the HDF5 library's RuntimeError and OSErrors are failures
+            # to write the output; anything else is a bug and passes unchanged.
+            if isinstance(exc, OSError) or type(exc) is RuntimeError:
+                exc = write_failure(self.output, exc)
+            self._error = exc
+
+    def _read(self, k: int) -> dict:
+        """Block ``k`` from the store, checked; computed again if it is damaged."""
+        triples = self.plan.blocks[k]
+        try:
+            return self.store.get(k, triples)
+        except BlockDamaged as exc:
+            self.store.discard(k, str(exc))
+            self.recompute(k)
+            return self.store.get(k, triples)
+
+    def _block_one_minus(self, k: int) -> np.ndarray:
+        with self._lock:
+            values = self._pending.pop(k, None)
+            if values is not None:
+                self._pending_bytes -= values.nbytes
+        return values if values is not None else self._read(k)["one_minus"]
+
+    def _write_group(self, g: int) -> None:
+        tiles_g = self.plan.groups[g]
+        take = self._place_one_minus(g) if self.need_one_minus else None
+
+        def derive(i):
+            region = self.plan.region(self.tiles.slices(i))
+            one_minus = None if take is None else take(i, region.shape)
+            return region, grid_values(self.spec, region, self.per_triple, one_minus, self.xi,
+                                       self.profiles)
+
+        # The next tile is derived in a second thread while HDF5 compresses this one (it does
+        # not hold the GIL).
+        with ThreadPoolExecutor(1, thread_name_prefix="cc-tile") as pool:
+            ahead = pool.submit(derive, tiles_g[0])
+            for j in range(len(tiles_g)):
+                region, values = ahead.result()
+                if j + 1 < len(tiles_g):
+                    ahead = pool.submit(derive, tiles_g[j + 1])
+                if self._nc is None:
+                    self._nc = netCDF4.Dataset(self.tmp, "w", format="NETCDF4")
+                    create_variables(self._nc, self.spec, self.plan, self.xi, values,
+                                     self.compress)
+                for name, (dims, value, _) in values.items():
+                    self._nc[name][region.slices + (slice(None),) * (len(dims) - len(DIMS))] = value
+                del values
+                self.tiles_written += 1
+
+    def _place_one_minus(self, g: int):
+        """``take(tile, shape)``: the plug-edge values of group ``g``'s tiles, regrouped from
+        its blocks in memory, or through bucket files for a group above :data:`GROUP_POINTS`."""
+        tiles_g = self.plan.groups[g]
+        blocks = self._blocks_of[g]
+        sizes = {int(i): math.prod(s.stop - s.start for s in self.tiles.slices(i)) for i in tiles_g}
+        if sum(sizes.values()) > GROUP_POINTS:
+            buckets = Buckets(os.path.join(self.store.directory, SCRATCH), self.tiles)
+
+            def gather(k):
+                buckets.add(self.plan.inputs(k).flat, self._block_one_minus(k))
+
+            # Reading, checking and sorting a block is numpy and hashlib work that leaves the GIL.
+            with ThreadPoolExecutor(2, thread_name_prefix="cc-gather") as pool:
+                for _ in pool.map(gather, blocks):
+                    pass
+            return buckets.take
+        out = {i: np.empty(n) for i, n in sizes.items()}
+        count = dict.fromkeys(sizes, 0)
+        for k in blocks:
+            values = self._block_one_minus(k)
+            tile, local = self._tile_local(k)
+            if len(out) == 1:
+                (i,) = out
+                out[i][local] = values
+                count[i] += values.size
+                continue
+            for i in out:
+                m = tile == i
+                out[i][local[m]] = values[m]
+                count[i] += int(np.count_nonzero(m))
+        bad = [i for i in out if count[i] != sizes[i]]
+        if bad:  # blocks hold disjoint points: a bug, never a user's error
+            raise RuntimeError(f"tile {bad[0]}: {count[bad[0]]} plug-edge values for "
+                               f"{sizes[bad[0]]} points")
+
+        def take(i, shape):
+            return out.pop(int(i)).reshape(shape)
+
+        return take
+
+
+    def _tile_local(self, k: int):
+        """``(tile, local)`` of block ``k``'s entries (:meth:`Tiles.locate` of its grid indices)."""
+        found = self.plan.tile_local(k)
+        return found if found is not None else self.tiles.locate(self.plan.inputs(k).flat)
+
+
+def temp_path(directory: str, output: str) -> str:
+    """A fresh temporary file name for ``output`` inside ``directory`` (the store, whose opening
+    deletes ``*.tmp`` leftovers of a killed run)."""
+    name = os.path.basename(os.path.abspath(output))
+    return os.path.join(directory, f".{name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")

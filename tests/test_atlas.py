@@ -186,3 +186,53 @@ def test_scalars_give_scalars(atlas):
     leaf, low, eta, err = atlas.transitions(0.3, 0.85)
     assert leaf.shape == low.shape == err.shape == () and eta.shape == (2,)
     assert at.classify(0.01, 10.0, 0.5, 0.3, 0.85, atlas=atlas).shape == ()
+
+
+def test_classify_margins_is_classify_margin_on_arrays():
+    """The array version gives the scalar one's code at every point, the boundaries included."""
+    from cosserat_channel import analytic
+
+    rng = np.random.default_rng(5)
+    A = np.r_[rng.uniform(-3, 3, 2000), -1.0, -1.0, 1 - 2 * 0.7**2, 0.5, 0.5, -2.0]
+    N = np.r_[rng.uniform(0.05, 2, 2000), 0.5, 2.0, 0.7, 1.0, 1.0, 0.1]
+    margin = np.r_[rng.uniform(-2, 2, 2000), 0.0, -1.0, 0.3, 0.0, np.nan, 1.0]
+    got = analytic.classify_margins(margin, A, N)
+    want = [analytic.classify_margin(m, a, n) for m, a, n in zip(margin, A, N)]
+    assert got.dtype == np.int8 and got.tolist() == want
+    assert len(set(want)) == 4
+
+
+def test_regime_map_takes_an_edge_on_its_own_grid_as_it_is(atlas):
+    """An edge given on the map's contouring grid is used without interpolation, and agrees with
+    the same edge interpolated from a coarser grid (to the interpolation's error)."""
+    from cosserat_channel.plot import regimes as pr
+
+    A = np.linspace(*BOX_A, pr.MAP_GRID)
+    N = np.linspace(*BOX_N, pr.MAP_GRID)
+    exact = pr._traced_on_grid("A", "N", A, N, {}, atlas.boundary(A, N))
+    want = atlas.boundary(A, N)["eta_max"].values.T
+    np.testing.assert_array_equal(exact["eta_max"], want)
+    coarse = pr._traced_on_grid("A", "N", A, N, {}, atlas.boundary(np.linspace(*BOX_A, 41),
+                                                                     np.linspace(*BOX_N, 41)))
+    np.testing.assert_allclose(coarse["eta_max"], exact["eta_max"], rtol=1e-4)
+    # One plotted direction, the other fixed: a column broadcast along the fixed axis.
+    line = pr._traced_on_grid("A", "eps", A, np.array([0.01, 0.02]), {"N": 0.85},
+                              atlas.boundary(A, [0.85]))
+    np.testing.assert_array_equal(line["eta_max"][0], atlas.boundary(A, [0.85])["eta_max"].values[:, 0])
+    assert line["eta_max"].shape == (2, A.size)
+
+
+def test_regime_map_from_an_atlas_needs_no_scipy(atlas_file, tmp_path):
+    """plot --regime --atlas in a fresh process imports neither scipy.optimize (line plots'
+    asymptotics) nor scipy.interpolate (the edge is evaluated on the map's grid)."""
+    from cosserat_channel.sweep import run_sweep
+
+    res = tmp_path / "r.nc"
+    run_sweep({"grid": {"eps": 0.1, "L": 10, "K": 0.5, "A": {"linspace": [*BOX_A, 4]},
+                        "N": {"linspace": [*BOX_N, 3]}}}, workers=1).to_netcdf(res)
+    code = ("import sys; from cosserat_channel.cli import main; "
+            f"assert main(['plot', {str(res)!r}, '--regime', '--x', 'A', '--y', 'N', '--atlas', "
+            f"{str(atlas_file)!r}, '-o', {str(tmp_path / 'm.png')!r}]) == 0; "
+            "bad = [m for m in ('scipy.optimize', 'scipy.interpolate', 'numba') if m in sys.modules]; "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)

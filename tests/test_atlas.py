@@ -140,6 +140,7 @@ def test_file_round_trip_and_reading_without_numba(atlas, atlas_file, tmp_path):
 @pytest.mark.parametrize("kwargs, match", [
     (dict(tol=1e-9), "tol"), (dict(degree=3), "degree"), (dict(max_depth=9), "max_depth"),
     (dict(A_range=(1, 0)), "A range"), (dict(N_range=(0, 1)), "N range"),
+    (dict(max_degree=4), "max_degree"), (dict(max_degree=128), "max_degree"),
 ])
 def test_build_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ParameterError, match=match):
@@ -236,3 +237,75 @@ def test_regime_map_from_an_atlas_needs_no_scipy(atlas_file, tmp_path):
             "bad = [m for m in ('scipy.optimize', 'scipy.interpolate', 'numba') if m in sys.modules]; "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# The error estimate and the refinement, on edges whose truth is known exactly
+# ---------------------------------------------------------------------------------------------
+def _synthetic_edge(monkeypatch, noise=0.0):
+    """Replace trace_edge by an analytic edge (one transition), with optional noise of relative
+    size ``noise`` that is a fixed function of (A, N) (as the solver's is): returns log eta."""
+    def log_eta(A, N):
+        return np.log(0.5 + A + N) - 0.3 * np.log1p(0.25 * (A - 2.2) ** 2 * N)
+
+    def fake(A, N, *, eta_range, workspace=None, **kw):
+        e = np.exp(log_eta(A, N))
+        if noise:
+            e *= 1.0 + noise * np.sin(1e4 * A + 3e4 * N)
+        return regimes.Edge(A, N, e, regimes.EDGE_BOUNDED, eta_range[0], st.EPS_TOO_LARGE_PATH,
+                            np.array([e]))
+
+    monkeypatch.setattr(regimes, "trace_edge", fake)
+    return log_eta
+
+
+def test_estimate_bounds_the_error_and_is_tighter_than_the_tail_sum():
+    """On analytic and on nearly singular functions the estimate is above the interpolant's
+    measured error and never above the sum of the two highest degrees' coefficients; where the
+    coefficients decay geometrically it is at least 3 times below that sum."""
+    x = np.linspace(-1, 1, 201)
+    cases = [(lambda a, n: np.log(3.0 + a + 0.5 * n), True),
+             (lambda a, n: 1.0 / (2.5 - a - 0.3 * n), True),
+             (lambda a, n: np.exp(0.7 * a) * np.cos(n), False),
+             (lambda a, n: np.log(1.2 + a) + np.sqrt(2.2 - n), False)]
+    for f, geometric in cases:
+        for p, q in ((8, 8), (16, 8), (8, 16), (16, 16), (32, 32)):
+            xa, xn = at.lobatto(p), at.lobatto(q)
+            coef = at._coefficients(f(xa[:, None], xn[None, :])[None], p, q)
+            err, _, _ = at._estimate(coef)
+            old = at._tail(coef)[0]
+            got = at._vandermonde(x, p) @ coef[0] @ at._vandermonde(x, q).T
+            actual = np.abs(got - f(x[:, None], x[None, :])).max()
+            assert actual <= err, (p, q, actual, err)
+            assert err <= 1.01 * old + at.ROUNDOFF  # (the corner degrees count in both directions)
+            if geometric and err > 1e3 * at.ROUNDOFF:
+                assert err * 3 <= old, (p, q, err, old)
+
+
+def test_p_refinement_reuses_every_trace_and_meets_tol(monkeypatch):
+    """A smooth edge is met by raising the degree (nested nodes: every trace is a node of the
+    final cell), within tol of the exact edge at random points."""
+    log_eta = _synthetic_edge(monkeypatch)
+    a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=4, max_depth=2, max_degree=32)
+    assert a.leaf_n.tolist() == [1] and a.leaf_degree.max() > 4
+    assert a.attrs["n_traces"] == np.prod(a.leaf_degree[0] + 1)
+    rng = np.random.default_rng(1)
+    A, N = rng.uniform(0, 1, 500), rng.uniform(1, 2, 500)
+    _, _, eta, err = a.transitions(A, N)
+    rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
+    assert rel.max() <= 1e-8 and (rel <= err).all() and (err <= 1e-8).all()
+
+
+def test_refinement_stops_where_the_traces_are_noisier_than_tol(monkeypatch):
+    """Traces with 1e-6 noise: refinement stops once it no longer cuts the estimate (far fewer
+    traces than splitting to max_depth), and the estimate covers the error against the exact edge."""
+    log_eta = _synthetic_edge(monkeypatch, noise=1e-6)
+    a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=8, max_depth=3, max_degree=16)
+    uniform = (8 * 8 + 1) ** 2
+    assert a.attrs["n_traces"] < uniform / 4
+    assert (a.leaf_error > 1e-8).any() and (a.leaf_level < 3).all()
+    rng = np.random.default_rng(2)
+    A, N = rng.uniform(0, 1, 500), rng.uniform(1, 2, 500)
+    _, _, eta, err = a.transitions(A, N)
+    rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
+    assert (rel <= err + 1e-6).all()

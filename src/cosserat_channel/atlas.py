@@ -279,11 +279,24 @@ class Atlas:
         known = leaf >= 0
         known[known] = self.leaf_n[leaf[known]] >= 0
         if known.any() and kmax:
-            lf = leaf[known]
-            alo, ahi, nlo, nhi = (b[lf] for b in self.leaf_bounds())
-            ta = _vandermonde(2.0 * (A[known] - alo) / (ahi - alo) - 1.0, self.coef.shape[-2] - 1)
-            tn = _vandermonde(2.0 * (N[known] - nlo) / (nhi - nlo) - 1.0, self.coef.shape[-1] - 1)
-            eta[known] = np.exp(np.einsum("pi,pkij,pj->pk", ta, self.coef[lf], tn))
+            # Leaf by leaf, each at its own degrees: gathering every point's coefficients would
+            # take points x (P+1)(Q+1) floats (a 400 x 400 map at degree 32: over 1 GB).
+            idx = np.flatnonzero(known)
+            lf = leaf[idx]
+            order = np.argsort(lf, kind="stable")
+            idx, lf = idx[order], lf[order]
+            starts = np.flatnonzero(np.r_[True, lf[1:] != lf[:-1]])
+            bounds = self.leaf_bounds()
+            logt = np.empty((idx.size, kmax))
+            for s0, s1 in zip(starts, np.r_[starts[1:], idx.size]):
+                k = lf[s0]
+                pts = idx[s0:s1]
+                pa, pn = self.leaf_degree[k]
+                alo, ahi, nlo, nhi = (b[k] for b in bounds)
+                ta = _vandermonde(2.0 * (A[pts] - alo) / (ahi - alo) - 1.0, pa)
+                tn = _vandermonde(2.0 * (N[pts] - nlo) / (nhi - nlo) - 1.0, pn)
+                logt[s0:s1] = np.einsum("pi,kij,pj->pk", ta, self.coef[k, :, :pa + 1, :pn + 1], tn)
+            eta[idx] = np.exp(logt)
         low[known] = self.leaf_low[leaf[known]]
         err[known] = self.leaf_error[leaf[known]]
         return leaf.reshape(shape), low.reshape(shape), eta.reshape(shape + (kmax,)), err.reshape(shape)

@@ -61,6 +61,12 @@ RATE_GEOMETRIC = 0.5  # coefficient decay per degree below which a tail is extra
 TAIL_SAFETY = 2.0  # factor on the extrapolated tail
 REFINE_GAIN = 4.0  # a refinement that does not cut the estimate by this much stops (noise)
 ROUNDOFF = 1e-13  # floor of an estimate: round-off of the interpolant of log eta
+# Factor on the two-degree sum where the coefficients do not decay, per unit of the cell's
+# largest degree. One trace off by d (a node landed low in a ragged stretch of the solver's
+# edge) puts only ~3d/p into that sum at degree p (measured at p = 16: 0.16 d for a node on a
+# side, 0.28 d inside), while the interpolant is off by d next to that node: p times the sum
+# leaves a margin of about 2.5.
+PLATEAU_SAFETY = 1.0
 MAX_DEPTH = 6  # splits of a root cell; the raster of leaves is (roots * 2^depth)^2
 MAX_DEPTH_LIMIT = 8
 SAFETY = 2.0  # undecided band: SAFETY * max(tol, the cell's error estimate), relative in eta
@@ -114,7 +120,7 @@ def _tail(coef):
     return np.abs(coef[..., mask]).sum(axis=-1)
 
 
-def _direction_tail(S):
+def _direction_tail(S, plateau):
     """Tail of one direction from ``S[k]``, the summed magnitudes of the degree-k coefficients.
 
     Returns ``(tail, rate)``. Where the last six degrees decay geometrically (``rate`` per degree
@@ -123,20 +129,20 @@ def _direction_tail(S):
     rate)``, or ``S[p-1] rate^2 / (1 - rate)`` where ``S[p]`` is small by parity (the larger is
     taken), and the interpolant's error (aliasing included) to twice that; the estimate is
     :data:`TAIL_SAFETY` times more, and never above the two-degree sum. Elsewhere (slow decay, or a
-    plateau of noise in the traces) it is the two-degree sum ``S[p-1] + S[p]``, which is what a
-    plateau at one level means pointwise.
+    plateau of noise in the traces) it is ``plateau`` times the two-degree sum
+    ``S[p-1] + S[p]``.
     """
     p = S.size - 1
     last = S[p] + S[p - 1]
     if p < 3:
-        return last, 1.0
+        return plateau * last, 1.0
     tiny = 1e-300
     rate = min(1.0, math.sqrt((last + tiny) / (S[p - 2] + S[p - 3] + tiny)))
     if p < 5:  # one pair of pairs: enough to ask for a higher degree, not to extrapolate
-        return last, rate
+        return plateau * last, rate
     rate = max(rate, min(1.0, math.sqrt((S[p - 2] + S[p - 3] + tiny) / (S[p - 4] + S[p - 5] + tiny))))
     if rate >= RATE_GEOMETRIC:
-        return last, rate
+        return plateau * last, rate
     fitted = TAIL_SAFETY * 2.0 * max(S[p], S[p - 1] * rate) * rate / (1.0 - rate)
     return min(fitted, last), rate
 
@@ -144,20 +150,25 @@ def _direction_tail(S):
 def _estimate(coef):
     """Error estimate of a cell's interpolants ``coef`` ``(k, p+1, q+1)`` in ``log eta``.
 
-    Returns ``(error, tails, rates)``: the largest over the transitions of the sum of the two
-    directions' tails (:func:`_direction_tail`), and per direction (A, N) the largest tail and
-    rate.
+    Returns ``(error, tails, rates, raw)``: the largest over the transitions of the sum of the
+    two directions' tails (:func:`_direction_tail`); per direction (A, N) the largest tail and
+    rate; and the largest two-degree sum of both directions without any factor (what the
+    refinement compares before and after, like with like).
     """
     tails = np.zeros(2)
     rates = np.zeros(2)
     err = 0.0
+    raw = 0.0
+    plateau = PLATEAU_SAFETY * (max(coef.shape[-2:]) - 1)
     for c in np.abs(coef):
-        ta, ra = _direction_tail(c.sum(axis=1))
-        tn, rn = _direction_tail(c.sum(axis=0))
+        sa, sn = c.sum(axis=1), c.sum(axis=0)
+        ta, ra = _direction_tail(sa, plateau)
+        tn, rn = _direction_tail(sn, plateau)
+        raw = max(raw, sa[-1] + sa[-2] + sn[-1] + sn[-2])
         err = max(err, ta + tn)
         tails = np.maximum(tails, (ta, tn))
         rates = np.maximum(rates, (ra, rn))
-    return max(err, ROUNDOFF), tails, rates
+    return max(err, ROUNDOFF), tails, rates, raw
 
 
 @dataclass
@@ -657,8 +668,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
 
     no_coef = np.empty((0, 1, 1))
     leaves = []
-    # (level, i, j, degree along A, along N, the cell's estimate at its previous degree, the
-    # parent's estimate; inf where there is none)
+    # (level, i, j, degree along A, along N, the cell's raw tail at its previous degree, the
+    # parent's raw tail; inf where there is none)
     queue = [(0, i, j, degree, degree, math.inf, math.inf)
              for i in range(roots[0]) for j in range(roots[1])]
     while queue:
@@ -685,24 +696,25 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
                 leaves.append((level, i, j, 0, -1, math.inf, no_coef, (pa, pn)))
         else:
             low, n_tr = next(iter(sig))
-            coef, err = np.empty((0, pa + 1, pn + 1)), 0.0
+            coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
             tails, rates = np.zeros(2), np.zeros(2)
             if n_tr:
                 logt = np.log([[trace(a, b)[1] for b in nn] for a in na])  # (p, q, k)
                 coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
-                err, tails, rates = _estimate(coef)
+                err, tails, rates, raw = _estimate(coef)
             grow = [not uniform and t > tol / 2 and r < RATE_GEOMETRIC and 2 * p <= max_degree
                     for t, r, p in zip(tails, rates, (pa, pn))]
             # Stalled: a higher degree did not pay, or a child that will not raise its degree
-            # (its coefficients do not decay) is no better than its parent was.
-            stalled = err > before / REFINE_GAIN or (err > parent / REFINE_GAIN and not any(grow))
+            # (its coefficients do not decay) is no better than its parent was. Compared on the
+            # raw two-degree sums: the estimates' factors change with the degree and the decay.
+            stalled = raw > before / REFINE_GAIN or (raw > parent / REFINE_GAIN and not any(grow))
             if err <= tol or stalled:
                 leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn)))
             elif any(grow):
-                queue.insert(0, (level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]), err,
+                queue.insert(0, (level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]), raw,
                                  parent))
             elif can_split:
-                queue.extend(c[:5] + (math.inf, err) for c in children)
+                queue.extend(c[:5] + (math.inf, raw) for c in children)
             else:
                 leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn)))
         if progress is not None:

@@ -707,7 +707,10 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
             # Stalled: a higher degree did not pay, or a child that will not raise its degree
             # (its coefficients do not decay) is no better than its parent was. Compared on the
             # raw two-degree sums: the estimates' factors change with the degree and the decay.
-            stalled = raw > before / REFINE_GAIN or (raw > parent / REFINE_GAIN and not any(grow))
+            # A split cuts a degree-p tail by about 2^(p+1) where the edge is smooth: at low
+            # degrees ask for less than REFINE_GAIN.
+            gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
+            stalled = raw > before / gain or (raw > parent / gain and not any(grow))
             if err <= tol or stalled:
                 leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn)))
             elif any(grow):

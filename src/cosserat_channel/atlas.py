@@ -14,15 +14,16 @@ searched range, an ``eta_min`` appears, the wall line crosses it). Where they do
 estimate of the interpolant (:func:`_estimate`: the Chebyshev tail of each direction, extrapolated
 where the coefficients decay geometrically) decides: below ``tol`` the cell is a leaf; above it the
 degree is doubled along a direction whose coefficients still decay (the nodes are nested: every
-trace is kept), else the cell is split; and a refinement that does not cut the estimate by
-:data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
+trace is kept), else the cell is split; and a refinement that does not cut the tail (the raw
+two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
 smooth at that level). Splits go down to ``max_depth``. A cell still mixed there is *unresolved*
 (every point in it is undecided); a leaf whose estimate is still above ``tol`` keeps its own
 estimate, which :func:`classify` uses in place of ``tol``.
 
 Why not python-adaptive's ``Learner2D``: it interpolates piecewise-linearly on a triangulation, so
 its error falls like ``h^2``; the edge is analytic, and the Chebyshev cells reach 1e-8 with a few
-thousand traces where a linear interpolant needs millions (measured in ``benchmarks/bench_atlas.py``
+hundred traces where the edge is smooth (289 on A in [-0.5, 0.5], N in [1, 1.25]), while a linear
+interpolant needs millions (measured in ``benchmarks/bench_atlas.py``
 and ``docs/performance.md``). It also learns one scalar, while a point here has zero to two
 transitions and the number changes across the plane.
 
@@ -32,9 +33,9 @@ lies is known to about 1e-8 relative (how far it moves with the solver's toleran
 is at least :data:`TOL_MIN`. In places the solver's edge is worse than that: at N = 1.5 the
 status alternates between ok and eps_too_large_path within ~2e-6 below the bisected edge (measured
 at A = 0.09), so a trace lands anywhere in that band; the atlas's cells there stop refining at
-an estimate of that size (docs/performance.md). The traces search twice the claimed range of ``eta`` each way, so
-that a transition just outside the claimed range keeps the signature of the cells next to it and
-is interpolated, not lost.
+an estimate of that size (docs/performance.md). The traces search twice the claimed range of
+``eta`` each way, so that a transition just outside the claimed range keeps the signature of the
+cells next to it and is interpolated, not lost.
 
 Reading an atlas (:func:`load_atlas`, :func:`classify`, :meth:`Atlas.boundary`) imports numpy
 and xarray only: building one (:func:`build_atlas`) imports the solver.
@@ -601,7 +602,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
       geometrically, by doubling the degree there (the Chebyshev-Lobatto nodes of degree ``2p``
       hold those of degree ``p``: every trace made is kept), up to ``max_degree``;
     * else split into four (h), the children starting again at ``degree``;
-    * and not at all once a refinement has not cut the estimate by :data:`REFINE_GAIN`: the
+    * and not at all once a refinement has not cut the raw tail by :data:`REFINE_GAIN`: the
       traces are then noisier than ``tol`` there (the solver's edge is not smooth at that level),
       and the leaf keeps its estimate, which :func:`classify` uses in place of ``tol``.
 

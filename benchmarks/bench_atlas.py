@@ -3,9 +3,12 @@
 On one box of ``(A, N)`` (default A in [-0.5, 0.5], N in [1, 1.5]: one edge eta_max, steep
 towards A = -1):
 
-1. builds the atlas (``--tol``, default 1e-8) and counts its traces and status solves;
+1. builds the atlas (``--tol``, default 1e-8), or reads one (``--atlas-in``), and counts its
+   traces and status solves;
 2. compares its ``eta_max`` with direct bisection (``regimes.trace_edge``) at ``--points``
-   random ``(A, N)``;
+   random ``(A, N)``, against ``tol`` and against each leaf's own estimate; where a point is
+   outside its estimate, probes the status between the two values (``--probe`` etas) to say
+   whether the solver's edge itself is ragged there (ok and not ok alternating);
 3. the uniform-grid baseline: traces an ``n x n`` equispaced grid (``--uniform``, default 33),
    interpolates it bicubically (``scipy.interpolate.RectBivariateSpline``) on the nested 9, 17
    and 33 grids, measures the error at the same random points, and extrapolates with the measured
@@ -17,6 +20,10 @@ towards A = -1):
    placed 1e-9 to 1e-2 (relative) from the edge;
 6. times ``cosserat-channel plot --regime --atlas`` on a 41 x 26 sweep of the box (a fresh
    process, start-up included).
+
+``--parts`` runs some of ``accuracy,uniform,learner,classify,plot`` (default all; the atlas is
+always built or read). The uniform grid's traces are the expensive part after the atlas (33 x 33
+by default); the 200 reference bisections serve the atlas, the uniform grids and the learner alike.
 
 Run: ``PYTHONPATH=src .venv/bin/python benchmarks/bench_atlas.py --atlas-out atlas.nc``.
 """
@@ -44,6 +51,12 @@ def main():
     ap.add_argument("--N", default="1:1.5")
     ap.add_argument("--tol", type=float, default=1e-8)
     ap.add_argument("--max-depth", type=int, default=3)
+    ap.add_argument("--max-degree", type=int, default=None, help="default: the package's")
+    ap.add_argument("--parts", default="accuracy,uniform,learner,classify,plot",
+                    help="comma-separated parts to run after the atlas")
+    ap.add_argument("--atlas-in", help="read this atlas instead of building one")
+    ap.add_argument("--probe", type=int, default=16,
+                    help="statuses probed between atlas and reference where the estimate is exceeded")
     ap.add_argument("--points", type=int, default=200)
     ap.add_argument("--uniform", type=int, default=33, help="finest uniform grid (2^k + 1)")
     ap.add_argument("--learner", type=int, default=300)
@@ -51,12 +64,16 @@ def main():
     ap.add_argument("--atlas-out", help="also keep the atlas in this file")
     ap.add_argument("--seed", type=int, default=14)
     args = ap.parse_args()
+    parts = set(args.parts.split(",")) - {""}
+    unknown = parts - {"accuracy", "uniform", "learner", "classify", "plot"}
+    if unknown:
+        ap.error(f"--parts: unknown {sorted(unknown)}")
+    if parts & {"uniform", "learner"}:
+        parts.add("accuracy")  # they are measured at its reference points
 
-    from scipy.interpolate import RectBivariateSpline
 
     from cosserat_channel import atlas as at
-    from cosserat_channel import model, regimes
-    from cosserat_channel import status as st
+    from cosserat_channel import regimes
     from cosserat_channel.measure import machine
     from cosserat_channel.solve import Workspace
 
@@ -65,25 +82,61 @@ def main():
     rng = np.random.default_rng(args.seed)
     trace_range = (1e-3 / at.TRACE_WIDEN, 100.0 * at.TRACE_WIDEN)
     log(f"machine: {machine.machine()}; {machine.git_revision()}")
-    log(f"box A {A_rng}, N {N_rng}, tol {args.tol:g}, degree {at.DEGREE}, max depth {args.max_depth}")
+    max_degree = at.MAX_DEGREE if args.max_degree is None else args.max_degree
+    log(f"box A {A_rng}, N {N_rng}, tol {args.tol:g}, degree {at.DEGREE}, max degree "
+        f"{max_degree}, max depth {args.max_depth}; load {os.getloadavg()[0]:.1f}")
 
     # 1. the atlas ---------------------------------------------------------------------------
     regimes.trace_edge(0.0, 1.0)  # load the compiled kernels before timing
     t0 = time.perf_counter()
-    atlas = at.build_atlas(A_rng, N_rng, tol=args.tol, max_depth=args.max_depth)
+    if args.atlas_in:
+        atlas = at.load_atlas(args.atlas_in)
+        if atlas.box != (*A_rng, *N_rng):
+            ap.error(f"--atlas-in covers {atlas.box}, not the box asked for")
+    else:
+        atlas = at.build_atlas(A_rng, N_rng, tol=args.tol, max_depth=args.max_depth,
+                               max_degree=max_degree)
     t_build = time.perf_counter() - t0
     n_tr, n_sol = atlas.attrs["n_traces"], atlas.attrs["n_solves"]
     per_trace = n_sol / n_tr
-    log(f"atlas: {t_build:.1f} s, {atlas.leaf_n.size} cells (levels {np.bincount(atlas.leaf_level)}), "
+    degrees = ", ".join(f"{p}x{q}: {c}" for (p, q), c in zip(
+        *np.unique(atlas.leaf_degree, axis=0, return_counts=True)))
+    log(f"atlas: {t_build:.1f} s{' (read)' if args.atlas_in else ''}, {atlas.leaf_n.size} cells "
+        f"(levels {np.bincount(atlas.leaf_level)}; degrees {degrees}), "
         f"{int((atlas.leaf_n < 0).sum())} unresolved, {n_tr} traces, {n_sol} solves "
-        f"({per_trace:.1f} per trace), largest cell estimate {np.max(atlas.leaf_error):.2e}")
+        f"({per_trace:.1f} per trace), cell estimates {np.min(atlas.leaf_error):.1e} to "
+        f"{np.max(atlas.leaf_error):.1e}, {int(np.sum(atlas.leaf_error > args.tol))} above tol; "
+        f"load {os.getloadavg()[0]:.1f}")
     if args.atlas_out:
         at.save_atlas(atlas, args.atlas_out)
+    if not parts & {"accuracy", "classify", "plot"}:
+        return
+    ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
+    if "accuracy" in parts:
+        atlas_err, A, N, ok, ref = accuracy(args, atlas, A_rng, N_rng, rng, ws, trace_range)
+    else:
+        rng.uniform(size=2 * args.points)  # the classify points stay those of a full run
+    if "uniform" in parts:
+        uniform(args, atlas, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref, per_trace)
+    if "learner" in parts:
+        learner(args, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref)
+    if "classify" in parts:
+        classify(args, atlas, A_rng, N_rng, rng, ws)
+    if "plot" in parts:
+        plot(atlas, A_rng, N_rng)
 
-    # 2. eta_max against direct bisection ----------------------------------------------------
+
+def errors_of(interp, A, N, ref):
+    got = np.array([interp(a, n) for a, n in zip(A, N)])
+    return float(np.max(np.abs(got - np.log(ref))))
+
+def accuracy(args, atlas, A_rng, N_rng, rng, ws, trace_range):
+    """2. eta_max of the atlas against direct bisection at random (A, N)."""
+    from cosserat_channel import regimes
+    from cosserat_channel import status as st
+
     A = rng.uniform(*A_rng, args.points)
     N = rng.uniform(*N_rng, args.points)
-    ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
     t0 = time.perf_counter()
     direct = [regimes.trace_edge(a, n, eta_range=trace_range, workspace=ws) for a, n in zip(A, N)]
     t_direct = time.perf_counter() - t0
@@ -94,46 +147,89 @@ def main():
     same = n_ref == np.sum(np.isfinite(eta), axis=1)
     rel = np.abs(np.log(ours / ref))
     ok = same & np.isfinite(rel)
-    within = rel[ok] <= np.fmax(args.tol, err[ok])
+    bound = np.fmax(args.tol, err)
+    within = rel[ok] <= bound[ok]
     atlas_err = float(np.max(rel[ok]))
+    clean = bound <= args.tol
     log(f"eta_max at {args.points} random (A, N): {ok.sum()} compared ({(~same).sum()} with "
         f"another number of transitions), max relative error {atlas_err:.2e} (tol {args.tol:g}), "
-        f"{within.sum()} within max(tol, cell estimate), {np.sum(rel[ok] <= args.tol)} within tol; "
-        f"direct bisection {t_direct / args.points * 1e3:.0f} ms per (A, N)")
+        f"median {np.median(rel[ok]):.1e}, {within.sum()} within max(tol, cell estimate), "
+        f"{np.sum(rel[ok] <= args.tol)} within tol; in leaves whose estimate is within tol "
+        f"({np.sum(clean & ok)} points) max {np.max(rel[ok & clean], initial=0):.2e}; where the "
+        f"estimate is above tol ({np.sum(~clean & ok)} points) max "
+        f"{np.max(rel[ok & ~clean], initial=0):.2e}, largest error / estimate "
+        f"{np.max(rel[ok & ~clean] / bound[ok & ~clean], initial=0):.2f}; direct bisection "
+        f"{t_direct / args.points * 1e3:.0f} ms per (A, N); load {os.getloadavg()[0]:.1f}")
+    # Where a point is outside its estimate: is the solver's edge itself ragged between the
+    # atlas's value and the reference (ok and not ok alternating)?
+    for k in np.flatnonzero(ok & (rel > bound)):
+        lo, hi = sorted((ours[k], ref[k]))
+        etas = np.geomspace(lo / (1 + 1e-6), hi * (1 + 1e-6), args.probe)
+        flags = [ws.status(e, A[k], N[k], regimes.EDGE_RTOL, regimes.EDGE_ATOL) == st.OK
+                 for e in etas]
+        flips = int(np.sum(np.diff(flags) != 0))
+        log(f"  outside its estimate: A = {A[k]:.6f}, N = {N[k]:.6f}: atlas {ours[k]:.10g}, "
+            f"direct {ref[k]:.10g} (relative {rel[k]:.2e}, estimate {bound[k]:.2e}); status over "
+            f"{args.probe} etas between them: {''.join('o' if f else 'x' for f in flags)} "
+            f"({flips} changes{': the edge is ragged there' if flips > 1 else ''})")
+    return atlas_err, A[ok], N[ok], ok, ref[ok]
 
-    def errors_of(interp):
-        got = np.array([interp(a, n) for a, n in zip(A[ok], N[ok])])
-        return float(np.max(np.abs(got - np.log(ref[ok]))))
 
-    # 3. uniform grids, bicubic ----------------------------------------------------------------
+def uniform(args, atlas, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref, per_trace):
+    """3. uniform grids, bicubic."""
+    from scipy.interpolate import RectBivariateSpline
+
+    from cosserat_channel import regimes
+
+    n_tr = atlas.attrs["n_traces"]
     n = args.uniform
     ga, gn = np.linspace(*A_rng, n), np.linspace(*N_rng, n)
     t0 = time.perf_counter()
-    grid = np.array([[regimes.trace_edge(a, b, eta_range=trace_range, workspace=ws).eta_max
+    solves = _CountingStatus(ws)
+    grid = np.array([[regimes.trace_edge(a, b, eta_range=trace_range, workspace=solves).eta_max
                       for b in gn] for a in ga])
     t_grid = time.perf_counter() - t0
+    uni_per_trace = solves.n / grid.size
     uni = []
     m = n
     while m >= 5:
         step = (n - 1) // (m - 1)
         spline = RectBivariateSpline(ga[::step], gn[::step], np.log(grid[::step, ::step]), kx=3,
                                      ky=3)
-        uni.append((m, errors_of(lambda a, b, s=spline: float(s(a, b)[0, 0]))))
+        uni.append((m, errors_of(lambda a, b, s=spline: float(s(a, b)[0, 0]), A, N, ref)))
         m = (m - 1) // 2 + 1
     uni.sort()
     (m1, e1), (m2, e2) = uni[-2], uni[-1]
     order = math.log(e1 / e2) / math.log((m2 - 1) / (m1 - 1))
     need = (m2 - 1) * (e2 / atlas_err) ** (1.0 / order) + 1
     log("uniform bicubic grid: " + ", ".join(f"{m}x{m}: {e:.2e}" for m, e in uni)
-        + f" (tracing {n}x{n}: {t_grid:.0f} s); measured order {order:.2f}; for the atlas's "
+        + f" (tracing {n}x{n}: {t_grid:.0f} s, {uni_per_trace:.1f} solves per trace, load "
+        f"{os.getloadavg()[0]:.1f}); measured order {order:.2f}; for the atlas's "
         f"{atlas_err:.2e}: about {need:.0f}x{need:.0f} = {need * need:.3g} traces, "
-        f"{need * need * per_trace:.3g} solves; atlas/uniform = {n_tr / need**2:.4f}")
+        f"{need * need * uni_per_trace:.3g} solves; atlas/uniform = {n_tr / need**2:.4f} in "
+        f"traces, {atlas.attrs['n_solves'] / (need * need * uni_per_trace):.4f} in solves")
     d = int(np.max(atlas.leaf_level))
     cheb = (atlas.roots[0] * 2**d * atlas.degree + 1) * (atlas.roots[1] * 2**d * atlas.degree + 1)
-    log(f"uniform Chebyshev cells at the atlas's finest level {d}: {cheb} traces "
-        f"(atlas/uniform = {n_tr / cheb:.3f})")
+    log(f"uniform Chebyshev cells of degree {atlas.degree} at the atlas's finest level {d}: "
+        f"{cheb} traces (atlas/uniform = {n_tr / cheb:.3f})")
 
-    # 4. python-adaptive Learner2D ---------------------------------------------------------------
+
+class _CountingStatus:
+    """A Workspace stand-in that counts the status solves of trace_edge."""
+
+    def __init__(self, ws):
+        self.ws = ws
+        self.n = 0
+
+    def status(self, *args):
+        self.n += 1
+        return self.ws.status(*args)
+
+
+def learner(args, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref):
+    """4. python-adaptive's Learner2D on the same function."""
+    from cosserat_channel import regimes
+
     try:
         import adaptive
     except ImportError:
@@ -149,7 +245,8 @@ def main():
         for target in (args.learner // 3, 2 * args.learner // 3, args.learner):
             adaptive.runner.simple(learner, npoints_goal=target)
             ip = learner.interpolator(scaled=False)
-            res.append((learner.npoints, errors_of(lambda a, b, ip=ip: float(np.ravel(ip(a, b))[0]))))
+            res.append((learner.npoints, errors_of(lambda a, b, ip=ip: float(np.ravel(ip(a, b))[0]),
+                                                   A, N, ref)))
         t_learn = time.perf_counter() - t0
         (p1, q1), (p2, q2) = res[-2], res[-1]
         order_l = math.log(q1 / q2) / math.log(p2 / p1)
@@ -158,7 +255,14 @@ def main():
             f"{p} points: {q:.2e}" for p, q in res) + f" ({t_learn:.0f} s); measured order "
             f"{order_l:.2f} in points; for {atlas_err:.2e}: about {need_l:.3g} points")
 
-    # 5. classify against direct solves -----------------------------------------------------------
+
+
+def classify(args, atlas, A_rng, N_rng, rng, ws):
+    """5. classify against direct solves."""
+    from cosserat_channel import atlas as at
+    from cosserat_channel import model, regimes
+    from cosserat_channel import status as st
+
     k = args.classify
     kn = k // 10
     cA = np.r_[rng.uniform(*A_rng, k), rng.uniform(*A_rng, kn)]
@@ -188,9 +292,12 @@ def main():
             f"decided wrongly, {100 * (1 - d_.mean()):.3f} % undecided")
     log(f"classify: {ceta.size} points in {t_cls:.2f} s; direct solves {t_solve:.0f} s "
         f"(Workspace.status in a loop); wrong decided points {wrong}; statuses "
-        f"{dict(zip(*np.unique(truth, return_counts=True)))}")
+        f"{dict(zip(*np.unique(truth, return_counts=True)))}; load {os.getloadavg()[0]:.1f}")
 
-    # 6. a regime map from the atlas -------------------------------------------------------------
+
+def plot(atlas, A_rng, N_rng):
+    """6. a regime map from the atlas, in a fresh process."""
+    from cosserat_channel import atlas as at
     from cosserat_channel.sweep import run_sweep
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -201,12 +308,13 @@ def main():
                             "N": {"linspace": [*N_rng, 26]}}}, workers=1).to_netcdf(res)
         cmd = [sys.executable, "-m", "cosserat_channel.cli", "plot", res, "--regime", "--x", "A",
                "--y", "N", "--atlas", path, "-o", os.path.join(tmp, "map.png")]
-        best = math.inf
-        for _ in range(3):
+        times = []
+        for _ in range(5):
             t0 = time.perf_counter()
             subprocess.run(cmd, check=True, capture_output=True)
-            best = min(best, time.perf_counter() - t0)
-        log(f"plot --regime --atlas (fresh process): best of 3 {best:.2f} s")
+            times.append(time.perf_counter() - t0)
+        log(f"plot --regime --atlas (fresh process): best of 5 {min(times):.2f} s, median "
+            f"{np.median(times):.2f} s; load {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

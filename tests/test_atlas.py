@@ -140,6 +140,7 @@ def test_file_round_trip_and_reading_without_numba(atlas, atlas_file, tmp_path):
 @pytest.mark.parametrize("kwargs, match", [
     (dict(tol=1e-9), "tol"), (dict(degree=3), "degree"), (dict(max_depth=9), "max_depth"),
     (dict(A_range=(1, 0)), "A range"), (dict(N_range=(0, 1)), "N range"),
+    (dict(max_degree=4), "max_degree"), (dict(max_degree=128), "max_degree"),
 ])
 def test_build_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ParameterError, match=match):
@@ -186,3 +187,153 @@ def test_scalars_give_scalars(atlas):
     leaf, low, eta, err = atlas.transitions(0.3, 0.85)
     assert leaf.shape == low.shape == err.shape == () and eta.shape == (2,)
     assert at.classify(0.01, 10.0, 0.5, 0.3, 0.85, atlas=atlas).shape == ()
+
+
+def test_classify_margins_is_classify_margin_on_arrays():
+    """The array version gives the scalar one's code at every point, the boundaries included."""
+    from cosserat_channel import analytic
+
+    rng = np.random.default_rng(5)
+    A = np.r_[rng.uniform(-3, 3, 2000), -1.0, -1.0, 1 - 2 * 0.7**2, 0.5, 0.5, -2.0]
+    N = np.r_[rng.uniform(0.05, 2, 2000), 0.5, 2.0, 0.7, 1.0, 1.0, 0.1]
+    margin = np.r_[rng.uniform(-2, 2, 2000), 0.0, -1.0, 0.3, 0.0, np.nan, 1.0]
+    got = analytic.classify_margins(margin, A, N)
+    want = [analytic.classify_margin(m, a, n) for m, a, n in zip(margin, A, N)]
+    assert got.dtype == np.int8 and got.tolist() == want
+    assert len(set(want)) == 4
+
+
+def test_regime_map_takes_an_edge_on_its_own_grid_as_it_is(atlas):
+    """An edge given on the map's contouring grid is used without interpolation, and agrees with
+    the same edge interpolated from a coarser grid (to the interpolation's error)."""
+    from cosserat_channel.plot import regimes as pr
+
+    A = np.linspace(*BOX_A, pr.MAP_GRID)
+    N = np.linspace(*BOX_N, pr.MAP_GRID)
+    exact = pr._traced_on_grid("A", "N", A, N, {}, atlas.boundary(A, N))
+    want = atlas.boundary(A, N)["eta_max"].values.T
+    np.testing.assert_array_equal(exact["eta_max"], want)
+    coarse = pr._traced_on_grid("A", "N", A, N, {}, atlas.boundary(np.linspace(*BOX_A, 41),
+                                                                     np.linspace(*BOX_N, 41)))
+    np.testing.assert_allclose(coarse["eta_max"], exact["eta_max"], rtol=1e-4)
+    # One plotted direction, the other fixed: a column broadcast along the fixed axis.
+    line = pr._traced_on_grid("A", "eps", A, np.array([0.01, 0.02]), {"N": 0.85},
+                              atlas.boundary(A, [0.85]))
+    np.testing.assert_array_equal(line["eta_max"][0], atlas.boundary(A, [0.85])["eta_max"].values[:, 0])
+    assert line["eta_max"].shape == (2, A.size)
+
+
+def test_regime_map_from_an_atlas_needs_no_scipy(atlas_file, tmp_path):
+    """plot --regime --atlas in a fresh process imports neither scipy.optimize (line plots'
+    asymptotics) nor scipy.interpolate (the edge is evaluated on the map's grid)."""
+    from cosserat_channel.sweep import run_sweep
+
+    res = tmp_path / "r.nc"
+    run_sweep({"grid": {"eps": 0.1, "L": 10, "K": 0.5, "A": {"linspace": [*BOX_A, 4]},
+                        "N": {"linspace": [*BOX_N, 3]}}}, workers=1).to_netcdf(res)
+    code = ("import sys; from cosserat_channel.cli import main; "
+            f"assert main(['plot', {str(res)!r}, '--regime', '--x', 'A', '--y', 'N', '--atlas', "
+            f"{str(atlas_file)!r}, '-o', {str(tmp_path / 'm.png')!r}]) == 0; "
+            "bad = [m for m in ('scipy.optimize', 'scipy.interpolate', 'numba') if m in sys.modules]; "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# The error estimate and the refinement, on edges whose truth is known exactly
+# ---------------------------------------------------------------------------------------------
+def _synthetic_edge(monkeypatch, noise=0.0):
+    """Replace trace_edge by an analytic edge (one transition), with optional noise of relative
+    size ``noise`` that is a fixed function of (A, N) (as the solver's is): returns log eta."""
+    def log_eta(A, N):
+        return np.log(0.5 + A + N) - 0.3 * np.log1p(0.25 * (A - 2.2) ** 2 * N)
+
+    def fake(A, N, *, eta_range, workspace=None, **kw):
+        e = np.exp(log_eta(A, N))
+        if noise:
+            e *= 1.0 + noise * np.sin(1e4 * A + 3e4 * N)
+        return regimes.Edge(A, N, e, regimes.EDGE_BOUNDED, eta_range[0], st.EPS_TOO_LARGE_PATH,
+                            np.array([e]))
+
+    monkeypatch.setattr(regimes, "trace_edge", fake)
+    return log_eta
+
+
+def test_estimate_bounds_the_error_and_is_tighter_than_the_tail_sum():
+    """On analytic and on nearly singular functions the estimate is above the interpolant's
+    measured error; where the coefficients decay geometrically it is at least 3 times below the
+    sum of the two highest degrees' coefficients (the old estimate), elsewhere at most
+    PLATEAU_SAFETY times the cell's degree times that sum."""
+    x = np.linspace(-1, 1, 201)
+    cases = [(lambda a, n: np.log(3.0 + a + 0.5 * n), True),
+             (lambda a, n: 1.0 / (2.5 - a - 0.3 * n), True),
+             (lambda a, n: np.exp(0.7 * a) * np.cos(n), False),
+             (lambda a, n: np.log(1.2 + a) + np.sqrt(2.2 - n), False)]
+    for f, geometric in cases:
+        for p, q in ((8, 8), (16, 8), (8, 16), (16, 16), (32, 32)):
+            xa, xn = at.lobatto(p), at.lobatto(q)
+            coef = at._coefficients(f(xa[:, None], xn[None, :])[None], p, q)
+            err, _, _, _ = at._estimate(coef)
+            old = at._tail(coef)[0]
+            got = at._vandermonde(x, p) @ coef[0] @ at._vandermonde(x, q).T
+            actual = np.abs(got - f(x[:, None], x[None, :])).max()
+            assert actual <= err, (p, q, actual, err)
+            # (the corner degrees count in both directions: 1.01)
+            assert err <= 1.01 * at.PLATEAU_SAFETY * max(p, q) * old + at.ROUNDOFF
+            if geometric and err > 1e3 * at.ROUNDOFF:
+                assert err * 3 <= old, (p, q, err, old)
+
+
+def test_p_refinement_reuses_every_trace_and_meets_tol(monkeypatch):
+    """A smooth edge is met by raising the degree (nested nodes: every trace is a node of the
+    final cell), within tol of the exact edge at random points."""
+    log_eta = _synthetic_edge(monkeypatch)
+    a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=4, max_depth=2, max_degree=32)
+    assert a.leaf_n.tolist() == [1] and a.leaf_degree.max() > 4
+    assert a.attrs["n_traces"] == np.prod(a.leaf_degree[0] + 1)
+    rng = np.random.default_rng(1)
+    A, N = rng.uniform(0, 1, 500), rng.uniform(1, 2, 500)
+    _, _, eta, err = a.transitions(A, N)
+    rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
+    assert rel.max() <= 1e-8 and (rel <= err).all() and (err <= 1e-8).all()
+
+
+def test_refinement_stops_where_the_traces_are_noisier_than_tol(monkeypatch):
+    """Traces with 1e-6 noise: refinement stops once it no longer cuts the estimate (far fewer
+    traces than splitting to max_depth), and the estimate covers the error against the exact edge."""
+    log_eta = _synthetic_edge(monkeypatch, noise=1e-6)
+    a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=8, max_depth=3, max_degree=16)
+    uniform = (8 * 8 + 1) ** 2
+    assert a.attrs["n_traces"] < uniform / 4
+    assert (a.leaf_error > 1e-8).any() and (a.leaf_level < 3).all()
+    rng = np.random.default_rng(2)
+    A, N = rng.uniform(0, 1, 500), rng.uniform(1, 2, 500)
+    _, _, eta, err = a.transitions(A, N)
+    rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
+    assert (rel <= err + 1e-6).all()
+
+
+@pytest.mark.parametrize("node", [(3, 5), (0, 4), (8, 8)])
+def test_one_trace_off_is_covered_by_the_estimate(monkeypatch, node):
+    """One trace 1e-6 low (a node inside, on a side, in a corner of the root cell), as where the
+    solver's edge is ragged: the atlas's estimate covers its error against the exact edge, next
+    to that node too."""
+    log_eta = _synthetic_edge(monkeypatch)
+    fake = regimes.trace_edge
+    x = at.lobatto(8)
+    bad = ((x[node[0]] + 1) / 2, 1.0 + (x[node[1]] + 1) / 2)
+
+    def off(A, N, **kw):
+        e = fake(A, N, **kw)
+        if (A, N) == bad:
+            e.transitions = e.transitions * (1 - 1e-6)
+        return e
+
+    monkeypatch.setattr(regimes, "trace_edge", off)
+    a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=8, max_depth=2, max_degree=16)
+    rng = np.random.default_rng(3)
+    A = np.r_[rng.uniform(0, 1, 400), np.clip(bad[0] + rng.normal(0, 0.02, 100), 0, 1)]
+    N = np.r_[rng.uniform(1, 2, 400), np.clip(bad[1] + rng.normal(0, 0.02, 100), 1, 2)]
+    _, _, eta, err = a.transitions(A, N)
+    rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
+    assert (rel <= np.fmax(a.tol, err)).all(), (rel / np.fmax(a.tol, err)).max()

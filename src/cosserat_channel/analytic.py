@@ -3,8 +3,9 @@
 :mod:`cosserat_channel.model` compiles these two functions with numba for the kernels; the
 solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so that reading an atlas
 and classifying points never imports numba. They are the one home of the analytic regime logic.
-Both take scalars; :func:`axis_margin` also takes arrays, and :func:`axis_edge_eta` (the atlas and
-the figures need it without the solver) takes arrays.
+Both take scalars; :func:`axis_margin` also takes arrays, :func:`classify_margins` is
+:func:`classify_margin` on arrays, and :func:`axis_edge_eta` (the atlas and the figures need it
+without the solver) takes arrays.
 """
 
 from __future__ import annotations
@@ -43,6 +44,19 @@ def classify_margin(margin, A, N):
     if margin <= 0.0:
         return st.EPS_TOO_LARGE_AXIS
     return st.OK
+
+
+def classify_margins(margin, A, N):
+    """:func:`classify_margin` on arrays (broadcast): the same tests in the same order, int8 codes.
+
+    The atlas and the regime maps classify up to ~10^5 points at once, where calling the scalar
+    function per point costs a large part of a figure's time.
+    """
+    margin, A, N = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (margin, A, N)))
+    return np.select(
+        [A < 1.0 - 2.0 * N * N, A < -1.0, A == -1.0, margin <= 0.0],
+        [st.WALL_INADMISSIBLE, st.AXIS_SPIN_UNBOUNDED, st.OK, st.EPS_TOO_LARGE_AXIS],
+        st.OK).astype(np.int8)
 
 
 def axis_edge_eta(A, N):

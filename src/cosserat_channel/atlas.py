@@ -7,31 +7,35 @@ searched ``eta`` is feasible. Together, the *signature* ``(feasible_low, n_trans
 transitions say the status of every ``eta`` at that ``(A, N)``.
 
 The atlas interpolates them. The box is cut into a quadtree of cells; on each cell the transitions
-are sampled on a tensor grid of Chebyshev-Lobatto nodes (``degree + 1`` per side) and interpolated
-in ``log eta`` by the tensor Chebyshev polynomial through them. A cell is split into four when
-
-* its nodes do not all have the same signature (a transition enters or leaves the searched range,
-  an ``eta_min`` appears, the wall line crosses it), or
-* the error estimate of its interpolant, the sum of the magnitudes of its Chebyshev coefficients
-  of the two highest degrees (they decay geometrically where the edge is smooth, and the sum of
-  the omitted ones is smaller), exceeds ``tol``,
-
-down to ``max_depth`` splits. A cell still mixed there is *unresolved* (every point in it is
-undecided); a smooth cell whose estimate is still above ``tol`` keeps its own estimate, which
-:func:`classify` uses in place of ``tol``.
+are sampled on a tensor grid of Chebyshev-Lobatto nodes (``degree + 1`` per side to start with)
+and interpolated in ``log eta`` by the tensor Chebyshev polynomial through them. A cell is split
+into four when its nodes do not all have the same signature (a transition enters or leaves the
+searched range, an ``eta_min`` appears, the wall line crosses it). Where they do, the error
+estimate of the interpolant (:func:`_estimate`: the Chebyshev tail of each direction, extrapolated
+where the coefficients decay geometrically) decides: below ``tol`` the cell is a leaf; above it the
+degree is doubled along a direction whose coefficients still decay (the nodes are nested: every
+trace is kept), else the cell is split; and a refinement that does not cut the tail (the raw
+two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
+smooth at that level). Splits go down to ``max_depth``. A cell still mixed there is *unresolved*
+(every point in it is undecided); a leaf whose estimate is still above ``tol`` keeps its own
+estimate, which :func:`classify` uses in place of ``tol``.
 
 Why not python-adaptive's ``Learner2D``: it interpolates piecewise-linearly on a triangulation, so
 its error falls like ``h^2``; the edge is analytic, and the Chebyshev cells reach 1e-8 with a few
-thousand traces where a linear interpolant needs millions (measured in ``benchmarks/bench_atlas.py``
+hundred traces where the edge is smooth (289 on A in [-0.5, 0.5], N in [1, 1.25]), while a linear
+interpolant needs millions (measured in ``benchmarks/bench_atlas.py``
 and ``docs/performance.md``). It also learns one scalar, while a point here has zero to two
 transitions and the number changes across the plane.
 
 Numerics. The transitions are bisected by :func:`~cosserat_channel.regimes.bisect_edge` to
 ``regimes.ETA_XTOL`` (1e-10 relative) with the solver at ``regimes.EDGE_RTOL``; where the edge
 lies is known to about 1e-8 relative (how far it moves with the solver's tolerance), so ``tol``
-is at least :data:`TOL_MIN`. The traces search twice the claimed range of ``eta`` each way, so
-that a transition just outside the claimed range keeps the signature of the cells next to it and
-is interpolated, not lost.
+is at least :data:`TOL_MIN`. In places the solver's edge is worse than that: at N = 1.5 the
+status alternates between ok and eps_too_large_path within ~2e-6 below the bisected edge (measured
+at A = 0.09), so a trace lands anywhere in that band; the atlas's cells there stop refining at
+an estimate of that size (docs/performance.md). The traces search twice the claimed range of
+``eta`` each way, so that a transition just outside the claimed range keeps the signature of the
+cells next to it and is interpolated, not lost.
 
 Reading an atlas (:func:`load_atlas`, :func:`classify`, :meth:`Atlas.boundary`) imports numpy
 and xarray only: building one (:func:`build_atlas`) imports the solver.
@@ -52,7 +56,18 @@ from .parameters import ETA_MAX, ETA_MIN, ParameterError, check_values
 UNDECIDED = -1  # classify's code for a point the atlas cannot decide: a solve decides it
 TOL_MIN = 1e-8  # how well the edge itself is known (regimes.EDGE_RTOL), relative in eta
 TOL_MAX = 1e-1
-DEGREE = 8  # Chebyshev degree per cell and direction: 81 nodes, 1e-8 on cells ~0.25 wide
+DEGREE = 8  # Chebyshev degree per cell and direction to start with: 81 nodes
+MAX_DEGREE = 32  # a cell's degree per direction grows (doubling: nested nodes) up to this
+RATE_GEOMETRIC = 0.5  # coefficient decay per degree below which a tail is extrapolated
+TAIL_SAFETY = 2.0  # factor on the extrapolated tail
+REFINE_GAIN = 4.0  # a refinement that does not cut the estimate by this much stops (noise)
+ROUNDOFF = 1e-13  # floor of an estimate: round-off of the interpolant of log eta
+# Factor on the two-degree sum where the coefficients do not decay, per unit of the cell's
+# largest degree. One trace off by d (a node landed low in a ragged stretch of the solver's
+# edge) puts only ~3d/p into that sum at degree p (measured at p = 16: 0.16 d for a node on a
+# side, 0.28 d inside), while the interpolant is off by d next to that node: p times the sum
+# leaves a margin of about 2.5.
+PLATEAU_SAFETY = 1.0
 MAX_DEPTH = 6  # splits of a root cell; the raster of leaves is (roots * 2^depth)^2
 MAX_DEPTH_LIMIT = 8
 SAFETY = 2.0  # undecided band: SAFETY * max(tol, the cell's error estimate), relative in eta
@@ -60,7 +75,8 @@ TRACE_WIDEN = 2.0  # traces search [lo / TRACE_WIDEN, hi * TRACE_WIDEN] (see the
 DEFAULT_A = (-1.0, 5.0)
 DEFAULT_N = (0.3, 3.0)
 ROOT_CELL = 1.0  # the root cells are about this wide in A and N
-FORMAT = "cosserat-channel atlas 1"
+FORMAT = "cosserat-channel atlas 2"  # 2: leaves of their own degrees (leaf_degree)
+FORMATS = ("cosserat-channel atlas 1", FORMAT)  # 1: every leaf of the atlas's degree
 
 
 def cache_path():
@@ -89,19 +105,71 @@ def _vandermonde(x, degree):
     return np.cos(t[..., None] * np.arange(degree + 1))
 
 
-def _coefficients(values, degree):
-    """Tensor Chebyshev coefficients of node values ``(..., degree+1, degree+1)``."""
-    tinv = np.linalg.inv(_vandermonde(lobatto(degree), degree))
-    return tinv @ values @ tinv.T
+def _coefficients(values, degree_A, degree_N):
+    """Tensor Chebyshev coefficients of node values ``(..., degree_A+1, degree_N+1)``."""
+    ta = np.linalg.inv(_vandermonde(lobatto(degree_A), degree_A))
+    tn = np.linalg.inv(_vandermonde(lobatto(degree_N), degree_N))
+    return ta @ values @ tn.T
 
 
 def _tail(coef):
-    """Error estimate of a cell's interpolant: the coefficients of the two highest degrees."""
-    p = coef.shape[-1] - 1
+    """The old estimate, kept as a reference: the coefficients of the two highest degrees."""
+    p, q = coef.shape[-2] - 1, coef.shape[-1] - 1
     mask = np.zeros(coef.shape[-2:], dtype=bool)
     mask[p - 1:, :] = True
-    mask[:, p - 1:] = True
+    mask[:, q - 1:] = True
     return np.abs(coef[..., mask]).sum(axis=-1)
+
+
+def _direction_tail(S, plateau):
+    """Tail of one direction from ``S[k]``, the summed magnitudes of the degree-k coefficients.
+
+    Returns ``(tail, rate)``. Where the last six degrees decay geometrically (``rate`` per degree
+    below :data:`RATE_GEOMETRIC`, the slower of two pairs of pairs of degrees, which an even or odd
+    function would otherwise fool), the omitted coefficients sum to about ``S[p] rate / (1 -
+    rate)``, or ``S[p-1] rate^2 / (1 - rate)`` where ``S[p]`` is small by parity (the larger is
+    taken), and the interpolant's error (aliasing included) to twice that; the estimate is
+    :data:`TAIL_SAFETY` times more, and never above the two-degree sum. Elsewhere (slow decay, or a
+    plateau of noise in the traces) it is ``plateau`` times the two-degree sum
+    ``S[p-1] + S[p]``.
+    """
+    p = S.size - 1
+    last = S[p] + S[p - 1]
+    if p < 3:
+        return plateau * last, 1.0
+    tiny = 1e-300
+    rate = min(1.0, math.sqrt((last + tiny) / (S[p - 2] + S[p - 3] + tiny)))
+    if p < 5:  # one pair of pairs: enough to ask for a higher degree, not to extrapolate
+        return plateau * last, rate
+    rate = max(rate, min(1.0, math.sqrt((S[p - 2] + S[p - 3] + tiny) / (S[p - 4] + S[p - 5] + tiny))))
+    if rate >= RATE_GEOMETRIC:
+        return plateau * last, rate
+    fitted = TAIL_SAFETY * 2.0 * max(S[p], S[p - 1] * rate) * rate / (1.0 - rate)
+    return min(fitted, last), rate
+
+
+def _estimate(coef):
+    """Error estimate of a cell's interpolants ``coef`` ``(k, p+1, q+1)`` in ``log eta``.
+
+    Returns ``(error, tails, rates, raw)``: the largest over the transitions of the sum of the
+    two directions' tails (:func:`_direction_tail`); per direction (A, N) the largest tail and
+    rate; and the largest two-degree sum of both directions without any factor (what the
+    refinement compares before and after, like with like).
+    """
+    tails = np.zeros(2)
+    rates = np.zeros(2)
+    err = 0.0
+    raw = 0.0
+    plateau = PLATEAU_SAFETY * (max(coef.shape[-2:]) - 1)
+    for c in np.abs(coef):
+        sa, sn = c.sum(axis=1), c.sum(axis=0)
+        ta, ra = _direction_tail(sa, plateau)
+        tn, rn = _direction_tail(sn, plateau)
+        raw = max(raw, sa[-1] + sa[-2] + sn[-1] + sn[-2])
+        err = max(err, ta + tn)
+        tails = np.maximum(tails, (ta, tn))
+        rates = np.maximum(rates, (ra, rn))
+    return max(err, ROUNDOFF), tails, rates, raw
 
 
 @dataclass
@@ -115,7 +183,7 @@ class Atlas:
     roots : tuple of int
         Root cells along A and N.
     degree, max_depth : int
-        Chebyshev degree per cell; splits allowed below a root cell.
+        Chebyshev degree a cell starts with; splits allowed below a root cell.
     tol : float
         Requested relative error of the transitions in ``eta``.
     eta_range : tuple of float
@@ -129,8 +197,11 @@ class Atlas:
     leaf_error : ndarray of float
         Error estimate of the leaf's transitions in ``log eta`` (~relative in ``eta``).
     coef : ndarray
-        ``(leaf, transition, degree+1, degree+1)`` Chebyshev coefficients of ``log eta``; NaN
-        beyond ``leaf_n``.
+        ``(leaf, transition, P+1, Q+1)`` Chebyshev coefficients of ``log eta`` (A, N), ``P`` and
+        ``Q`` the largest degrees of any leaf; zero beyond a leaf's own degrees, NaN beyond
+        ``leaf_n``.
+    leaf_degree : ndarray of int
+        ``(leaf, 2)``: each leaf's Chebyshev degree along A and N.
     samples : dict of ndarray
         ``A``, ``N``, ``low``, ``n``, ``transitions`` of every trace the build made.
     attrs : dict
@@ -152,6 +223,11 @@ class Atlas:
     coef: np.ndarray
     samples: dict
     attrs: dict
+    leaf_degree: np.ndarray = None
+
+    def __post_init__(self):
+        if self.leaf_degree is None:
+            self.leaf_degree = np.full((self.leaf_n.size, 2), self.degree, dtype=np.int64)
 
     # -- geometry --------------------------------------------------------------------------
     def _fine(self):
@@ -215,11 +291,24 @@ class Atlas:
         known = leaf >= 0
         known[known] = self.leaf_n[leaf[known]] >= 0
         if known.any() and kmax:
-            lf = leaf[known]
-            alo, ahi, nlo, nhi = (b[lf] for b in self.leaf_bounds())
-            ta = _vandermonde(2.0 * (A[known] - alo) / (ahi - alo) - 1.0, self.degree)
-            tn = _vandermonde(2.0 * (N[known] - nlo) / (nhi - nlo) - 1.0, self.degree)
-            eta[known] = np.exp(np.einsum("pi,pkij,pj->pk", ta, self.coef[lf], tn))
+            # Leaf by leaf, each at its own degrees: gathering every point's coefficients would
+            # take points x (P+1)(Q+1) floats (a 400 x 400 map at degree 32: over 1 GB).
+            idx = np.flatnonzero(known)
+            lf = leaf[idx]
+            order = np.argsort(lf, kind="stable")
+            idx, lf = idx[order], lf[order]
+            starts = np.flatnonzero(np.r_[True, lf[1:] != lf[:-1]])
+            bounds = self.leaf_bounds()
+            logt = np.empty((idx.size, kmax))
+            for s0, s1 in zip(starts, np.r_[starts[1:], idx.size]):
+                k = lf[s0]
+                pts = idx[s0:s1]
+                pa, pn = self.leaf_degree[k]
+                alo, ahi, nlo, nhi = (b[k] for b in bounds)
+                ta = _vandermonde(2.0 * (A[pts] - alo) / (ahi - alo) - 1.0, pa)
+                tn = _vandermonde(2.0 * (N[pts] - nlo) / (nhi - nlo) - 1.0, pn)
+                logt[s0:s1] = np.einsum("pi,kij,pj->pk", ta, self.coef[k, :, :pa + 1, :pn + 1], tn)
+            eta[idx] = np.exp(logt)
         low[known] = self.leaf_low[leaf[known]]
         err[known] = self.leaf_error[leaf[known]]
         return leaf.reshape(shape), low.reshape(shape), eta.reshape(shape + (kmax,)), err.reshape(shape)
@@ -325,6 +414,8 @@ class Atlas:
                     "long_name": "error estimate of the leaf's log eta interpolant"}),
                 "leaf_coefficients": (("leaf", "transition", "cheb_A", "cheb_N"), self.coef, {
                     "long_name": "tensor Chebyshev coefficients of log eta on the leaf"}),
+                "leaf_degree": (("leaf", "direction"), self.leaf_degree.astype(np.int8), {
+                    "long_name": "Chebyshev degree of the leaf along A and N"}),
             },
             attrs={"title": "cosserat-channel solvability atlas", "format": FORMAT,
                    "A_min": self.box[0], "A_max": self.box[1], "N_min": self.box[2],
@@ -336,7 +427,7 @@ class Atlas:
     @classmethod
     def from_dataset(cls, ds):
         """The inverse of :meth:`to_dataset`; ParameterError if ``ds`` is not an atlas."""
-        if ds.attrs.get("format") != FORMAT:
+        if ds.attrs.get("format") not in FORMATS:
             raise ParameterError(f"not a solvability atlas (format {ds.attrs.get('format')!r}, "
                                  f"expected {FORMAT!r})")
         a = dict(ds.attrs)
@@ -355,6 +446,7 @@ class Atlas:
             samples={"A": v["sample_A"], "N": v["sample_N"], "low": v["sample_low"],
                      "n": v["sample_n"], "transitions": v["sample_transitions"]},
             attrs={k: val for k, val in a.items() if k not in keys},
+            leaf_degree=v["leaf_degree"].astype(np.int64) if "leaf_degree" in v else None,
         )
 
 
@@ -386,15 +478,12 @@ def load_atlas(path):
 # ---------------------------------------------------------------------------------------------
 # Classification
 # ---------------------------------------------------------------------------------------------
-_classify_margin = np.vectorize(analytic.classify_margin, otypes=[np.int8])
-
-
 def classify_analytic(eta, A, N):
     """:func:`analytic.classify_margin` on arrays: the status Appendix A decides, else ``OK``."""
     eta, A, N = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (eta, A, N)))
     if eta.size == 0:
         return np.zeros(eta.shape, dtype=np.int8)
-    return _classify_margin(analytic.axis_margin(eta, A, N), A, N)
+    return analytic.classify_margins(analytic.axis_margin(eta, A, N), A, N)
 
 
 def classify(eps, L, K, A, N, atlas):
@@ -475,7 +564,8 @@ class _Counting:
         return self.ws.status(eta, A, N, rtol, atol)
 
 
-def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range):
+def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
+                          max_degree=MAX_DEGREE):
     """Validate :func:`build_atlas`'s arguments; ParameterError naming the one that is wrong."""
     a0, a1 = (float(v) for v in A_range)
     n0, n1 = (float(v) for v in N_range)
@@ -491,6 +581,8 @@ def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range):
     if not (isinstance(max_depth, (int, np.integer)) and 0 <= max_depth <= MAX_DEPTH_LIMIT):
         raise ParameterError(f"max_depth must be an integer in [0, {MAX_DEPTH_LIMIT}]; "
                              f"got {max_depth!r}")
+    if not (isinstance(max_degree, (int, np.integer)) and degree <= max_degree <= 64):
+        raise ParameterError(f"max_degree must be an integer in [degree, 64]; got {max_degree!r}")
     lo, hi = (float(v) for v in eta_range)
     if not (ETA_MIN * TRACE_WIDEN <= lo < hi <= ETA_MAX / TRACE_WIDEN):
         raise ParameterError(f"eta range must be lo < hi inside [{ETA_MIN * TRACE_WIDEN:g}, "
@@ -499,9 +591,20 @@ def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range):
 
 
 def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE,
-                max_depth=MAX_DEPTH, roots=None, eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX),
-                uniform=False, progress=None):
+                max_depth=MAX_DEPTH, max_degree=MAX_DEGREE, roots=None,
+                eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX), uniform=False, progress=None):
     """Sample every transition of feasibility in ``eta`` over ``A_range x N_range`` adaptively.
+
+    A cell whose nodes share one signature gets its interpolants and their error estimate
+    (:func:`_estimate`). Above ``tol`` it is refined:
+
+    * in degree (p), along each direction whose tail is above ``tol / 2`` and decays
+      geometrically, by doubling the degree there (the Chebyshev-Lobatto nodes of degree ``2p``
+      hold those of degree ``p``: every trace made is kept), up to ``max_degree``;
+    * else split into four (h), the children starting again at ``degree``;
+    * and not at all once a refinement has not cut the raw tail by :data:`REFINE_GAIN`: the
+      traces are then noisier than ``tol`` there (the solver's edge is not smooth at that level),
+      and the leaf keeps its estimate, which :func:`classify` uses in place of ``tol``.
 
     Parameters
     ----------
@@ -510,17 +613,20 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     tol : float
         Target relative error of the transitions in ``eta``, in ``[TOL_MIN, TOL_MAX]``.
     degree : int
-        Chebyshev degree per cell and direction (even: the 3 x 3 sub-grid checked first is then
-        part of the cell's nodes).
+        Chebyshev degree per direction a cell starts with (even: the 3 x 3 sub-grid checked first
+        is then part of the cell's nodes).
     max_depth : int
         Splits allowed below a root cell.
+    max_degree : int
+        Largest degree per direction (``degree`` times a power of 2 at most this; ``degree`` for
+        h-refinement only).
     roots : (int, int), optional
         Root cells along A and N; default about :data:`ROOT_CELL` wide.
     eta_range : (float, float)
         The ``eta`` the atlas answers for; traces search ``TRACE_WIDEN`` times wider each way.
     uniform : bool
-        Split every cell to ``max_depth`` whatever its error (the benchmark's non-adaptive
-        baseline).
+        Split every cell to ``max_depth`` whatever its error, at ``degree`` (the benchmark's
+        non-adaptive baseline).
     progress : callable, optional
         ``progress(leaves, cells_queued, traces)`` after each cell.
 
@@ -532,7 +638,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     from .solve import Workspace
 
     A_range, N_range, tol, degree, max_depth, eta_range = check_build_arguments(
-        A_range, N_range, tol, degree, max_depth, eta_range)
+        A_range, N_range, tol, degree, max_depth, eta_range, max_degree)
     if roots is None:
         roots = (max(1, math.ceil((A_range[1] - A_range[0]) / ROOT_CELL)),
                  max(1, math.ceil((N_range[1] - N_range[0]) / ROOT_CELL)))
@@ -555,50 +661,77 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     def coord(lo, hi, k, m):
         return lo + (hi - lo) * k / m
 
-    x = lobatto(degree)
-    sub = np.array([0, degree // 2, degree])  # the 3 x 3 sub-grid: corners, edge midpoints, centre
+    def nodes(lo, hi, p):
+        # The ends are the bounds themselves, so neighbours share the traces on their common side.
+        x = lo + (hi - lo) * (lobatto(p) + 1.0) / 2.0
+        x[0], x[-1] = lo, hi
+        return x
+
+    no_coef = np.empty((0, 1, 1))
     leaves = []
-    queue = [(0, i, j) for i in range(roots[0]) for j in range(roots[1])]
+    # (level, i, j, degree along A, along N, the cell's raw tail at its previous degree, the
+    # parent's raw tail; inf where there is none)
+    queue = [(0, i, j, degree, degree, math.inf, math.inf)
+             for i in range(roots[0]) for j in range(roots[1])]
     while queue:
-        level, i, j = queue.pop(0)
+        level, i, j, pa, pn, before, parent = queue.pop(0)
         s = 1 << (max_depth - level)
         a_lo, a_hi = coord(*A_range, i * s, ma), coord(*A_range, (i + 1) * s, ma)
         n_lo, n_hi = coord(*N_range, j * s, mn), coord(*N_range, (j + 1) * s, mn)
-        # Nodes from the cell's bounds; the ends are the bounds themselves, so neighbours share
-        # the traces on their common side.
-        na = a_lo + (a_hi - a_lo) * (x + 1.0) / 2.0
-        nn = n_lo + (n_hi - n_lo) * (x + 1.0) / 2.0
-        na[0], na[-1], nn[0], nn[-1] = a_lo, a_hi, n_lo, n_hi
+        na, nn = nodes(a_lo, a_hi, pa), nodes(n_lo, n_hi, pn)
         can_split = level < max_depth
-        children = [(level + 1, 2 * i + di, 2 * j + dj) for di in (0, 1) for dj in (0, 1)]
-        # A cell whose 3 x 3 sub-grid already mixes signatures is split before its full grid is
-        # traced: along a curve where the signature changes only these nine traces are spent.
-        sig = _signatures(trace, na[sub], nn[sub])
-        if len(sig) == 1 and not (uniform and can_split):
+        children = [(level + 1, 2 * i + di, 2 * j + dj, degree, degree, math.inf, math.inf)
+                    for di in (0, 1) for dj in (0, 1)]
+        sig = set()
+        if pa == pn == degree:
+            # A cell whose 3 x 3 sub-grid already mixes signatures is split before its full grid
+            # is traced: along a curve where the signature changes only these nine are spent.
+            sub = np.array([0, degree // 2, degree])
+            sig = _signatures(trace, na[sub], nn[sub])
+        if len(sig) <= 1 and not (uniform and can_split):
             sig = _signatures(trace, na, nn)
         if len(sig) > 1 or (uniform and can_split):
             if can_split:
                 queue.extend(children)
             else:
-                leaves.append((level, i, j, 0, -1, math.inf, np.empty((0, degree + 1, degree + 1))))
+                leaves.append((level, i, j, 0, -1, math.inf, no_coef, (pa, pn)))
         else:
             low, n_tr = next(iter(sig))
-            coef, err = np.empty((0, degree + 1, degree + 1)), 0.0
+            coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
+            tails, rates = np.zeros(2), np.zeros(2)
             if n_tr:
                 logt = np.log([[trace(a, b)[1] for b in nn] for a in na])  # (p, q, k)
-                coef = _coefficients(np.moveaxis(logt, -1, 0), degree)  # (k, p, q)
-                err = float(np.max(_tail(coef)))
-            if err > tol and can_split:
-                queue.extend(children)
+                coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
+                err, tails, rates, raw = _estimate(coef)
+            grow = [not uniform and t > tol / 2 and r < RATE_GEOMETRIC and 2 * p <= max_degree
+                    for t, r, p in zip(tails, rates, (pa, pn))]
+            # Stalled: a higher degree did not pay, or a child that will not raise its degree
+            # (its coefficients do not decay) is no better than its parent was. Compared on the
+            # raw two-degree sums: the estimates' factors change with the degree and the decay.
+            # A split cuts a degree-p tail by about 2^(p+1) where the edge is smooth: at low
+            # degrees ask for less than REFINE_GAIN.
+            gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
+            stalled = raw > before / gain or (raw > parent / gain and not any(grow))
+            if err <= tol or stalled:
+                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn)))
+            elif any(grow):
+                queue.insert(0, (level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]), raw,
+                                 parent))
+            elif can_split:
+                queue.extend(c[:5] + (math.inf, raw) for c in children)
             else:
-                leaves.append((level, i, j, int(low), n_tr, err, coef))
+                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn)))
         if progress is not None:
             progress(len(leaves), len(queue), len(cache))
 
     kmax = max([lf[4] for lf in leaves] + [0])
-    coef = np.full((len(leaves), kmax, degree + 1, degree + 1), np.nan)
+    P = max([lf[7][0] for lf in leaves] + [degree])
+    Q = max([lf[7][1] for lf in leaves] + [degree])
+    coef = np.full((len(leaves), kmax, P + 1, Q + 1), np.nan)
     for k, lf in enumerate(leaves):
-        coef[k, :lf[6].shape[0]] = lf[6]
+        c = lf[6]
+        coef[k, :c.shape[0]] = 0.0
+        coef[k, :c.shape[0], :c.shape[1], :c.shape[2]] = c
     keys = list(cache)
     smax = max([cache[k][1].size for k in keys] + [0])
     transitions = np.full((len(keys), smax), np.nan)
@@ -618,8 +751,10 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
                  "n": np.array([cache[k][1].size for k in keys], dtype=np.int8),
                  "transitions": transitions},
         attrs={"n_traces": len(cache), "n_solves": ws.solves, "uniform": int(uniform),
+               "max_degree": int(max_degree),
                "trace_eta_min": trace_range[0], "trace_eta_max": trace_range[1],
                "edge_rtol": regimes.EDGE_RTOL, "edge_atol": regimes.EDGE_ATOL,
                "edge_xtol": regimes.ETA_XTOL, "n_coarse": regimes.ETA_COARSE,
                "cosserat_channel_version": __version__},
+        leaf_degree=np.array([lf[7] for lf in leaves], dtype=np.int64).reshape(-1, 2),
     )

@@ -33,7 +33,16 @@ def parse_range(text: str, option: str) -> tuple:
 
 
 def _atlas_arguments(p: argparse.ArgumentParser) -> None:
-    from ..atlas import DEFAULT_A, DEFAULT_N, DEGREE, MAX_DEPTH, MAX_DEPTH_LIMIT, TOL_MAX, TOL_MIN
+    from ..atlas import (
+        DEFAULT_A,
+        DEFAULT_N,
+        DEGREE,
+        MAX_DEGREE,
+        MAX_DEPTH,
+        MAX_DEPTH_LIMIT,
+        TOL_MAX,
+        TOL_MIN,
+    )
 
     out = p.add_mutually_exclusive_group(required=True)
     out.add_argument("-o", "--output", metavar="ATLAS.nc", help="NetCDF file to write")
@@ -51,7 +60,10 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eta-range", default="0.001:100", metavar="LO:HI",
                    help="range of eta = eps L the atlas answers for (default 0.001:100)")
     p.add_argument("--degree", type=int, default=DEGREE,
-                   help=f"Chebyshev degree per cell, even (default {DEGREE})")
+                   help=f"Chebyshev degree a cell starts with, even (default {DEGREE})")
+    p.add_argument("--max-degree", type=int, default=MAX_DEGREE,
+                   help="largest degree a cell may grow to (doubling) before it is split "
+                   f"(default {MAX_DEGREE}; --degree for splitting only)")
     p.add_argument("--max-depth", type=int, default=MAX_DEPTH,
                    help=f"splits of a root cell, in [0, {MAX_DEPTH_LIMIT}] (default {MAX_DEPTH})")
     p.add_argument("--plot", metavar="FILE.png",
@@ -68,7 +80,8 @@ def _atlas(args: argparse.Namespace) -> int:
     N = parse_range(args.N, "--N")
     eta_range = parse_range(args.eta_range, "--eta-range")
     try:
-        atlas_mod.check_build_arguments(A, N, args.tol, args.degree, args.max_depth, eta_range)
+        atlas_mod.check_build_arguments(A, N, args.tol, args.degree, args.max_depth, eta_range,
+                                        args.max_degree)
     except ParameterError as exc:  # the message names the argument and its allowed range
         raise CliError(str(exc)) from None
     output = atlas_mod.cache_path() if args.cache else args.output
@@ -85,7 +98,8 @@ def _atlas(args: argparse.Namespace) -> int:
             bar.update(f"{leaves} cells done, {queued} queued, {traces} edges traced")
 
         atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
-                                      max_depth=args.max_depth, eta_range=eta_range,
+                                      max_depth=args.max_depth, max_degree=args.max_degree,
+                                      eta_range=eta_range,
                                       progress=progress)
     n_unres = int((atlas.leaf_n < 0).sum())
     over = int((atlas.leaf_error > atlas.tol).sum()) - n_unres

@@ -269,6 +269,26 @@ def _resolve_at(ds, args, at: dict) -> dict:
     return out
 
 
+def _open_whole(path):
+    """The result file at ``path`` for a figure, which reads all of it: opened without dask.
+
+    :func:`open_results` (query's checks and one-line errors) opens it dask-backed, which costs a
+    fresh process about a second of imports and scheduling for nothing here. A file that fails
+    the same checks goes through :func:`open_results`, which says what is wrong with it.
+    """
+    import xarray as xr
+
+    try:
+        ds = xr.open_dataset(path)
+    except (OSError, ValueError, RuntimeError, TypeError, KeyError):
+        return open_results(path)
+    status = ds.data_vars.get("status")
+    if status is None or not {"flag_values", "flag_meanings"} <= set(status.attrs):
+        ds.close()
+        return open_results(path)
+    return ds
+
+
 @register("plot", "plot a result file: regime map, Delta against a parameter, or profiles",
           _plot_arguments)
 def _plot(args: argparse.Namespace) -> int:
@@ -283,9 +303,8 @@ def _plot(args: argparse.Namespace) -> int:
         raise CliError("--hue does not go with --regime")
     _figure_output(args.output)
     check_not_input(args.output, [args.results, args.boundary, args.atlas], "-o")
-    from ..plot import lines as plot_lines
     from ..plot import regimes as plot_regimes
-    ds = open_results(args.results)
+    ds = _open_whole(args.results)
     try:
         # Read (and so checksum) first: a damaged file is reported as such, whatever else is wrong.
         try:
@@ -322,6 +341,10 @@ def _plot(args: argparse.Namespace) -> int:
                     plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
                                             path=args.output)
                 else:
+                    # Imported here: line plots overlay the asymptotics (scipy.optimize, ~0.4 s
+                    # of a fresh process), which a regime map never needs.
+                    from ..plot import lines as plot_lines
+
                     plot_lines.line_plot(ds, args.x, args.y, args.hue, at,
                                          asymptote=args.asymptote, path=args.output)
         except (ValueError, KeyError) as exc:
@@ -331,11 +354,6 @@ def _plot(args: argparse.Namespace) -> int:
     finally:
         ds.close()
     return EXIT_OK
-
-
-# The atlas is evaluated on this many (A, N) values per plotted direction: the map interpolates
-# the edge onto its own 400 x 400 grid, and 200 keep that interpolation far inside a pixel.
-ATLAS_GRID = 200
 
 
 def _atlas_boundary(ds, args, at):
@@ -353,7 +371,8 @@ def _atlas_boundary(ds, args, at):
         path = atlas_mod.cache_path()
         if not os.path.exists(path):
             return None
-    grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at, n=ATLAS_GRID)
+    # On the map's own contouring grid: the figure then takes the edge as it is, uninterpolated.
+    grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at, n=plot_regimes.MAP_GRID)
     if grid is None:
         return None
     try:

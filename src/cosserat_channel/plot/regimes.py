@@ -46,6 +46,9 @@ BOUNDARY_LABELS = {
     "traced": r"traced edge $\varepsilon L = \eta_{\max}(A, N)$",
     "traced_min": r"traced lower edge $\varepsilon L = \eta_{\min}(A, N)$",
 }
+# The analytic lines and the traced edges of a regime map are contoured on this many values per
+# axis, evenly spaced over the plotted range (regime_trace_grid(..., n=MAP_GRID) gives them).
+MAP_GRID = 400
 REGION_COLORS = {
     rc.REGION_D_NEGATIVE: "#d9d9d9",
     rc.REGION_EP_POS_EM_NEG: "#fff2b3",
@@ -220,8 +223,21 @@ def _traced_on_grid(x, y, xv, yv, fixed, boundary):
     first_ok = boundary["eta_min"] > boundary.attrs.get("eta_search_min", rc.ETA_SEARCH_MIN)
     eta_min = boundary["eta_min"].where((kind != rc.EDGE_NONE) & first_ok)
     X, Y = np.meshgrid(xv, yv)
+    axes = {x: np.asarray(xv, float), y: np.asarray(yv, float)}
     out = {}
     for name, field in (("eta_max", eta_max), ("eta_min", eta_min)):
+        f = field
+        for d in ("A", "N"):
+            if f.sizes[d] == 1:
+                f = f.isel({d: 0}, drop=True)
+        if all(d in axes and np.array_equal(f[d].values, axes[d]) for d in f.dims):
+            # Evaluated on the figure's own grid (an atlas can be): taken as it is, no
+            # interpolation (and no scipy import in a fresh process).
+            v = np.asarray(f.transpose(*(d for d in (y, x) if d in f.dims)).values, float)
+            v = v if y in f.dims else v[None, ...]
+            v = v if x in f.dims else v[..., None]
+            out[name] = np.broadcast_to(v, X.shape).copy()
+            continue
         sel = {}
         for d, G in ((x, X), (y, Y)):
             if d in ("A", "N"):
@@ -229,10 +245,6 @@ def _traced_on_grid(x, y, xv, yv, fixed, boundary):
         for d in ("A", "N"):
             if d not in sel:
                 sel[d] = np.full(X.shape, fixed[d])
-        f = field
-        for d in ("A", "N"):
-            if f.sizes[d] == 1:
-                f = f.isel({d: 0}, drop=True)
         coords = {d: (("r", "c"), sel[d]) for d in ("A", "N") if d in f.dims}
         import xarray as xr
 
@@ -277,8 +289,8 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, path=None):
     handles = [Patch(facecolor=st.Status(c).color, edgecolor="0.3",
                      label=st.Status(c).name) for c in codes if np.any(status == c)]
 
-    xf = np.linspace(xv.min(), xv.max(), 400) if xv.size > 1 else xv
-    yf = np.linspace(yv.min(), yv.max(), 400) if yv.size > 1 else yv
+    xf = np.linspace(xv.min(), xv.max(), MAP_GRID) if xv.size > 1 else xv
+    yf = np.linspace(yv.min(), yv.max(), MAP_GRID) if yv.size > 1 else yv
     if xv.size > 1 and yv.size > 1:
         traced = None if boundary is None else _traced_on_grid(x, y, xf, yf, fixed, boundary)
         X, Y = np.meshgrid(xf, yf)

@@ -330,14 +330,24 @@ def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=No
 
     warm_up()
 
+    failure = []
+
     def task(k):
+        # Once writing has failed the run ends with that error, but only after the blocks in
+        # flight are stored: raising from one task would return while other threads still write
+        # theirs, leaving temporary files in the store.
+        if failure:
+            return
         c0 = time.thread_time()
         out = _block_task(plan, k, args)
         store.put(k, out)
         if cpu is not None:
             cpu.append(time.thread_time() - c0)
         if writer is not None:
-            writer.add(k, out)
+            try:
+                writer.add(k, out)
+            except BaseException as exc:  # noqa: BLE001 (raised below, once every task is done)
+                failure.append(exc)
 
     # dask's threaded scheduler runs independent tasks in descending order of their keys: the
     # keys count down so that blocks run in plan order, group after group, and each group's
@@ -350,6 +360,8 @@ def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=No
             dask.compute(*tasks, scheduler="threads", num_workers=workers)
     else:
         dask.compute(*tasks, scheduler="threads", num_workers=workers)
+    if failure:
+        raise failure[0]
 
 
 def connect(scheduler, timeout: float = CONNECT_TIMEOUT):

@@ -297,6 +297,11 @@ class StreamWriter:
             pass
 
     # -- the writer's thread --------------------------------------------------------------------
+    @property
+    def failed(self) -> bool:
+        """Whether writing has failed (the run then raises the error, see :meth:`add`)."""
+        return self._error is not None
+
     def _raise_if_failed(self) -> None:
         if self._error is not None:
             raise self._error

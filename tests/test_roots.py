@@ -1,4 +1,4 @@
-"""Tests for the safeguarded Illinois root finder in ``cosserat_channel.roots``."""
+"""Tests for the root finders of ``cosserat_channel.roots``: safeguarded Illinois and Newton."""
 
 import math
 
@@ -8,7 +8,7 @@ from numba import njit
 
 from cosserat_channel.dense import component_minus_level
 from cosserat_channel.rk45 import SUCCESS, integrate
-from cosserat_channel.roots import find_root
+from cosserat_channel.roots import find_root, newton_root
 
 
 # ---------------------------------------------------------------------------
@@ -58,6 +58,23 @@ def plug_edge_root(T, Q, nsteps, target, out, tol):
     fa = component_minus_level(a, packed)
     fb = component_minus_level(b, packed)
     return find_root(component_minus_level, packed, a, b, fa, fb, tol, 100)
+
+
+@njit(cache=True)
+def square_minus_d(x, args):
+    c, sign = args
+    return sign * (x * x - c), sign * 2.0 * x
+
+
+@njit(cache=True)
+def arctan_d(x, args):
+    # Newton from far out overshoots and diverges on arctan: the safeguard must bisect.
+    return math.atan(x - args[0]), 1.0 / (1.0 + (x - args[0]) ** 2)
+
+
+@njit(cache=True)
+def newton(f, args, a, b, x0, tol, n):
+    return newton_root(f, args, a, b, f(a, args)[0], f(b, args)[0], x0, tol, n)
 
 
 @njit(cache=True)
@@ -156,3 +173,24 @@ def test_jitted_caller_stays_cacheable():
     plug_edge_root(s.T, s.Q, s.nsteps, 0.5, np.empty(2), 1e-15)
     (cres,) = plug_edge_root.overloads.values()
     assert not cres.library.has_dynamic_globals
+
+
+# ---------------------------------------------------------------------------
+# Safeguarded Newton
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+@pytest.mark.parametrize("x0", [1.4, 1.0, 3.0, -5.0])
+def test_newton_sqrt2_converges_quadratically_from_inside(sign, x0):
+    """From a start inside the bracket (or outside: the midpoint), sqrt(2) to round-off; from 1.4
+    in a few evaluations, as Newton's quadratic convergence allows."""
+    x, n = newton(square_minus_d, (2.0, sign), 0.0, 3.0, x0, 1e-15, 100)
+    assert x == pytest.approx(math.sqrt(2.0), abs=4e-16)
+    if x0 == 1.4:
+        assert n <= 5
+
+
+def test_newton_safeguard_bisects_where_newton_diverges():
+    """arctan from 10 units away: plain Newton diverges; the safeguarded search still converges."""
+    x, n = newton(arctan_d, (0.3,), -20.0, 30.0, 25.0, 1e-14, 200)
+    assert x == pytest.approx(0.3, abs=1e-13)
+    assert n < 100

@@ -252,6 +252,9 @@ def stage2_series_reach(ax, tol, xi_max):
     for _ in range(60):
         if (_series_good(ax, AX_G, n, x, tol, 1.0) and _series_good(ax, AX_F, n, x, tol, 0.0)
                 and _positive(ax, AX_F, n, x)):
+            # keep only the terms that matter there (the plug-edge root evaluates F many times)
+            ax[AX_N2] = max(_terms_needed(ax, AX_G, n, x, 0.1 * tol),
+                            _terms_needed(ax, AX_F, n, x, 0.1 * tol))
             return math.sqrt(x)
         x *= 0.64
     return 0.0
@@ -267,6 +270,18 @@ def series_G(xi, ax):
 def series_F(xi, ax):
     """``F(xi^2)`` of :func:`stage2_series`."""
     return _horner(ax, AX_F, int(ax[AX_N2]), xi * xi)
+
+
+@njit(**_JIT)
+def series_F_dF(x, ax):
+    """``(F(x), dF/dx)`` of :func:`stage2_series` at ``x = xi^2``, in one Horner pass."""
+    n = int(ax[AX_N2])
+    F = ax[AX_F + n - 1]
+    dF = 0.0
+    for k in range(n - 2, -1, -1):
+        dF = dF * x + F
+        F = F * x + ax[AX_F + k]
+    return F, dF
 
 
 @njit(**_JIT)

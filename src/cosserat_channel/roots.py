@@ -11,6 +11,11 @@ Users: event location on a dense output (:func:`.dense.locate_event`) and, throu
 :func:`.dense.step_component_minus_level`, the level crossing of one component on one step of a
 dense output (the plug edge of :mod:`.stages`).
 
+:func:`newton_root` is the same kind of bracketed search for a function whose derivative comes
+almost free with its value: Newton's step, replaced by bisection whenever it would leave the
+bracket or not halve it (``rtsafe`` of [NR07]). It finds the plug edge where stage 2 is closed
+form, from a start that a power law puts within ~1e-3 of the root: 3-4 evaluations.
+
 The kernel receives ``f`` as an argument and is therefore ``inline="always"``: a jitted caller
 that passes a global ``@njit`` function then calls it directly and stays cacheable (see
 :mod:`.rk45`). ``f`` must be a Numba-compiled function ``f(x, args) -> float``; ``args`` is any
@@ -20,14 +25,17 @@ References
 ----------
 .. [DB71] M. Dowell and P. Jarratt, "A modified regula falsi method for computing the root of
    an equation", BIT 11, 168-174 (1971).
+.. [NR07] W. H. Press et al., Numerical Recipes, 3rd ed., section 9.4 (``rtsafe``).
 """
 
 from __future__ import annotations
 
+import math
+
 from numba import njit
 from ._jit import JIT_INLINE as _JIT_INLINE
 
-__all__ = ["find_root"]
+__all__ = ["find_root", "newton_root"]
 
 
 @njit(**_JIT_INLINE)
@@ -114,3 +122,59 @@ def find_root(f, args, a, b, fa, fb, tol, max_iter):
     if abs(fa) < abs(fb):
         return a, n_eval
     return b, n_eval
+
+
+@njit(**_JIT_INLINE)
+def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
+    """Root of ``f`` in the bracket between `a` and `b` by safeguarded Newton steps from `x0`.
+
+    Parameters
+    ----------
+    fdf : numba-compiled callable
+        ``fdf(x, args) -> (f, df/dx)``.
+    args : any numba-typed object
+        Passed untouched to `fdf`.
+    a, b, fa, fb : float
+        As for :func:`find_root`.
+    x0 : float
+        First iterate; the midpoint is used when it is not inside the bracket.
+    tol : float
+        Absolute tolerance on `x`: stops once a step is at most `tol`.
+    max_iter : int
+        Budget of evaluations of `fdf`.
+
+    Returns
+    -------
+    x : float
+    n_eval : int
+        Evaluations made; ``n_eval == max_iter`` means the budget ran out.
+    """
+    if fa == 0.0:
+        return a, 0
+    if fb == 0.0:
+        return b, 0
+    lo, hi = (a, b) if fa < 0.0 else (b, a)  # f(lo) < 0 < f(hi)
+    left, right = min(a, b), max(a, b)
+    x = x0 if left < x0 < right else 0.5 * (a + b)
+    dx_old = right - left
+    dx = dx_old
+    for it in range(max_iter):
+        f, df = fdf(x, args)
+        if f == 0.0:
+            return x, it + 1
+        if f < 0.0:
+            lo = x
+        else:
+            hi = x
+        x_new = x - f / df if df != 0.0 else math.nan
+        if not (min(lo, hi) < x_new < max(lo, hi)) or abs(2.0 * f) > abs(dx_old * df):
+            dx_old = dx
+            dx = 0.5 * (hi - lo)
+            x_new = lo + dx
+        else:
+            dx_old = dx
+            dx = x - x_new
+        if abs(x_new - x) <= tol:
+            return x_new, it + 1
+        x = x_new
+    return x, max_iter

@@ -70,7 +70,8 @@ R_PATH = 9  # stage 1 took the explicit (0) or the stiff (1) path; -1: not integ
 R_XI2 = 10
 R_LOGW2 = 11  # log(omega_hat) at XI2
 R_J2 = 12  # J at XI2
-N_R = 13
+R_LOGI2 = 13  # log int_0^XI2 h omega_hat (the plug-edge root below XI2 starts from it)
+N_R = 14
 PATH_EXPLICIT = 0.0
 PATH_STIFF = 1.0
 PATH_NONE = -1.0  # no stage-1 integration: a regime without solution, or A = -1 (exact)
@@ -663,7 +664,8 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         res[R_XI2] = xi2
         res[R_LOGW2] = yb[0]
         res[R_J2] = yb[1]
-        res[R_J_AXIS] = yb[1] + _series_I(xi2, xi2, yb[0], ax)
+        res[R_LOGI2] = _series_log_I(xi2, xi2, yb[0], ax)
+        res[R_J_AXIS] = yb[1] + math.exp(res[R_LOGI2])
     if not (math.isfinite(yb[1]) and yb[1] > 0.0):
         res[R_STATUS] = st.INTEGRATION_FAILED
         return st.INTEGRATION_FAILED
@@ -685,34 +687,37 @@ def _series_I(xi, xi2, logw2, ax):
 
 @njit(**_JIT)
 def _series_plug_level(t, packed):
-    # log I(e^t) - log(level): increasing in t (I is)
-    xi2, logw2, ax, log_level = packed
-    return _series_log_I(math.exp(t), xi2, logw2, ax) - log_level
+    # log I(e^t) - log(level) and its t-derivative (beta + 1) + 2x F'(x)/F(x): I ~ xi^(beta+1) F
+    c, t2, slope, ax = packed
+    x = math.exp(2.0 * t)
+    F, dF = model.series_F_dF(x, ax)
+    return c + slope * (t - t2) + math.log(F), slope + 2.0 * x * dF / F
 
 
 @njit(**_JIT)
 def _series_plug_edge(target, res, ax):
-    """``ln xi_p`` below ``R_XI2``, where ``J = J(0) - I(xi)`` is closed form: ``I(xi_p) = J(0) - target``."""
-    xi2 = res[R_XI2]
-    logw2 = res[R_LOGW2]
-    packed = (xi2, logw2, ax, math.log(res[R_J_AXIS] - target))
-    b = math.log(xi2)
-    fb = _series_plug_level(b, packed)
-    if not fb > 0.0:
-        return b
-    # I ~ xi^(beta+1) F with F slowly varying: step down by what that power needs, plus one.
+    """``ln xi_p`` below ``R_XI2``, where ``J = J(0) - I(xi)`` is closed form: ``I(xi_p) = J(0) - target``.
+
+    Safeguarded Newton (:func:`roots.newton_root`) on ``log I - log(J(0) - target)`` in ``t = ln xi``,
+    from the power law ``I ~ xi^(beta+1)``: 3-4 evaluations of one Horner pass and a log. The
+    bracket's ends need no evaluation: ``log I`` at ``xi2`` is kept (``R_LOGI2``), and at
+    ``XI_FLOOR`` it is that minus ``(beta+1)`` times the distance, up to ``log F(0)/F(x2)``.
+    """
+    log_level = math.log(res[R_J_AXIS] - target)
+    t2 = math.log(res[R_XI2])
     slope = ax[AX_BETA] + 1.0
-    a = b
-    fa = fb
-    for _ in range(60):
-        a = max(a - (fa + 1.0) / slope, math.log(XI_FLOOR))
-        fa = _series_plug_level(a, packed)
-        if fa <= 0.0 or a == math.log(XI_FLOOR):
-            break
+    fb = res[R_LOGI2] - log_level
+    if not fb > 0.0:
+        return t2
+    # c + log F(x2) = log I(xi2), so c holds the rest of log I: c + slope (t - t2) + log F(x)
+    c = fb - math.log(model.series_F(res[R_XI2], ax))
+    packed = (c, t2, slope, ax)
+    a = math.log(XI_FLOOR)
+    fa = c + slope * (a - t2) + math.log(ax[model.AX_F])
     if fa > 0.0:
         return a
-    x, _ = roots.find_root(_series_plug_level, packed, a, b, fa, fb, 4e-16 * max(abs(a), abs(b)),
-                           ROOT_MAX_ITER)
+    x, _ = roots.newton_root(_series_plug_level, packed, a, t2, fa, fb, t2 - fb / slope,
+                             1e-15, ROOT_MAX_ITER)  # in t <= ln 0.9: 1e-14 of 1 - xi_p
     return x
 
 

@@ -203,13 +203,12 @@ def test_series_root_is_models_axis_root():
 
 
 def test_tangential_edge_against_an_independent_stage_1():
-    """At A = 0, N = 2 the path meets D = 0 tangentially at the wall (D(1) ~ (eta_max - eta)^2).
-    scipy's DOP853 at rtol 1e-13, marching stage 1 on its own, puts D(1) = 0 within 3e-6
-    (relative) of the traced eta_max. That is the width of the band below the edge where D(1)
-    (~1e-11 there) is below what stage 1 resolves in double precision: the status flips inside
-    it (11 times in 141 evenly spaced eta over [-6e-6, 1e-6] with stage 1 started from the
-    axis series, 3 times marching from next to the axis), so bisection lands anywhere in the
-    band; it is never above the edge."""
+    """At A = 0, N = 2 the path meets D = 0 tangentially at the wall (D(1) ~ 0.11 (eta_max - eta)^2).
+    scipy's DOP853 at rtol 1e-13, marching stage 1 on its own, puts D(1) = 0 within 1e-6
+    (relative) of the traced eta_max, never below it. Closer than ~5e-7 D(1) is below ~3e-14,
+    under what stage 1 resolves (0.1 rtol |dD/d delta delta| ~ 1e-13 at the floor rtol): with
+    trace_edge's settings 19 of 400 random eta in the last 1e-6 below the edge are not ok, all
+    within 4.8e-7 of it, so the bisection ends anywhere in that band (here 5.5e-7 below)."""
     from scipy.integrate import solve_ivp
     from scipy.optimize import brentq
 
@@ -227,4 +226,4 @@ def test_tangential_edge_against_an_independent_stage_1():
 
     edge = regimes.trace_edge(A, N)
     root = brentq(D_wall, edge.eta_max * (1 - 1e-4), edge.eta_max * (1 + 1e-5), xtol=1e-14)
-    assert -3e-6 < (edge.eta_max - root) / root < 1e-7
+    assert -1e-6 < (edge.eta_max - root) / root < 1e-7

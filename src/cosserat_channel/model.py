@@ -103,13 +103,13 @@ def axis_series(eta, A, N, ax):
 
     The axis is a regular singular point of stage 1, and its solution is analytic there: with
     ``x = xi^2``, ``w = sum_k d_k x^k`` and ``sqrt(D)/xi = S = sum_j s_j x^j`` (``s_0 = c0``),
-    e-61 gives ``d_0 = y/2`` and ``2 (m+1) eta d_m = -s_{m-1}``, and ``S^2 = D/xi^2`` (eq:a3)
-    at order ``x^m`` gives
+    e-61 gives ``d_0 = y/2`` and ``2 (m+1) eta d_m = -s_m`` for ``m >= 1``. ``S^2 = D/xi^2``
+    (eq:a3) at order ``x^m`` holds ``d_m`` linearly (in ``4(A+1)N d_m``); with the first relation
+    it is linear in ``s_m``:
 
         s_m (2 c0 + 2(A+1)N / ((m+1) eta)) = -2(A+1) sum_{i+l=m-1} d_i d_l - sum_{0<j<m} s_j s_{m-j},
 
-    linear in ``s_m`` because ``d_m`` is ``-s_{m-1}/(2 (m+1) eta)``... one order down: every
-    ``s_m`` needs only ``d`` and ``s`` of lower index. The divisor is positive, so the recursion is
+    whose right-hand side needs only ``d`` and ``s`` of lower index. The divisor is positive, so the recursion is
     stable; its terms shrink geometrically inside the radius of convergence, which is set by the
     nearest singularity of the path (D = 0 or the outer solution's branch point near ``xi = N``).
     Stage 1 starts its march where the series stops being accurate (:func:`series_reach`) instead
@@ -151,7 +151,7 @@ def stage2_series(eta, A, N, ax):
         log omega_hat(xi) = const + beta ln(xi) + G(x),            G = sum_k p_k x^k / (2k),
         int_0^xi h omega_hat dxi' = c xi^(beta+1) F(x),           F = sum_k H_k x^k / (beta+1+2k),
 
-    with ``H = h exp(G)`` and ``c`` fixed by omega_hat at one point (:func:`stage2_series_at`).
+    with ``H = h exp(G)`` and ``c`` fixed by omega_hat at one point (``stages._series_log_I``).
     Each series costs one Cauchy product; ``exp(G)`` follows from ``x E' = x G' E``. Needs
     :func:`axis_series` and :func:`series_reach` (``AX_NW``); sets ``AX_N2``.
     """

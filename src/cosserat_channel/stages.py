@@ -370,6 +370,16 @@ def stage1_start(ax, rtol1):
 
 
 @njit(**_JIT)
+def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res):
+    """Stage 1 marched again at a tighter ``rtol1``, from where the axis series is good to it
+    (:func:`stage1_start`, which moves closer to the axis); records that start in ``res[R_XI1]``.
+    Returns what :func:`_stage1_pass` does."""
+    xi1, w1 = stage1_start(ax, rtol1)
+    res[R_XI1] = xi1
+    return _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
+
+
+@njit(**_JIT)
 def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
     """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
 
@@ -511,12 +521,12 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     # Next to the axis edge D/xi^2 ~ c0^2 is the small difference that decides where the path
     # meets D = 0; an error in w of rtol would swamp it, so stage 1 runs at rtol ~ c0^2/1000 there.
     rtol1 = stage1_rtol(rtol, A, N, ax)
-    xi1, w1 = stage1_start(ax, rtol1)
-    res[R_XI1] = xi1
     buf = np.empty(1)
     atol1 = np.empty(1)
     atol1[0] = atol
     args1 = (eta, A, N, ax)
+    xi1, w1 = stage1_start(ax, rtol1)
+    res[R_XI1] = xi1
     stiff = use_stiff_path(eta, ax, xi1, rtol1) if method == METHOD_AUTO else method == METHOD_STIFF
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
     s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
@@ -526,9 +536,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         # rtol 1e-8 for eps L = 3.8, A = 1/3, N = 1, from the few wide steps of a march that
         # starts on the axis series. The status is certain; for xi_stop, march again 1000x tighter.
         rtol1 = max(STAGE1_RTOL_FLOOR, 1e-3 * rtol1)
-        xi1, w1 = stage1_start(ax, rtol1)
-        res[R_XI1] = xi1
-        s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
+        s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res)
     if s1 == rk45.SUCCESS:
         delta_wall = _delta_wall(T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
@@ -541,9 +549,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         rtol_cond = rtol * D_wall / sensitivity if sensitivity > 0.0 else rtol1
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
-            xi1, w1 = stage1_start(ax, rtol1)
-            res[R_XI1] = xi1
-            s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
+            s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res)
             if s1 == rk45.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
@@ -558,7 +564,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         # fast jump to D = 0 just after xi = N (or crawling along the sqrt(N^2 - xi^2) kink of
         # the slow manifold before it, or at a start inside the series' radius ~N), where the
         # status is certain without the march: see path_must_end.
-        xi_s = T1[n1] if n1 > 0 else xi1
+        xi_s = T1[n1] if n1 > 0 else res[R_XI1]
         if path_must_end(xi_s, eta, A, N):
             res[R_STATUS] = st.EPS_TOO_LARGE_PATH
             # Where: within eta W / gap of xi_s when the march got past N, else not resolved.
@@ -571,8 +577,9 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     # integration error of delta), so such a point is reported as reaching D = 0 at the wall, like
     # D(1) <= 0 itself. The stage-2 fallback in solve_eta catches what this cheap cut lets through.
     # Next to a tangential edge D(1) grows like (eta_max - eta)^2, so this band is ~sqrt(D
-    # resolution) wide in eta: ~3e-7 relative at A = 0, N = 2 and rtol 1e-10, where an independent
-    # scipy DOP853 march at rtol 1e-13 puts D(1) = 0 within 6e-8 of the traced edge.
+    # resolution) wide in eta: ~5e-7 relative at A = 0, N = 2 with trace_edge's settings, where
+    # the status flips on isolated points and the traced edge lies 5.5e-7 below the one an
+    # independent scipy DOP853 march at rtol 1e-13 gives (tests/test_regimes.py).
     D_resolution = WALL_D_RESOLUTION * rtol1 * sensitivity
     if not D_wall > D_resolution:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH

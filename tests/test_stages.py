@@ -119,13 +119,13 @@ def test_wall_form_of_D_matches_the_direct_formula_and_is_smooth():
     def both(s):
         xi = 1.0 - s
         k = dense.find_step(T1, n1, xi)
-        d_w, D_w = stages._wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
+        d_w, D_w, noise = stages._wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
         dense.dense_eval_step(T1, Q1, k, xi, buf)
         d = xi * xi * buf[0]
-        return d_w, D_w, d, model.yield_D(xi, d, A, N, ax)
+        return d_w, D_w, d, model.yield_D(xi, d, A, N, ax), noise
 
     for s in (0.5, 0.3, 0.1, 1e-2, 1e-3):
-        d_w, D_w, d, D = both(s)
+        d_w, D_w, d, D, _ = both(s)
         assert d_w == pytest.approx(d, rel=1e-14, abs=1e-15)
         assert D_w == pytest.approx(D, abs=1e-14)
     # Next to the wall: second differences of D on a fine, uniform grid in s. A smooth D has
@@ -137,6 +137,11 @@ def test_wall_form_of_D_matches_the_direct_formula_and_is_smooth():
     assert np.abs(np.diff(wall, 2)).max() < 1e-17
     assert np.abs(np.diff(direct, 2)).max() > 1e-17  # the noise this form removes
     assert np.all(wall > 0)
+    # The noise bound stage 2 floors its tolerance with: at least the rounding of the increment
+    # D - D(1) (a few ulps of the terms it sums, each at least as large as it), yet far below D.
+    noise = np.array([both(x)[4] for x in s])
+    assert np.all(noise >= 2.2e-16 * np.abs(wall - D1))
+    assert noise.max() < 1e-6 * wall.min()
 
 
 def test_stage2_next_to_the_edge_is_cheap():

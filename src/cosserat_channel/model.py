@@ -353,7 +353,7 @@ def delta_axis_series(xi, ax):
 # --------------------------------------------------------------------------------------------
 # Stage 1: stresses, xi = 0 -> 1
 # --------------------------------------------------------------------------------------------
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def yield_D(xi, delta, A, N, ax):
     """``D`` under the square root of eq:56 / eq:a3 (scaled), evaluated cancellation-free."""
     r = delta - 0.5 * ax[AX_Y] * xi * xi
@@ -419,7 +419,7 @@ def sigma_yx(xi, D, A):
 # --------------------------------------------------------------------------------------------
 # Stage 2: velocities, xi = 1 -> 0
 # --------------------------------------------------------------------------------------------
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def spin_rate_B(delta, D, eta, A, N):
     """``B`` of eq:18 / e-60, ``d omega/d xi = B omega``; with ``s = sigma_yx + A sigma_xy = -sqrt(D)``.
 
@@ -428,7 +428,7 @@ def spin_rate_B(delta, D, eta, A, N):
     return 2.0 * (A + 1.0) * (N - delta) / (eta * math.sqrt(D))
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def shear_rate_h(xi, D, A):
     """``h`` of e-59: ``du/d xi = -h omega``."""
     return (A + 1.0) * (1.0 - (A - 1.0) * xi / math.sqrt(D))

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import outputs as out_
+from . import panels
 from . import rk45
 from . import stages
 from . import status as st
@@ -120,7 +121,7 @@ class Workspace:
         self.T1 = np.empty(max_steps_stage1 + 1)
         self.Q1 = np.empty((max_steps_stage1, 5, 1))
         self.T2 = np.empty(max_steps_stage2 + 1)
-        self.Q2 = np.empty((max_steps_stage2, 5, 2))
+        self.Q2 = np.empty((max_steps_stage2, panels.N_ROWS, 2))
         self.stats1 = np.zeros(rk45.N_STATS, dtype=np.int64)
         self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
         self.res = np.empty(stages.N_R)

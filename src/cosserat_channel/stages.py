@@ -1,11 +1,13 @@
 """The Numba kernels of one solve: the only module that joins the physics and the integrator.
 
 Stage 1 marches the scaled couple stress ``delta`` (see :mod:`cosserat_channel.model`) from the
-axis to the wall with :func:`rk45.dopri5`, stopping at ``D = 0`` if the stress path leaves the
-yield-admissible region. Stage 2 marches ``(log omega_hat, J)`` from the wall towards the axis on
-the dense output of stage 1 and stops once what is left of ``J`` is below the tolerance; near the
-wall it evaluates ``D`` as ``D(1)`` plus an increment (:func:`_wall_form`), so that ``B ~ 1/sqrt(D)``
-stays smooth where ``D(1)`` is tiny, next to the edge of solvability. Both
+axis series to the wall with :func:`rk45.dopri5` (or RODAS4P2 where stiff), stopping at ``D = 0``
+if the stress path leaves the yield-admissible region. Stage 2 integrates ``(log omega_hat, J)``
+from the wall towards the axis on the dense output of stage 1, as the nested quadrature of
+:mod:`.panels` on Chebyshev panels, and stops once what is left of ``J`` is below the tolerance or
+the closed form of :func:`model.stage2_series` takes over; near the wall it evaluates ``D`` as
+``D(1)`` plus an increment (:func:`_wall_form`), so that ``B ~ 1/sqrt(D)`` stays smooth where
+``D(1)`` is tiny, next to the edge of solvability. Both
 stages depend on ``(eta = eps L, A, N)`` only (the similarity of model.md); ``eps`` and ``K``
 enter afterwards, through ``eps K`` in the plug-edge condition eq:13, so one integration serves a
 whole ``K`` axis.
@@ -26,20 +28,20 @@ from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from . import dense
 from . import model
+from . import panels
 from . import rk45
 from . import roots
 from . import rosenbrock
 from . import status as st
 from .model import AX_BETA, AX_C0, N_AX
 
-# The stage-2 rates and the lookups in stage 1's dense output are inlined into the stage-2 march:
-# as separate functions, each call passing the dense-output arrays cost reference-count updates
-# that made a stage-2 evaluation ~5x the cost of a stage-1 one.
+# The stage-2 rates and the lookups in stage 1's dense output are inlined into the stage-2 panels:
+# as separate functions, each call passing the dense-output arrays cost reference-count updates.
 
 # Work budgets per stage: bounded work per point (a point that needs more is reported as
 # integration_failed, never left running).
 MAX_STEPS_STAGE1 = 200_000
-MAX_STEPS_STAGE2 = 20_000
+MAX_STEPS_STAGE2 = 20_000  # panels
 # Passes that re-march the step where stage 1 met D = 0 (see solve_eta), each within a budget.
 EVENT_REFINEMENTS = 4
 REFINE_MAX_STEPS = 400
@@ -50,6 +52,13 @@ WALL_D_RESOLUTION = 0.1
 WALL_D_FALLBACK = 1e5
 # Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
 TAIL_FRACTION = 1e-3
+# Stage 2's quadrature error, relative to rtol: below the error of the stage-1 interpolant it
+# integrates, which sets Delta's (see _march_stage2 and docs/performance.md).
+STAGE2_TOL = 1e-2
+# ... or, where the integrands are noisy (see _march_stage2), this many times their rounding noise.
+NOISE_FLOOR = 10.0
+# Stage-2 panels may span stage-1 steps where stage 1 ran at below this fraction of its tolerance.
+FREE_PANELS = 1e-2
 # Evaluations of the plug-edge root (it needs ~10; the bound only guards a loop that cannot end).
 ROOT_MAX_ITER = 100
 # Stage 2 never marches below this xi: J's remaining tail there is < XI_FLOOR * max h.
@@ -71,7 +80,8 @@ R_XI2 = 10
 R_LOGW2 = 11  # log(omega_hat) at XI2
 R_J2 = 12  # J at XI2
 R_LOGI2 = 13  # log int_0^XI2 h omega_hat (the plug-edge root below XI2 starts from it)
-N_R = 14
+R_RTOL1 = 14  # the relative tolerance stage 1 finally ran at
+N_R = 15
 PATH_EXPLICIT = 0.0
 PATH_STIFF = 1.0
 PATH_NONE = -1.0  # no stage-1 integration: a regime without solution, or A = -1 (exact)
@@ -115,15 +125,12 @@ def _stage1_event(xi, y, args):
     return model.yield_D(xi, xi * xi * y[0], A, N, ax)
 
 
-# Slots of the small work vector that stage 2 keeps about the stage-1 solution it reads.
-W_STEP = 0  # the stage-1 step of the last lookup (stage 2 moves through them in order)
-W_XI = 1  # xi of the last evaluation of the rates ...
-W_H = 2  # ... and h there, which the tail event needs again at the same xi
-W_DELTA1 = 3  # delta(1) = w(1), from the last stage-1 step
-W_D1 = 4  # D(1)
-N_W = 5
+# Slots of the small work vector kept about the stage-1 solution while reading it in order.
+W_STEP = 0  # the stage-1 step of the last lookup
+N_W = 1
 # Above this xi stage 2 evaluates D as D(1) + [D(xi) - D(1)] (see _wall_form).
 XI_WALL_FORM = 0.5
+_EPS = 2.220446049250313e-16
 
 
 @njit(**_JIT_INLINE)
@@ -156,10 +163,6 @@ def _delta_wall(T1, Q1, n1, buf):
 def _stage1_work(n1):
     work = np.empty(N_W)
     work[W_STEP] = n1 - 1
-    work[W_XI] = math.nan
-    work[W_H] = math.nan
-    work[W_DELTA1] = math.nan
-    work[W_D1] = math.nan
     return work
 
 
@@ -183,8 +186,9 @@ def _wall_increments(T1, Q1, n1):
 
 @njit(**_JIT_INLINE)
 def _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1):
-    """``(delta, D)`` at ``xi = 1 - s`` (in stage-1 step ``k``, ``xi >= XI_WALL_FORM``), with ``D``
-    as ``D(1)`` plus an increment computed from increments.
+    """``(delta, D, noise)`` at ``xi = 1 - s`` (in stage-1 step ``k``, ``xi >= XI_WALL_FORM``), with
+    ``D`` as ``D(1)`` plus an increment computed from increments, and a bound on the rounding noise
+    of that increment.
 
     Next to the edge of solvability ``D`` is tiny at the wall (down to ~1e-14) and is the difference
     of O(1) terms: evaluated directly its rounding noise is ~1e-16, so near the wall
@@ -203,47 +207,16 @@ def _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1):
     ddelta = x2m1 * (delta1 + dw) + dw  # xi^2 w(xi) - w(1)
     delta = delta1 + ddelta
     c0 = ax[AX_C0]
-    dD = c0 * c0 * x2m1 + 2.0 * (A + 1.0) * (
-        2.0 * N * (ddelta - 0.5 * ax[model.AX_Y] * x2m1) - ddelta * (delta + delta1))
-    return delta, D1 + dD
-
-
-@njit(**_JIT_INLINE)
-def _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C):
-    """``(xi B, h)`` of e-60 / e-59 at ``xi = exp(t)``, on the stage-1 solution.
-
-    Above ``XI_WALL_FORM``, ``delta`` and ``D`` come from :func:`_wall_form` (``C`` from
-    :func:`_wall_increments`), below from the dense output (or the axis series) directly.
-
-    For A = -1 (Appendix A) ``D`` vanishes identically and the general formulas are 0/0; there
-    ``m = -N L`` and the limits ``B = c/xi`` (``c = 2N/eta``) and ``h = 2`` are used instead, so
-    that A = -1 runs through the same stage-2 march as every other A and the closed form
-    (model.a_minus_one_*) stays an independent check of it.
-    """
-    if A == -1.0:
-        return model.a_minus_one_xi_B(eta, N), model.a_minus_one_h()
-    if xi >= XI_WALL_FORM and xi > xi1:
-        k = _stage1_step(xi, T1, n1, work)
-        delta, D = _wall_form(xi, -math.expm1(t), k, T1, Q1, C, A, N, ax, work[W_DELTA1],
-                              work[W_D1])
-    else:
-        delta = _delta_at(xi, xi1, ax, T1, Q1, n1, buf, work)
-        D = model.yield_D(xi, delta, A, N, ax)
-    h = model.shear_rate_h(xi, D, A)
-    work[W_XI] = xi
-    work[W_H] = h
-    return xi * model.spin_rate_B(delta, D, eta, A, N), h
-
-
-@njit(**_JIT_INLINE)
-def _stage2_rhs(t, y, args, out):
-    # Independent variable t = ln(xi): near the axis B ~ beta/xi, so d log(omega_hat)/dt -> beta
-    # is smooth all the way down, where marching in xi would crawl in geometric steps.
-    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol, C = args
-    xi = math.exp(t)
-    xiB, h = _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C)
-    out[0] = xiB  # d log(omega_hat)/dt   (e-60)
-    out[1] = -xi * h * math.exp(y[0])  # dJ/dt   (e-59)
+    a2 = 2.0 * (A + 1.0)
+    half_yx = 0.5 * ax[model.AX_Y] * x2m1
+    dD = c0 * c0 * x2m1 + a2 * (2.0 * N * (ddelta - half_yx) - ddelta * (delta + delta1))
+    # Rounding of dD (the rounding of D(1) is a constant, not noise): of its terms, and of ddelta
+    # carried through dD/d(delta).
+    noise_ddelta = _EPS * (abs(x2m1) * (abs(delta1) + abs(dw)) + abs(C[k]) + 2.0 * abs(dw))
+    noise = _EPS * (c0 * c0 * abs(x2m1) + abs(a2) * (2.0 * N * (abs(ddelta) + abs(half_yx))
+                                                     + abs(ddelta * (delta + delta1)))) \
+        + abs(a2) * (2.0 * N + abs(delta + delta1)) * noise_ddelta
+    return delta, D1 + dD, noise
 
 
 @njit(**_JIT)
@@ -252,23 +225,6 @@ def _h_axis(A, ax):
     if A == -1.0:
         return model.a_minus_one_h()
     return (A + 1.0) * (1.0 - (A - 1.0) / ax[AX_C0])
-
-
-@njit(**_JIT_INLINE)
-def _stage2_event(t, y, args):
-    # Positive while the rest of J (from xi down to the axis) can still matter: that rest is at
-    # most xi * max(h) * omega_hat(xi), because omega_hat increases with xi (B > 0 near the axis).
-    eta, A, N, ax, xi1, T1, Q1, n1, buf, work, tail_tol, C = args
-    J = y[1]
-    if J <= 0.0:
-        return 1.0
-    xi = math.exp(t)
-    if xi == work[W_XI]:
-        h = work[W_H]  # the step's last stage was evaluated here (FSAL): no second lookup
-    else:
-        _, h = _stage2_rates(xi, t, eta, A, N, ax, xi1, T1, Q1, n1, buf, work, C)
-    h_bound = 2.0 * max(h, _h_axis(A, ax))
-    return y[0] + t + math.log(h_bound) - math.log(tail_tol * J)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -496,7 +452,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     if A == -1.0:
         # Appendix A: stage 1 is exact (m = -NL, sigma_yx = -xi, delta = 0), no integration and
         # no stage-1 path; stage 2 runs through the same march as every other A, with B = c/xi
-        # and h = 2 (see _stage2_rates); beta = c is the exact spin exponent for the profiles.
+        # and h = 2 (see _node_rates); beta = c is the exact spin exponent for the profiles.
         ax[model.AX_Y] = 0.0
         ax[AX_C0] = 0.0
         ax[model.AX_K] = 0.0
@@ -523,7 +479,11 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     rtol1 = stage1_rtol(rtol, A, N, ax)
     buf = np.empty(1)
     atol1 = np.empty(1)
-    atol1[0] = atol
+    # Where stage 1 runs tighter than asked (here and in the re-marches below) the reason is a
+    # small difference that decides the outputs, so the absolute floor tightens with it: held at
+    # the user's atol it capped w's accuracy (1e-12 absolute against 1e-13 asked) and left
+    # Delta 2e-7 off next to the path edge (docs/work_precision.md).
+    atol1[0] = atol * min(1.0, rtol1 / rtol)
     args1 = (eta, A, N, ax)
     xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
@@ -536,6 +496,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         # rtol 1e-8 for eps L = 3.8, A = 1/3, N = 1, from the few wide steps of a march that
         # starts on the axis series. The status is certain; for xi_stop, march again 1000x tighter.
         rtol1 = max(STAGE1_RTOL_FLOOR, 1e-3 * rtol1)
+        atol1[0] = atol * min(1.0, rtol1 / rtol)
         s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res)
     if s1 == rk45.SUCCESS:
         delta_wall = _delta_wall(T1, Q1, n1, buf)
@@ -549,6 +510,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         rtol_cond = rtol * D_wall / sensitivity if sensitivity > 0.0 else rtol1
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
+            atol1[0] = atol * min(1.0, rtol1 / rtol)
             s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res)
             if s1 == rk45.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
@@ -587,6 +549,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         return st.EPS_TOO_LARGE_PATH, False
     res[R_MU_WALL] = delta_wall - N
     res[R_SIGMA_YX_WALL] = model.sigma_yx(1.0, D_wall, A)
+    res[R_RTOL1] = rtol1
     return st.OK, D_wall < WALL_D_FALLBACK * D_resolution
 
 
@@ -625,55 +588,180 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     return code
 
 
+@njit(**_JIT_INLINE)
+def _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C, delta1, D1):
+    """``(xi B, xi h, noise)`` of e-60 / e-59 at ``xi = 1 - s`` on the stage-1 solution, in stage-1
+    step ``k`` (``k < 0``: below ``R_XI1``, on the axis series); ``noise`` bounds the relative
+    rounding error of the two, from that of ``D`` (large only where ``D`` is small).
+
+    Above ``XI_WALL_FORM`` ``delta`` and ``D`` come from :func:`_wall_form` (``C`` from
+    :func:`_wall_increments`), below from the step's polynomial or the series directly.
+    For A = -1 (Appendix A) ``D`` vanishes identically and the general formulas are 0/0; there
+    ``m = -N L`` and the limits ``xi B = 2N/eta`` and ``h = 2`` are used instead, so that A = -1
+    runs through the same stage 2 as every other A and the closed form (model.a_minus_one_*)
+    stays an independent check of it.
+    """
+    if A == -1.0:
+        return model.a_minus_one_xi_B(eta, N), xi * model.a_minus_one_h(), 0.0
+    if k >= 0 and xi >= XI_WALL_FORM:
+        delta, D, noise = _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
+    else:
+        if k >= 0:
+            th = (xi - T1[k]) / (T1[k + 1] - T1[k])
+            th1 = 1.0 - th
+            w = Q1[k, 0, 0] + th * (Q1[k, 1, 0] + th1 * (
+                Q1[k, 2, 0] + th * (Q1[k, 3, 0] + th1 * Q1[k, 4, 0])))
+            delta = xi * xi * w
+        else:
+            delta = model.delta_axis_series(xi, ax)
+        D = model.yield_D(xi, delta, A, N, ax)
+        noise = _EPS * (ax[AX_C0] * ax[AX_C0] * xi * xi + abs(2.0 * (A + 1.0)) * (
+            2.0 * N * (abs(delta) + abs(ax[model.AX_Y]) * xi * xi) + 3.0 * delta * delta))
+    # B ~ 1/sqrt(D): a relative error e in D is e/2 in B, and at most that in h's 1/sqrt(D) part
+    xiB = xi * model.spin_rate_B(delta, D, eta, A, N)
+    return xiB, xi * model.shear_rate_h(xi, D, A), 0.5 * noise / abs(D)
+
+
+@njit(**_JIT)
+def _stage2_series_start(eta, A, N, ax, rtol, xi1):
+    """``(xi2, ln xi2)``: where :func:`model.stage2_series` (set up here) is good to
+    ``SERIES_TOL * rtol``, at most ``xi1``; ``(0, ln XI_FLOOR)`` without the closed form (A = -1)."""
+    if A == -1.0:
+        return 0.0, math.log(XI_FLOOR)
+    model.stage2_series(eta, A, N, ax)
+    xi2 = model.stage2_series_reach(ax, SERIES_TOL * rtol, xi1)
+    return xi2, (math.log(xi2) if xi2 > 0.0 else math.log(XI_FLOOR))
+
+
 @njit(**_JIT)
 def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, res):
-    """Stage 2: wall -> axis in ``t = ln(xi)``, state ``(log omega_hat, J)``; ``omega_hat(1) = 1``,
-    ``J(1) = 0`` (eq:7). Stops once the rest of ``J`` is below ``TAIL_FRACTION * rtol * J``.
+    """Stage 2: ``(log omega_hat, J)`` from the wall towards the axis, as the nested quadrature of
+    :mod:`.panels` in ``t = ln(xi)``; ``omega_hat(1) = 1``, ``J(1) = 0`` (eq:7).
 
-    ``d log(omega_hat)/dt = xi B`` does not depend on the state, and ``J`` grows like
-    ``exp((beta + 1) t)``: with ``beta = 1e5`` the march takes steps of ~1/beta in t and stops
-    after a few tens of them (the tail event), so its cost does not grow with beta.
+    ``d log(omega_hat)/dt = xi B`` and ``dJ/dt = -xi h omega_hat`` are quadratures of known
+    functions of the stage-1 solution, so no ODE solver is needed: on Chebyshev panels that never
+    straddle a stage-1 step (inside one, ``w`` is a polynomial and the integrands are analytic)
+    both are integrated to ``STAGE2_TOL * rtol``, below the error of the stage-1 interpolant they
+    read. Panels follow the stage-1 steps down to ``R_XI1`` and go on, on the axis series, to
+    where the closed form of :func:`model.stage2_series` takes over (``R_XI2``), or stop once the
+    rest of ``J`` is below ``TAIL_FRACTION * rtol * J``: with ``beta = 1e5``, ``J`` grows like
+    ``exp((beta + 1) t)`` and the panels stop after a few widths ~1/beta.
+
+    ``T2[p]`` (descending, ``T2[0] = 0``) are the panel ends in ``t`` and ``Q2[p]`` the dense
+    output of ``(log omega_hat, J)`` on panel ``p`` (:func:`panels.integrate_panel`), evaluated at
+    ``u = (T2[p] - t) / r`` by :func:`panels.panel_value`.
     """
-    buf = np.empty(1)
-    y2 = np.zeros(2)
-    # Below xi2 the axis series give stage 2 in closed form (model.stage2_series): the march
-    # ends there unless the tail event ends it first.
+    # Where the closed form takes over is needed only once the panels leave the stage-1 steps:
+    # most points stop on the tail before, and the series cost ~1/5 of the march.
+    qtol = STAGE2_TOL * rtol
+    # Panels stop at every stage-1 step boundary, where the dense output has a kink of the size
+    # of stage 1's error; where stage 1 ran far tighter than this quadrature (next to the path
+    # edge, see solve_stage1) the kinks are below its tolerance and panels may span steps.
+    free = res[R_RTOL1] < FREE_PANELS * qtol
     xi2 = 0.0
-    if A != -1.0:
-        model.stage2_series(eta, A, N, ax)
-        xi2 = model.stage2_series_reach(ax, SERIES_TOL * rtol, xi1)
-    t_end = math.log(xi2) if xi2 > 0.0 else math.log(XI_FLOOR)
-    atol2 = np.empty(2)
-    atol2[0] = rtol  # an absolute error in log(omega_hat) is a relative error in omega_hat
-    atol2[1] = atol * min(1.0, eta)
-    work = _stage1_work(n1)
+    t_end = -math.inf
+    if n1 == 0 or free:
+        xi2, t_end = _stage2_series_start(eta, A, N, ax, rtol, xi1)
+    atol_J = atol * min(1.0, eta)
     C = _wall_increments(T1, Q1, n1)
+    delta1 = math.nan
+    D1 = math.nan
     if A != -1.0:
-        work[W_DELTA1] = _delta_wall(T1, Q1, n1, buf)
-        work[W_D1] = model.yield_D(1.0, work[W_DELTA1], A, N, ax)
-    args2 = (eta, A, N, ax, xi1, T1, Q1, n1, buf, work, TAIL_FRACTION * rtol, C)
-    # First step: stage 1's last one, which the same smoothness near the wall set (the generic
-    # guess, built on J(1) = 0 and a tiny atol, starts ~100x smaller and climbs for 3-4 steps).
-    h0 = -math.log(T1[n1 - 1]) if n1 > 0 else 0.0
-    s2, n2, t2 = rk45.dopri5(
-        _stage2_rhs, _stage2_event, 0.0, y2, t_end, args2, rtol, atol2, h0, 0.0, T2, Q2, stats2,
-    )
-    res[R_N2] = n2
-    if s2 != rk45.SUCCESS and s2 != rk45.EVENT:
-        res[R_STATUS] = st.INTEGRATION_FAILED
-        return st.INTEGRATION_FAILED
-    yb = np.empty(2)
-    dense.dense_eval(T2, Q2, n2, t2, yb)
-    res[R_T_TAIL] = t2
-    res[R_J_AXIS] = yb[1]
-    if s2 == rk45.SUCCESS and xi2 > 0.0:
+        delta1 = _delta_wall(T1, Q1, n1, np.empty(1))
+        D1 = model.yield_D(1.0, delta1, A, N, ax)
+    f = np.empty(panels.N_NODES)
+    g = np.empty(panels.N_NODES)
+    rel_noise = np.empty(panels.N_NODES)
+    y_nodes = np.empty(panels.N_NODES)
+    X = panels.X
+    last = panels.N_NODES - 1
+    h_axis = _h_axis(A, ax)
+    tail_tol = TAIL_FRACTION * rtol
+    max_panels = T2.size - 1
+    k = n1 - 1  # the stage-1 step under the current panel; -1: below xi1
+    b = 0.0
+    y_b = 0.0
+    J_b = 0.0
+    length = -math.log(T1[k]) if k >= 0 else 1.0  # first try: the whole last stage-1 step
+    lo = math.log(T1[k]) if k >= 0 and not free else t_end
+    T2[0] = 0.0
+    p = 0
+    tail = False
+    while b > t_end:
+        a = b - length
+        if a < lo + 0.25 * length:
+            a = lo  # no sliver left before the step boundary
+        r = 0.5 * (b - a)
+        mid = 0.5 * (a + b)
+        noise_y = 0.0
+        for j in range(panels.N_NODES):
+            t = b if j == 0 else (a if j == last else mid + r * X[j])
+            # one exponential: s = 1 - xi to full relative precision where the wall form needs it
+            if t > -0.5:
+                s = -math.expm1(t)
+                xi = 1.0 - s
+            else:
+                xi = math.exp(t)
+                s = 1.0 - xi
+            if free:
+                k = dense.find_step_from(T1, n1, xi, k) if xi > xi1 else -1
+            f[j], g[j], rel_noise[j] = _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C, delta1, D1)
+            noise_y = max(noise_y, abs(f[j]) * rel_noise[j])
+        stats2[rk45.STAT_FEV] += panels.N_NODES
+        err_y, err_J = panels.integrate_panel(f, g, y_b, J_b, r, Q2, p, y_nodes)
+        noise_J = 0.0
+        for j in range(panels.N_NODES):
+            noise_J = max(noise_J, abs(g[j]) * rel_noise[j])
+        J_a = panels.panel_value(Q2, p, 1, 2.0)
+        # Next to the edge of solvability D is tiny near the wall and the integrands carry the
+        # rounding noise of D: no panel can resolve below it, so the tolerance never goes below a
+        # multiple of the noise's integral over the panel (an error of the data, not of the
+        # quadrature).
+        floor_y = NOISE_FLOOR * 2.0 * r * noise_y
+        floor_J = NOISE_FLOOR * 2.0 * r * noise_J + floor_y * abs(J_a - J_b)
+        err = max(err_y / (qtol + floor_y), err_J / (qtol * abs(J_a) + atol_J + floor_J))
+        if not err <= 1.0:  # also NaN: a node where D < 0 within round-off
+            stats2[rk45.STAT_REJECTED] += 1
+            length = (b - a) * (min(0.5, panels.panel_error_factor(err, 1.0))
+                                if math.isfinite(err) else 0.25)
+            if length < 1e-15 or p >= max_panels:
+                res[R_N2] = p
+                res[R_STATUS] = st.INTEGRATION_FAILED
+                return st.INTEGRATION_FAILED
+            continue
+        stats2[rk45.STAT_ACCEPTED] += 1
+        p += 1
+        T2[p] = a
+        b = a
+        y_b = y_nodes[last]
+        J_b = J_a
+        if p >= max_panels:
+            res[R_N2] = p
+            res[R_STATUS] = st.INTEGRATION_FAILED
+            return st.INTEGRATION_FAILED
+        # The rest of J, from xi down to the axis, is at most xi max(h) omega_hat(xi) (omega_hat
+        # increases with xi near the axis, B > 0 there): stop once that is negligible.
+        # (g[last] is xi h omega_hat at xi = e^a)
+        if 2.0 * max(g[last], h_axis * math.exp(a + y_b)) < tail_tol * J_b:
+            tail = True
+            break
+        length = 2.0 * r * panels.panel_error_factor(err, 1.0)
+        if a == lo and k >= 0 and not free:
+            k -= 1
+            if k < 0:
+                xi2, t_end = _stage2_series_start(eta, A, N, ax, rtol, xi1)
+            lo = math.log(T1[k]) if k >= 0 else t_end
+    res[R_N2] = p
+    res[R_T_TAIL] = b
+    res[R_J_AXIS] = J_b
+    if not tail and xi2 > 0.0:
         # J(0) = J(xi2) + int_0^xi2 h omega_hat
         res[R_XI2] = xi2
-        res[R_LOGW2] = yb[0]
-        res[R_J2] = yb[1]
-        res[R_LOGI2] = _series_log_I(xi2, xi2, yb[0], ax)
-        res[R_J_AXIS] = yb[1] + math.exp(res[R_LOGI2])
-    if not (math.isfinite(yb[1]) and yb[1] > 0.0):
+        res[R_LOGW2] = y_b
+        res[R_J2] = J_b
+        res[R_LOGI2] = _series_log_I(xi2, xi2, y_b, ax)
+        res[R_J_AXIS] = J_b + math.exp(res[R_LOGI2])
+    if not (math.isfinite(res[R_J_AXIS]) and res[R_J_AXIS] > 0.0):
         res[R_STATUS] = st.INTEGRATION_FAILED
         return st.INTEGRATION_FAILED
     return st.OK
@@ -730,47 +818,45 @@ def _series_plug_edge(target, res, ax):
 
 @njit(**_JIT)
 def one_minus_xi_p(eps_K, res, ax, T2, Q2):
-    """``1 - xi_p`` from eq:13 (see :func:`_one_minus_xi_p`, which the batch kernel calls with scratch)."""
-    return _one_minus_xi_p(eps_K, res, ax, T2, Q2, np.empty(2))
+    """``1 - xi_p`` from eq:13: on the stage-2 panels (``J`` increases monotonically towards the
+    axis), or below ``R_XI2`` on stage 2's closed form (:func:`_series_plug_edge`).
 
-
-@njit(**_JIT)
-def _one_minus_xi_p(eps_K, res, ax, T2, Q2, scratch):
-    """``1 - xi_p`` from eq:13 on the stage-2 dense output (``J`` decreases monotonically in xi),
-    or below ``R_XI2`` on stage 2's closed form (:func:`_series_plug_edge`).
-
-    The bracket comes from the stored step starts (``J(T2[k])`` is the first dense-output row, no
-    interpolation needed), the root from :func:`roots.find_root` on that one step's polynomial.
-    The root is found in ``t = ln(xi_p)`` and returned as ``-expm1(t)``: no cancellation even
-    when the shear layer is a tiny fraction of the channel.
+    The panel comes from a bisection on ``J`` at the panel ends (sums of the Chebyshev
+    coefficients), the root from :func:`roots.newton_root` on that panel's series. The root is
+    found in ``t = ln(xi_p)`` and returned as ``-expm1(t)``: no cancellation even when the shear
+    layer is a tiny fraction of the channel.
     """
-    J_axis = res[R_J_AXIS]
-    target = model.plug_target(J_axis, eps_K)
+    target = model.plug_target(res[R_J_AXIS], eps_K)
     if target <= 0.0:
         return 0.0
-    if target > res[R_J2]:  # False when R_J2 is NaN: no closed form below the march
+    if target > res[R_J2]:  # False when R_J2 is NaN: no closed form below the panels
         return -math.expm1(_series_plug_edge(target, res, ax))
     n2 = int(res[R_N2])
-    # T2 (= ln xi) runs from 0 down, J from 0 up: the last step start with J below the target.
     lo = 0
     hi = n2
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if Q2[mid, 0, 1] < target:
+        if Q2[mid, panels.TOP, 1] < target:
             lo = mid
         else:
             hi = mid
-    a = T2[lo]
-    # T2[n2] is the end of the last step, which overshoots where the tail event stopped stage 2.
-    b = T2[hi] if hi < n2 else res[R_T_TAIL]
-    packed = (T2, Q2, lo, 1, target, scratch)
-    fa = Q2[lo, 0, 1] - target
-    fb = dense.step_component_minus_level(b, packed)
-    if not fb > 0.0:
-        return -math.expm1(b)  # J reaches the target only at the step's end (within round-off)
-    x, _ = roots.find_root(dense.step_component_minus_level, packed, a, b, fa, fb,
-                           4e-16 * max(abs(a), abs(b)), ROOT_MAX_ITER)
-    return -math.expm1(x)
+    # on panel lo, in u = (T2[lo] - t)/r from its upper end: J - target rises from f_top < 0
+    f_top = Q2[lo, panels.TOP, 1] - target
+    f_bottom = panels.panel_value(Q2, lo, 1, 2.0) - target
+    if not f_bottom > 0.0:
+        return -math.expm1(T2[lo + 1])  # J reaches the target only at the panel's end
+    u0 = 2.0 * f_top / (f_top - f_bottom)  # linear between the ends
+    u, _ = roots.newton_root(_panel_level, (Q2, lo, target), 0.0, 2.0, f_top, f_bottom, u0,
+                             1e-14 * u0, ROOT_MAX_ITER)
+    r = 0.5 * (T2[lo] - T2[lo + 1])
+    return -math.expm1(T2[lo] - r * u)
+
+
+@njit(**_JIT)
+def _panel_level(u, packed):
+    Q2, p, target = packed
+    J, dJ = panels.panel_value_d(Q2, p, 1, u)
+    return J - target, dJ
 
 
 @njit(**_JIT)
@@ -806,15 +892,14 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
     ax = np.empty(N_AX)
     T1 = np.empty(max_steps_stage1 + 1)
     Q1 = np.empty((max_steps_stage1, 5, 1))
-    scratch = np.empty(2)
     T2 = np.empty(max_steps_stage2 + 1)
-    Q2 = np.empty((max_steps_stage2, 5, 2))
+    Q2 = np.empty((max_steps_stage2, panels.N_ROWS, 2))
     for i in range(eta.size):
         code = solve_eta(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, T2, Q2, stats[i, 0],
                          stats[i, 1], res[i], METHOD_AUTO, stage2 or plug_edge or xi_profile.size > 0)
         for j in range(offsets[i], offsets[i + 1]):
             if code == st.OK and plug_edge:
-                one_minus[j] = _one_minus_xi_p(eps_K[j], res[i], ax, T2, Q2, scratch)
+                one_minus[j] = one_minus_xi_p(eps_K[j], res[i], ax, T2, Q2)
             else:
                 one_minus[j] = math.nan
         if xi_profile.size > 0:
@@ -827,6 +912,17 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
 
 
 @njit(**_JIT)
+def _panel_of(T2, n2, t, p):
+    """The stage-2 panel holding ``t`` (``T2[p] >= t >= T2[p+1]``), searched from panel ``p``."""
+    p = min(max(p, 0), n2 - 1)
+    while p > 0 and t > T2[p]:
+        p -= 1
+    while p < n2 - 1 and t < T2[p + 1]:
+        p += 1
+    return p
+
+
+@njit(**_JIT)
 def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     """Profiles of one solved triple at ``xis``: rows ``P_J``, ``P_OMEGA_HAT``, ``P_DELTA``, ``P_SIGMA_YX``.
 
@@ -835,7 +931,6 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     while ``J`` and ``omega_hat`` come from the stage-2 march as for every other A.
     """
     buf = np.empty(1)
-    yb = np.empty(2)
     xi1 = res[R_XI1]
     n1 = int(res[R_N1])
     n2 = int(res[R_N2])
@@ -843,15 +938,16 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     J_axis = res[R_J_AXIS]
     work = _stage1_work(n1)
     # Below where stage 2 stopped, omega_hat ~ xi^beta (Appendix B) and J has converged.
-    dense.dense_eval(T2, Q2, n2, t_tail, yb)
-    logw_tail = yb[0]
+    logw_tail = panels.panel_value(Q2, n2 - 1, 0, 2.0) if n2 > 0 else 0.0
+    p = 0
     for i in range(xis.size):
         xi = xis[i]
         t = math.log(xi) if xi > 0.0 else -math.inf
         if t >= t_tail:
-            dense.dense_eval(T2, Q2, n2, t, yb)
-            logw = yb[0]
-            J = yb[1]
+            p = _panel_of(T2, n2, t, p)
+            u = max(0.0, min(2.0, 2.0 * (T2[p] - t) / (T2[p] - T2[p + 1])))
+            logw = panels.panel_value(Q2, p, 0, u)
+            J = panels.panel_value(Q2, p, 1, u)
         elif res[R_XI2] > 0.0:
             logw = res[R_LOGW2] + ax[AX_BETA] * (t - t_tail) + model.series_G(xi, ax) \
                 - model.series_G(res[R_XI2], ax)

@@ -167,6 +167,10 @@ def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
         else:
             hi = x
         x_new = x - f / df if df != 0.0 else math.nan
+        if abs(x_new - x) <= tol:
+            # Converged, also when the step is below the resolution of x (x_new == x == one end
+            # of the bracket, which the test below would take for a step outside it and bisect).
+            return x_new, it + 1
         if not (min(lo, hi) < x_new < max(lo, hi)) or abs(2.0 * f) > abs(dx_old * df):
             dx_old = dx
             dx = 0.5 * (hi - lo)

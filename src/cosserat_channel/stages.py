@@ -57,6 +57,8 @@ TAIL_FRACTION = 1e-3
 STAGE2_TOL = 1e-2
 # ... or, where the integrands are noisy (see _march_stage2), this many times their rounding noise.
 NOISE_FLOOR = 10.0
+# The first stage-2 panel is at most this many e-folds of omega_hat at the wall long.
+FIRST_PANEL = 1.0
 # Stage-2 panels may span stage-1 steps where stage 1 ran at below this fraction of its tolerance.
 FREE_PANELS = 1e-2
 # Evaluations of the plug-edge root (it needs ~10; the bound only guards a loop that cannot end).
@@ -682,7 +684,11 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     b = 0.0
     y_b = 0.0
     J_b = 0.0
-    length = -math.log(T1[k]) if k >= 0 else 1.0  # first try: the whole last stage-1 step
+    # First try: the whole last stage-1 step, or less where omega_hat falls fast at the wall
+    # (log omega_hat changes by xi B over a unit of t).
+    length = -math.log(T1[k]) if k >= 0 else 1.0
+    if A != -1.0:
+        length = min(length, FIRST_PANEL / abs(model.spin_rate_B(delta1, D1, eta, A, N)))
     lo = math.log(T1[k]) if k >= 0 and not free else t_end
     T2[0] = 0.0
     p = 0

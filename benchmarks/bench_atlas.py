@@ -225,6 +225,9 @@ class _CountingStatus:
         self.n += 1
         return self.ws.status(*args)
 
+    def count(self, n):  # the stage-1 solves of regimes.wall_D (the probes of D(1))
+        self.n += n
+
 
 def learner(args, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref):
     """4. python-adaptive's Learner2D on the same function."""

@@ -37,11 +37,14 @@ closed-form ``eta`` once ``D(1)`` sampled well below the edge confirms it
 the edge is known is thus about 1e-8 relative (how far it moves with the solver's tolerance), so
 ``tol`` is at least :data:`TOL_MIN`. Every trace also states its *noise band*, how close to the
 transition the solver's status stops being reliable (~1e-6 at tangential edges, up to ~1e-6 at
-transversal ones next to the node/focus switch where ``D(1)`` rises slowly, ~1e-9 elsewhere);
-a leaf keeps the largest of its nodes' bands and :func:`classify` leaves points within it
-undecided. The traces search twice the claimed range of ``eta`` each way, so that a transition
-just outside the claimed range keeps the signature of the cells next to it and is interpolated,
-not lost.
+transversal ones next to the node/focus switch ``N^2 = (5 + 3A)/2`` where ``D(1)`` rises slowly,
+1e-9 to 1e-7 elsewhere); a leaf keeps the largest of its nodes' bands and :func:`classify` leaves
+points within it undecided. On the focus side of that switch, over about 0.15 in N, the status
+bisection's edge is itself noise at up to ~1e-7 (a near-double zero of ``D(1)``, which an
+extrapolation of ``D(1)`` locates no better than ``sqrt(noise / c)``): cells there stop refining
+with estimates above that. The traces search twice the claimed range of ``eta`` each way, so that
+a transition just outside the claimed range keeps the signature of the cells next to it and is
+interpolated, not lost.
 
 Reading an atlas (:func:`load_atlas`, :func:`classify`, :meth:`Atlas.boundary`) imports numpy
 and xarray only: building one (:func:`build_atlas`) imports the solver.

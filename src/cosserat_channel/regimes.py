@@ -18,14 +18,18 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
 * **Edge of solvability.** By the similarity of model.md, whether a point has a solution depends on
   ``(eta = eps L, A, N)`` only. :func:`trace_edge` finds ``eta_max(A, N)``, the largest ``eta`` in
   the searched range with status ``ok``, by sampling a coarse grid in ``eta`` and bisecting every
-  sampled change of feasibility; :func:`trace_boundary` does that on a grid of ``(A, N)`` and returns
-  an :class:`xarray.Dataset`.
+  sampled change of feasibility; where the edge is *tangential* (the path runs into the node of
+  the yield condition at the wall, :func:`node_edge_eta`) the status is noise within ~1e-6 of the
+  edge, and the edge is the node's closed-form ``eta`` once ``D(1)`` sampled below it
+  (:func:`wall_D`, :func:`probe_edge`) confirms it. :func:`trace_boundary` does that on a grid of
+  ``(A, N)`` and returns an :class:`xarray.Dataset`.
 
 Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
 reads the codes of this data from :mod:`cosserat_channel.regime_codes` and never solves).
 :func:`bisect_edge` is the one bisection of a solvability edge in the package. The module is
-just over 500 lines because the phase plane and the edge share the model's regime logic and the
-Dataset layout of :func:`trace_boundary`; a solvability atlas would make it a ``regimes/`` package.
+about 800 lines because the phase plane and the edge share the model's regime logic and the
+Dataset layout of :func:`trace_boundary`, and the edge needs its probes of ``D(1)``; splitting it
+into a ``regimes/`` package (phase plane, edge) is the next step it asks for.
 """
 
 from __future__ import annotations
@@ -479,8 +483,10 @@ class Edge:
     Attributes
     ----------
     eta_max : float
-        Largest ``eta`` with status ok (bracketed to ``xtol`` relative); for ``kind`` unbounded the
-        upper end of the search range (a lower bound only); NaN for ``kind`` no_solution.
+        Largest ``eta`` with status ok (bracketed to ``xtol`` relative), or at a tangential edge
+        the node's ``eta`` (the zero of ``D(1)``; the status is noise within ``bands[-1]`` of it);
+        for ``kind`` unbounded the upper end of the search range (a lower bound only); NaN for
+        ``kind`` no_solution.
     kind : int
         ``EDGE_BOUNDED``, ``EDGE_UNBOUNDED`` or ``EDGE_NONE``.
     eta_min : float

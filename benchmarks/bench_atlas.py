@@ -69,6 +69,9 @@ def main():
     ap.add_argument("--classify", type=int, default=100_000)
     ap.add_argument("--atlas-out", help="also keep the atlas in this file")
     ap.add_argument("--seed", type=int, default=14)
+    ap.add_argument("--status-bisection", action="store_true",
+                    help="every edge by status bisection, no D(1) probes (the traces before the "
+                         "tangential edges were the node's eta), for the atlas and references alike")
     args = ap.parse_args()
     parts = set(args.parts.split(",")) - {""}
     unknown = parts - {"accuracy", "uniform", "learner", "classify", "plot"}
@@ -83,6 +86,11 @@ def main():
     from cosserat_channel.measure import machine
     from cosserat_channel.solve import Workspace
 
+    if args.status_bisection:
+        import functools
+
+        regimes.trace_edge = functools.partial(regimes.trace_edge, tangential=False)
+
     A_rng = tuple(float(v) for v in args.A.split(":"))
     N_rng = tuple(float(v) for v in args.N.split(":"))
     rng = np.random.default_rng(args.seed)
@@ -90,7 +98,9 @@ def main():
     log(f"machine: {machine.machine()}; {machine.git_revision()}")
     max_degree = at.MAX_DEGREE if args.max_degree is None else args.max_degree
     log(f"box A {A_rng}, N {N_rng}, tol {args.tol:g}, degree {at.DEGREE}, max degree "
-        f"{max_degree}, max depth {args.max_depth}; load {os.getloadavg()[0]:.1f}")
+        f"{max_degree}, max depth {args.max_depth}"
+        f"{'; status bisection only' if args.status_bisection else ''}; "
+        f"load {os.getloadavg()[0]:.1f}")
 
     # 1. the atlas ---------------------------------------------------------------------------
     regimes.trace_edge(0.0, 1.0)  # load the compiled kernels before timing

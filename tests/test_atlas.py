@@ -337,3 +337,89 @@ def test_one_trace_off_is_covered_by_the_estimate(monkeypatch, node):
     _, _, eta, err = a.transitions(A, N)
     rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
     assert (rel <= np.fmax(a.tol, err)).all(), (rel / np.fmax(a.tol, err)).max()
+
+
+# ---------------------------------------------------------------------------------------------
+# Tangential edges: noise bands
+# ---------------------------------------------------------------------------------------------
+def test_noise_bands_widen_the_undecided_band(monkeypatch, tmp_path):
+    """Synthetic traces that state a noise band of 1e-6 at A > 0.5 and none below: the leaf keeps
+    the largest band of its nodes, classify leaves points within SAFETY bands undecided and
+    decides those beyond (from the exact edge); the bands survive the file, and an atlas of an
+    older format reads with none."""
+    log_eta = _synthetic_edge(monkeypatch)
+    fake = regimes.trace_edge
+
+    def banded(A, N, **kw):
+        e = fake(A, N, **kw)
+        e.bands = np.array([1e-6 if A > 0.5 else 0.0])
+        return e
+
+    monkeypatch.setattr(regimes, "trace_edge", banded)
+    a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=4, max_depth=1, max_degree=32)
+    leaf = a.leaf_of(np.array([0.9, 0.1]), np.array([1.5, 1.5]))
+    assert a.leaf_band[leaf[0]] == 1e-6
+    assert np.all(a.samples["bands"][a.samples["A"] > 0.5] == 1e-6)
+    rng = np.random.default_rng(5)
+    A, N = rng.uniform(0.0, 1.0, 400), rng.uniform(1.0, 2.0, 400)
+    rel = rng.choice([-1, 1], 400) * 10 ** rng.uniform(-8, -4, 400)
+    eta = np.exp(log_eta(A, N)) * (1 + rel)
+    codes = at.classify(eta / 100, 100.0, 0.5, A, N, atlas=a)
+    band = np.maximum(a.leaf_band[a.leaf_of(A, N)], a.tol)
+    assert np.all(codes[np.abs(rel) < at.SAFETY * band * 0.99] == at.UNDECIDED)
+    far = np.abs(rel) > 1.01 * at.SAFETY * np.maximum(band, a.leaf_error[a.leaf_of(A, N)])
+    assert far.sum() > 100
+    truth = np.where(rel < 0, st.OK, st.EPS_TOO_LARGE_PATH)
+    assert np.array_equal(codes[far], truth[far])
+    path = tmp_path / "a.nc"
+    at.save_atlas(a, path)
+    b = at.load_atlas(path)
+    np.testing.assert_array_equal(b.leaf_band, a.leaf_band)
+    np.testing.assert_array_equal(b.samples["bands"], a.samples["bands"])
+    ds = a.to_dataset().drop_vars(["leaf_band", "sample_bands"])
+    ds.attrs["format"] = "cosserat-channel atlas 2"
+    old = at.Atlas.from_dataset(ds)
+    assert not old.leaf_band.any() and not old.samples["bands"].any()
+
+
+NODE_BOX_A = (-0.5, -0.45)
+NODE_BOX_N = (1.45, 1.5)  # a tangential edge all over (N^2 > (5 + 3A)/2)
+
+
+@pytest.fixture(scope="module")
+def node_atlas():
+    return at.build_atlas(NODE_BOX_A, NODE_BOX_N, tol=1e-8, degree=6, max_depth=0)
+
+
+def test_atlas_on_a_tangential_edge(node_atlas):
+    """Every trace of the box is the node's eta; the atlas meets 1e-8 against direct traces at
+    random points, with a stated noise band of the size the statuses flip in (~1e-6)."""
+    a = node_atlas
+    assert a.leaf_n.tolist() == [1] and a.leaf_error[0] <= 1e-8
+    assert 3e-7 < a.leaf_band[0] < 1e-5
+    rng = np.random.default_rng(11)
+    A, N = rng.uniform(*NODE_BOX_A, 6), rng.uniform(*NODE_BOX_N, 6)
+    _, _, eta, _ = a.transitions(A, N)
+    for k in range(A.size):
+        e = regimes.trace_edge(A[k], N[k], eta_range=(5e-4, 200))
+        assert e.tangential[-1]
+        assert abs(eta[k, -1] / e.eta_max - 1) <= 1e-8
+
+
+def test_classify_next_to_a_tangential_edge(node_atlas):
+    """Points 1e-9..1e-4 (relative) from the edge: every decided one has the status of a solve,
+    those within the noise band are undecided, and most beyond 1e-5 are decided."""
+    a = node_atlas
+    rng = np.random.default_rng(12)
+    n = 300
+    A, N = rng.uniform(*NODE_BOX_A, n), rng.uniform(*NODE_BOX_N, n)
+    _, _, t, _ = a.transitions(A, N)
+    rel = rng.choice([-1, 1], n) * 10 ** rng.uniform(-9, -4, n)
+    eta = t[:, -1] * (1 + rel)
+    codes = at.classify(eta / 100, 100.0, 0.5, A, N, atlas=a)
+    ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
+    direct = np.array([_status(e, x, y, ws) for e, x, y in zip(eta, A, N)])
+    decided = codes != at.UNDECIDED
+    assert np.array_equal(codes[decided], direct[decided])
+    assert not decided[np.abs(rel) < a.leaf_band[0]].any()
+    assert decided[np.abs(rel) > 1e-5].mean() > 0.9

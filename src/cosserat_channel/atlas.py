@@ -27,15 +27,24 @@ interpolant needs millions (measured in ``benchmarks/bench_atlas.py``
 and ``docs/performance.md``). It also learns one scalar, while a point here has zero to two
 transitions and the number changes across the plane.
 
-Numerics. The transitions are bisected by :func:`~cosserat_channel.regimes.bisect_edge` to
-``regimes.ETA_XTOL`` (1e-10 relative) with the solver at ``regimes.EDGE_RTOL``; where the edge
-lies is known to about 1e-8 relative (how far it moves with the solver's tolerance), so ``tol``
-is at least :data:`TOL_MIN`. In places the solver's edge is worse than that: at N = 1.5 the
-status alternates between ok and eps_too_large_path within ~2e-6 below the bisected edge (measured
-at A = 0.09), so a trace lands anywhere in that band; the atlas's cells there stop refining at
-an estimate of that size (docs/performance.md). The traces search twice the claimed range of
-``eta`` each way, so that a transition just outside the claimed range keeps the signature of the
-cells next to it and is interpolated, not lost.
+Numerics. The transitions are those of :func:`~cosserat_channel.regimes.trace_edge`: bisected
+by :func:`~cosserat_channel.regimes.bisect_edge` to ``regimes.ETA_XTOL`` (1e-10 relative) with
+the solver at ``regimes.EDGE_RTOL``, except at tangential edges, where the stress path runs into
+the node of the yield condition at the wall and ``D(1) ~ c (eta_max - eta)^2``: there the status
+is decided by the noise of ``D(1)`` within ~1e-6 of the edge, and the transition is the node's
+closed-form ``eta`` once ``D(1)`` sampled well below the edge confirms it
+(``regimes.node_edge_eta``; scipy's DOP853 puts the zero of ``D(1)`` within 5e-9 of it). Where
+the edge is known is thus about 1e-8 relative (how far it moves with the solver's tolerance), so
+``tol`` is at least :data:`TOL_MIN`. Every trace also states its *noise band*, how close to the
+transition the solver's status stops being reliable (~1e-6 at tangential edges, up to ~1e-6 at
+transversal ones next to the node/focus switch ``N^2 = (5 + 3A)/2`` where ``D(1)`` rises slowly,
+1e-9 to 1e-7 elsewhere); a leaf keeps the largest of its nodes' bands and :func:`classify` leaves
+points within it undecided. On the focus side of that switch, over about 0.15 in N, the status
+bisection's edge is itself noise at up to ~1e-7 (a near-double zero of ``D(1)``, which an
+extrapolation of ``D(1)`` locates no better than ``sqrt(noise / c)``): cells there stop refining
+with estimates above that. The traces search twice the claimed range of ``eta`` each way, so that
+a transition just outside the claimed range keeps the signature of the cells next to it and is
+interpolated, not lost.
 
 Reading an atlas (:func:`load_atlas`, :func:`classify`, :meth:`Atlas.boundary`) imports numpy
 and xarray only: building one (:func:`build_atlas`) imports the solver.
@@ -75,8 +84,10 @@ TRACE_WIDEN = 2.0  # traces search [lo / TRACE_WIDEN, hi * TRACE_WIDEN] (see the
 DEFAULT_A = (-1.0, 5.0)
 DEFAULT_N = (0.3, 3.0)
 ROOT_CELL = 1.0  # the root cells are about this wide in A and N
-FORMAT = "cosserat-channel atlas 2"  # 2: leaves of their own degrees (leaf_degree)
-FORMATS = ("cosserat-channel atlas 1", FORMAT)  # 1: every leaf of the atlas's degree
+FORMAT = "cosserat-channel atlas 3"  # 3: noise bands of the traces (sample_bands, leaf_band)
+# 1: every leaf of the atlas's degree; 2: leaves of their own degrees (leaf_degree). Both are read
+# with zero bands: their traces bisected the status at tangential edges (see the module notes).
+FORMATS = ("cosserat-channel atlas 1", "cosserat-channel atlas 2", FORMAT)
 
 
 def cache_path():
@@ -202,8 +213,11 @@ class Atlas:
         ``leaf_n``.
     leaf_degree : ndarray of int
         ``(leaf, 2)``: each leaf's Chebyshev degree along A and N.
+    leaf_band : ndarray of float
+        The largest noise band (``regimes.Edge.bands``, relative) of the traces at the leaf's
+        nodes: how close to a transition the solver's own status stops being reliable.
     samples : dict of ndarray
-        ``A``, ``N``, ``low``, ``n``, ``transitions`` of every trace the build made.
+        ``A``, ``N``, ``low``, ``n``, ``transitions`` and ``bands`` of every trace the build made.
     attrs : dict
         Provenance (tolerances of the traces, counts of traces and solves, version).
     """
@@ -224,10 +238,15 @@ class Atlas:
     samples: dict
     attrs: dict
     leaf_degree: np.ndarray = None
+    leaf_band: np.ndarray = None
 
     def __post_init__(self):
         if self.leaf_degree is None:
             self.leaf_degree = np.full((self.leaf_n.size, 2), self.degree, dtype=np.int64)
+        if self.leaf_band is None:
+            self.leaf_band = np.zeros(self.leaf_n.size)
+        if "bands" not in self.samples:
+            self.samples["bands"] = np.zeros_like(self.samples["transitions"])
 
     # -- geometry --------------------------------------------------------------------------
     def _fine(self):
@@ -404,6 +423,9 @@ class Atlas:
                     "long_name": "changes of feasibility found in the traced eta range"}),
                 "sample_transitions": (("sample", "transition"), s["transitions"], {
                     "long_name": "eta where feasibility changes, ascending (NaN-padded)"}),
+                "sample_bands": (("sample", "transition"), s["bands"], {
+                    "long_name": "relative distance from the transition within which the "
+                                 "solver's status is not reliable (NaN-padded)"}),
                 "leaf_level": ("leaf", self.leaf_level.astype(np.int8)),
                 "leaf_i": ("leaf", self.leaf_i.astype(np.int32)),
                 "leaf_j": ("leaf", self.leaf_j.astype(np.int32)),
@@ -416,6 +438,8 @@ class Atlas:
                     "long_name": "tensor Chebyshev coefficients of log eta on the leaf"}),
                 "leaf_degree": (("leaf", "direction"), self.leaf_degree.astype(np.int8), {
                     "long_name": "Chebyshev degree of the leaf along A and N"}),
+                "leaf_band": ("leaf", self.leaf_band, {
+                    "long_name": "largest noise band of the traces at the leaf's nodes"}),
             },
             attrs={"title": "cosserat-channel solvability atlas", "format": FORMAT,
                    "A_min": self.box[0], "A_max": self.box[1], "N_min": self.box[2],
@@ -444,9 +468,11 @@ class Atlas:
             leaf_n=v["leaf_n"].astype(np.int8), leaf_error=v["leaf_error"].astype(float),
             coef=v["leaf_coefficients"].astype(float),
             samples={"A": v["sample_A"], "N": v["sample_N"], "low": v["sample_low"],
-                     "n": v["sample_n"], "transitions": v["sample_transitions"]},
+                     "n": v["sample_n"], "transitions": v["sample_transitions"],
+                     **({"bands": v["sample_bands"]} if "sample_bands" in v else {})},
             attrs={k: val for k, val in a.items() if k not in keys},
             leaf_degree=v["leaf_degree"].astype(np.int64) if "leaf_degree" in v else None,
+            leaf_band=v["leaf_band"].astype(float) if "leaf_band" in v else None,
         )
 
 
@@ -492,9 +518,12 @@ def classify(eps, L, K, A, N, atlas):
     Appendix A's regimes (the wall line, ``A < -1``, ``A = -1``, the axis condition) are decided
     exactly, by :mod:`cosserat_channel.analytic`. Every other point is decided from the atlas's
     transitions: ``ok`` or ``eps_too_large_path`` (the status of the solver beyond a traced edge).
-    A point is :data:`UNDECIDED` (-1) when it lies within ``SAFETY * max(tol, error estimate)``
-    (relative) of an interpolated transition, in an unresolved leaf, outside the atlas's box or
-    outside its ``eta_range``: a solve decides those.
+    A point is :data:`UNDECIDED` (-1) when it lies within ``SAFETY * max(tol, error estimate,
+    noise band)`` (relative) of an interpolated transition, in an unresolved leaf, outside the
+    atlas's box or outside its ``eta_range``: a solve decides those. The noise band
+    (:attr:`Atlas.leaf_band`) is where the solver's own status is decided by the noise of
+    ``D(1)``: up to a few 1e-6 at tangential edges, where the transition is the node's ``eta``
+    (``regimes.trace_edge``) and a solve that close may come out either way.
 
     Parameters
     ----------
@@ -530,10 +559,11 @@ def classify(eps, L, K, A, N, atlas):
     if not need.any():
         return out
     e, a, n = eta[need], A[need], N[need]
-    _, low, t, err = atlas.transitions(a, n)
+    leaf, low, t, err = atlas.transitions(a, n)
     lo, hi = atlas.eta_range
     known = (low >= 0) & (e >= lo) & (e <= hi)
-    band = SAFETY * np.fmax(atlas.tol, err)
+    noise = np.where(leaf >= 0, atlas.leaf_band[np.maximum(leaf, 0)], 0.0)
+    band = SAFETY * np.fmax(atlas.tol, np.fmax(err, noise))
     with np.errstate(invalid="ignore"):
         dist = np.abs(np.log(e)[:, None] - np.log(t))
         near = np.any(dist <= band[:, None], axis=-1)
@@ -549,11 +579,12 @@ def classify(eps, L, K, A, N, atlas):
 # ---------------------------------------------------------------------------------------------
 def _signatures(trace, na, nn):
     """The set of ``(feasible_low, n_transitions)`` over the grid ``na x nn``."""
-    return {(low, t.size) for low, t in (trace(a, n) for a in na for n in nn)}
+    return {(low, t.size) for low, t, *_ in (trace(a, n) for a in na for n in nn)}
 
 
 class _Counting:
-    """A :class:`solve.Workspace` stand-in for ``trace_edge`` that counts the status solves."""
+    """A :class:`solve.Workspace` stand-in for ``trace_edge`` that counts the solves: status
+    solves and the stage-1 solves of ``regimes.wall_D`` (which calls :meth:`count`)."""
 
     def __init__(self, ws):
         self.ws = ws
@@ -562,6 +593,9 @@ class _Counting:
     def status(self, eta, A, N, rtol, atol):
         self.solves += 1
         return self.ws.status(eta, A, N, rtol, atol)
+
+    def count(self, n):
+        self.solves += n
 
 
 def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
@@ -652,7 +686,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
         if key not in cache:
             e = regimes.trace_edge(a, n, eta_range=trace_range, workspace=ws)
             low = e.kind != rc.EDGE_NONE and e.eta_min == trace_range[0]
-            cache[key] = (bool(low), np.asarray(e.transitions, dtype=float))
+            cache[key] = (bool(low), np.asarray(e.transitions, dtype=float),
+                          np.asarray(e.bands, dtype=float))
         return cache[key]
 
     ma, mn = roots[0] << max_depth, roots[1] << max_depth
@@ -694,13 +729,15 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
             if can_split:
                 queue.extend(children)
             else:
-                leaves.append((level, i, j, 0, -1, math.inf, no_coef, (pa, pn)))
+                leaves.append((level, i, j, 0, -1, math.inf, no_coef, (pa, pn), 0.0))
         else:
             low, n_tr = next(iter(sig))
             coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
             tails, rates = np.zeros(2), np.zeros(2)
+            band = 0.0
             if n_tr:
                 logt = np.log([[trace(a, b)[1] for b in nn] for a in na])  # (p, q, k)
+                band = max(float(trace(a, b)[2].max()) for a in na for b in nn)
                 coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
                 err, tails, rates, raw = _estimate(coef)
             grow = [not uniform and t > tol / 2 and r < RATE_GEOMETRIC and 2 * p <= max_degree
@@ -713,14 +750,14 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
             gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
             stalled = raw > before / gain or (raw > parent / gain and not any(grow))
             if err <= tol or stalled:
-                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn)))
+                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
             elif any(grow):
                 queue.insert(0, (level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]), raw,
                                  parent))
             elif can_split:
                 queue.extend(c[:5] + (math.inf, raw) for c in children)
             else:
-                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn)))
+                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
         if progress is not None:
             progress(len(leaves), len(queue), len(cache))
 
@@ -735,8 +772,10 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     keys = list(cache)
     smax = max([cache[k][1].size for k in keys] + [0])
     transitions = np.full((len(keys), smax), np.nan)
+    bands = np.full((len(keys), smax), np.nan)
     for k, key in enumerate(keys):
         transitions[k, :cache[key][1].size] = cache[key][1]
+        bands[k, :cache[key][2].size] = cache[key][2]
     return Atlas(
         box=box, roots=roots, degree=degree, max_depth=max_depth, tol=tol, eta_range=eta_range,
         leaf_level=np.array([lf[0] for lf in leaves], dtype=np.int64),
@@ -749,12 +788,14 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
         samples={"A": np.array([k[0] for k in keys]), "N": np.array([k[1] for k in keys]),
                  "low": np.array([cache[k][0] for k in keys], dtype=np.int8),
                  "n": np.array([cache[k][1].size for k in keys], dtype=np.int8),
-                 "transitions": transitions},
+                 "transitions": transitions, "bands": bands},
         attrs={"n_traces": len(cache), "n_solves": ws.solves, "uniform": int(uniform),
                "max_degree": int(max_degree),
                "trace_eta_min": trace_range[0], "trace_eta_max": trace_range[1],
                "edge_rtol": regimes.EDGE_RTOL, "edge_atol": regimes.EDGE_ATOL,
                "edge_xtol": regimes.ETA_XTOL, "n_coarse": regimes.ETA_COARSE,
+               "probe_xtol": regimes.PROBE_XTOL, "d_noise": regimes.D_NOISE,
                "cosserat_channel_version": __version__},
         leaf_degree=np.array([lf[7] for lf in leaves], dtype=np.int64).reshape(-1, 2),
+        leaf_band=np.array([lf[8] for lf in leaves], dtype=float),
     )

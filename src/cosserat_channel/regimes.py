@@ -18,14 +18,18 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
 * **Edge of solvability.** By the similarity of model.md, whether a point has a solution depends on
   ``(eta = eps L, A, N)`` only. :func:`trace_edge` finds ``eta_max(A, N)``, the largest ``eta`` in
   the searched range with status ``ok``, by sampling a coarse grid in ``eta`` and bisecting every
-  sampled change of feasibility; :func:`trace_boundary` does that on a grid of ``(A, N)`` and returns
-  an :class:`xarray.Dataset`.
+  sampled change of feasibility; where the edge is *tangential* (the path runs into the node of
+  the yield condition at the wall, :func:`node_edge_eta`) the status is noise within ~1e-6 of the
+  edge, and the edge is the node's closed-form ``eta`` once ``D(1)`` sampled below it
+  (:func:`wall_D`, :func:`probe_edge`) confirms it. :func:`trace_boundary` does that on a grid of
+  ``(A, N)`` and returns an :class:`xarray.Dataset`.
 
 Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
 reads the codes of this data from :mod:`cosserat_channel.regime_codes` and never solves).
 :func:`bisect_edge` is the one bisection of a solvability edge in the package. The module is
-just over 500 lines because the phase plane and the edge share the model's regime logic and the
-Dataset layout of :func:`trace_boundary`; a solvability atlas would make it a ``regimes/`` package.
+about 800 lines because the phase plane and the edge share the model's regime logic and the
+Dataset layout of :func:`trace_boundary`, and the edge needs its probes of ``D(1)``; splitting it
+into a ``regimes/`` package (phase plane, edge) is the next step it asks for.
 """
 
 from __future__ import annotations
@@ -34,8 +38,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from . import model
+from . import stages
 from .analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
 from . import status as st
 from .parameters import PARAMETERS, ParameterError, check_point
@@ -70,6 +76,19 @@ EDGE_ATOL = 1e-14
 # a path crawling into the sqrt(D) kink just past the edge would spend the solver's default
 # 200,000 before it is called integration_failed (not ok either way), which made tracing slow.
 EDGE_MAX_STEPS = 20_000
+# Tangential edges (trace_edge's Notes). The status bisection first stops at PROBE_XTOL; D(1) is
+# then sampled at these relative distances on the ok side of the bracket, where it is 1e6-1e9
+# times its noise at a tangential edge and the probes cost 6 stage-1 solves (a trace takes ~80).
+PROBE_XTOL = 1e-7
+PROBE_OFFSETS = np.geomspace(3e-5, 3e-4, 6)
+# Noise of D(1) next to the edge, in units of stage 1's resolution of it (STAGE1_RTOL_FLOOR times
+# |dD/d delta| delta at the wall). Measured: our stage 1 and scipy's DOP853 at rtol 1e-13 differ
+# by up to ~1e-13 at A = 0, N = 2, about 10 resolutions; statuses flip within the band this gives
+# (tests/test_regimes.py::test_noise_band_holds_the_flipping_statuses).
+D_NOISE = 40.0
+# The node's eta is taken as the edge when the status bisection lies within this many noise bands
+# of it and the extrapolation of sqrt(D(1)) puts the zero there too.
+NODE_AGREE = 4.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -283,6 +302,180 @@ def phase_plane(eps, L, A, N, *, n_xi=301, n_m=401, m_range=None) -> PhasePlane:
 # ---------------------------------------------------------------------------------------------
 # Edge of solvability
 # ---------------------------------------------------------------------------------------------
+@njit(nogil=True, cache=True)
+def _wall_D_kernel(etas, A, N, rtol, atol, ax, T1, Q1, stats1, res, status, D1, delta1):
+    # Stage 1 exactly as the status solve runs it (stages.solve_stage1: same start, re-marches
+    # and floor tolerance), then D(1) from the dense output's wall value, also where stage 1
+    # reached the wall but called D(1) zero within its resolution (status eps_too_large_path with
+    # xi_stop = 1). NaN where the path met D = 0 before the wall or stage 1 failed.
+    buf = np.empty(1)
+    for i in range(etas.size):
+        code, _ = stages.solve_stage1(etas[i], A, N, rtol, atol, ax, T1, Q1, stats1, res,
+                                      stages.METHOD_AUTO)
+        status[i] = code
+        n1 = int(res[stages.R_N1])
+        if n1 > 0 and (code == st.OK or res[stages.R_XI_STOP] == 1.0):
+            delta1[i] = stages._delta_wall(T1, Q1, n1, buf)
+            D1[i] = model.yield_D(1.0, delta1[i], A, N, ax)
+        else:
+            delta1[i] = math.nan
+            D1[i] = math.nan
+
+
+def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
+    """Stage 1's status, ``D(1)`` (the yield function at the wall) and ``delta(1)`` at each ``eta``.
+
+    Parameters
+    ----------
+    workspace : cosserat_channel.solve.Workspace
+        Its stage-1 arrays are used; a stand-in that counts solves (``atlas._Counting``) passes
+        its ``ws`` and counts the solves itself.
+    etas : array_like
+        Values of ``eta = eps L``.
+    A, N : float
+        The point of the ``(A, N)`` plane (``A > -1``).
+    rtol, atol : float
+        Tolerances handed to stage 1, which tightens them near the edge (down to
+        ``stages.STAGE1_RTOL_FLOOR``), as in a status solve.
+
+    Returns
+    -------
+    status : ndarray of int8
+        Stage 1's status (stage 2 is not run: next to the edge it may turn ok into not ok).
+    D1, delta1 : ndarray
+        ``D(1)`` and ``delta(1) = (m(1)/nu + N L)/L`` where stage 1 reached the wall, else NaN.
+    """
+    ws = getattr(workspace, "ws", workspace)
+    count = getattr(workspace, "count", None)
+    etas = np.ascontiguousarray(np.atleast_1d(np.asarray(etas, dtype=float)))
+    if count is not None:
+        count(etas.size)
+    status = np.empty(etas.size, dtype=np.int8)
+    D1 = np.empty(etas.size)
+    delta1 = np.empty(etas.size)
+    _wall_D_kernel(etas, float(A), float(N), float(rtol), float(atol), ws.ax, ws.T1, ws.Q1,
+                   ws.stats1, ws.res, status, D1, delta1)
+    return status, D1, delta1
+
+
+def node_edge_eta(A, N):
+    """``eta`` at which the node of the yield condition sits at the wall, and whether it is a node.
+
+    Along a stage-1 path ``dD/dxi = F - (D_delta / eta) sqrt(D)`` with
+    ``D = (A^2-1) xi^2 + 2(A+1)(2 N delta - delta^2)`` and
+    ``F = 2(A+1) xi [(A-1) + 2(A+1)(N - delta)/eta]``: a path can reach ``D = 0`` only where
+    ``F <= 0``, and the point of ``D = 0`` where ``F = 0`` (``N - delta = (1-A) eta / (2(A+1))``)
+    is a singular point of ``(xi, sqrt(D))``. Linearised there (``ds/dtau = 2z``,
+    ``dz/dtau = -Phi s - gamma z`` with ``gamma = 2(1-A)``, ``Phi = 4(A+1)^3 xi^2 / eta^2``) it is
+    a stable node when ``gamma^2 > 8 Phi`` and a focus otherwise. At a node the paths that come
+    close to ``D = 0`` run into it with ``sqrt(D)`` falling linearly: beyond the node ``F < 0``
+    and ``D`` turns negative. So where the node is reached, the edge is the ``eta`` that puts it
+    at the wall: ``D(1) = 0`` and ``F(1) = 0`` give
+
+        eta_node = 2 (A+1) sqrt(N^2 - (1-A)/2) / (1-A)
+
+    and the node condition at the wall reads ``N^2 > (5 + 3A)/2``. Whether the path does reach
+    the node is for the data to say (:func:`trace_edge` checks it); at a focus the path meets
+    ``D = 0`` past the singular point, transversally, and ``eta_max > eta_node``.
+
+    Parameters
+    ----------
+    A, N : float
+
+    Returns
+    -------
+    eta : float
+        ``eta_node``; NaN unless ``-1 < A < 1`` and ``N^2 > (1-A)/2`` (``A`` above the wall line).
+    node : bool
+        The singular point at the wall is a node (``N^2 > (5 + 3A)/2``).
+    ratio : float
+        ``lambda_fast / lambda_slow`` of the node (NaN at a focus): ``sqrt(D(1))`` is linear in
+        ``eta_node - eta`` up to a term in its power ``ratio``, so a polynomial extrapolation of
+        it is good where the ratio is well above 2 and biased as it approaches 1.
+    """
+    A = float(A)
+    N = float(N)
+    arg = N * N - 0.5 * (1.0 - A)
+    if not (-1.0 < A < 1.0 and arg > 0.0):
+        return math.nan, False, math.nan
+    eta = 2.0 * (A + 1.0) * math.sqrt(arg) / (1.0 - A)
+    gamma = 2.0 * (1.0 - A)
+    disc = gamma * gamma - 32.0 * (A + 1.0) ** 3 / (eta * eta)
+    if not disc > 0.0:
+        return eta, False, math.nan
+    return eta, True, (gamma + math.sqrt(disc)) / (gamma - math.sqrt(disc))
+
+
+@dataclass
+class Probe:
+    """``D(1)`` on the ok side of a bracketed transition (:func:`probe_edge`).
+
+    Attributes
+    ----------
+    root2, root3 : float
+        ``eta`` where degree-2 and degree-3 polynomial fits of ``sqrt(D(1))`` extrapolate to zero
+        (NaN where a fit has no real root nearby).
+    exponent : float
+        Local power of ``D(1)`` in the distance to ``root3`` (to the bracket where that is NaN):
+        2 at a tangential edge, towards 1 at a transversal one.
+    band : float
+        Relative distance from the edge within which ``D(1)``, continued by that power law, is
+        below its noise (``D_NOISE`` resolutions): the statuses there are not reliable.
+    """
+
+    root2: float
+    root3: float
+    exponent: float
+    band: float
+
+
+def _root_near_zero(coef):
+    r = np.roots(coef)
+    r = r[np.abs(r.imag) <= 1e-9 * np.maximum(1.0, np.abs(r))].real
+    return float(r[np.argmin(np.abs(r))]) if r.size else math.nan
+
+
+def probe_edge(workspace, t_ok, side, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
+    """Sample ``D(1)`` at ``t_ok (1 + side * PROBE_OFFSETS)`` and extrapolate it to the edge.
+
+    Parameters
+    ----------
+    workspace : Workspace or a stand-in with ``ws``
+    t_ok : float
+        The ok end of a bracketed transition.
+    side : {-1, 1}
+        -1 where ok lies below the transition (an upper edge), +1 above it.
+    A, N, rtol, atol : float
+
+    Returns
+    -------
+    Probe or None
+        None where a probe is not ok or has ``D(1) <= 0`` (the transition is not one of ``D(1)``
+        reaching zero at the wall, or another transition is within 3e-4).
+    """
+    eps = PROBE_OFFSETS
+    etas = t_ok * (1.0 + side * eps)
+    status, D1, delta1 = wall_D(workspace, etas, A, N, rtol, atol)
+    if not (np.all(status == st.OK) and np.all(D1 > 0.0)):
+        return None
+    u = eps / eps[-1]
+    s = np.sqrt(D1)
+    # Roots in u (0 at t_ok, positive into the ok side): the edge is a little beyond t_ok.
+    u2 = _root_near_zero(np.polyfit(u, s, 2))
+    u3 = _root_near_zero(np.polyfit(u, s, 3))
+    # The power is measured from the extrapolated zero where the two fits agree on it, else from
+    # the bracket (within PROBE_XTOL plus the band of the edge, ~3 % of the nearest offset).
+    agree = math.isfinite(u3) and math.isfinite(u2) and abs(u3 - u2) <= 0.05 * u[0]
+    ur = u3 if agree and abs(u3) <= 0.5 * u[0] else 0.0
+    exponent = math.log(D1[-1] / D1[0]) / math.log((u[-1] - ur) / (u[0] - ur))
+    sens = 4.0 * (A + 1.0) * np.abs(N - delta1) * np.abs(delta1)
+    noise = D_NOISE * stages.STAGE1_RTOL_FLOOR * float(np.max(sens))
+    dist0 = (u[0] - ur) * eps[-1]
+    band = dist0 * (noise / D1[0]) ** (1.0 / exponent) if exponent > 0.0 else dist0
+    to_eta = lambda v: t_ok * (1.0 + side * eps[-1] * v)  # noqa: E731
+    return Probe(to_eta(u2), to_eta(u3), exponent, min(band, dist0))
+
+
 @dataclass
 class Edge:
     """The traced edge of solvability in ``eta = eps L`` at one ``(A, N)``.
@@ -290,8 +483,10 @@ class Edge:
     Attributes
     ----------
     eta_max : float
-        Largest ``eta`` with status ok (bracketed to ``xtol`` relative); for ``kind`` unbounded the
-        upper end of the search range (a lower bound only); NaN for ``kind`` no_solution.
+        Largest ``eta`` with status ok (bracketed to ``xtol`` relative), or at a tangential edge
+        the node's ``eta`` (the zero of ``D(1)``; the status is noise within ``bands[-1]`` of it);
+        for ``kind`` unbounded the upper end of the search range (a lower bound only); NaN for
+        ``kind`` no_solution.
     kind : int
         ``EDGE_BOUNDED``, ``EDGE_UNBOUNDED`` or ``EDGE_NONE``.
     eta_min : float
@@ -300,8 +495,14 @@ class Edge:
     status_above : int
         Status just above ``eta_max`` (bounded edges), else -1.
     transitions : ndarray
-        Every ``eta`` where the coarse samples change feasibility, each bisected. One entry (for a
-        bounded edge with ok below) means feasibility is monotone on the samples.
+        Every ``eta`` where the coarse samples change feasibility, each bisected, or the node's
+        ``eta`` where the edge is tangential. One entry (for a bounded edge with ok below) means
+        feasibility is monotone on the samples.
+    bands : ndarray
+        Per transition, the relative distance from it within which the solver's status is not
+        reliable (:attr:`Probe.band`; 0 where ``D(1)`` could not be probed).
+    tangential : ndarray of bool
+        Per transition, whether it is the node's ``eta`` (a tangential edge, :func:`trace_edge`).
     """
 
     A: float
@@ -311,6 +512,14 @@ class Edge:
     eta_min: float
     status_above: int
     transitions: np.ndarray
+    bands: np.ndarray = None
+    tangential: np.ndarray = None
+
+    def __post_init__(self):
+        if self.bands is None:
+            self.bands = np.zeros(self.transitions.size)
+        if self.tangential is None:
+            self.tangential = np.zeros(self.transitions.size, dtype=bool)
 
     @property
     def monotone(self) -> bool:
@@ -363,7 +572,8 @@ def bisect_edge(feasible, lo, hi, xtol, *, feasible_lo=True):
 
 
 def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA_COARSE,
-               xtol=ETA_XTOL, rtol=EDGE_RTOL, atol=EDGE_ATOL, workspace=None) -> Edge:
+               xtol=ETA_XTOL, rtol=EDGE_RTOL, atol=EDGE_ATOL, workspace=None,
+               tangential=True) -> Edge:
     """``eta_max(A, N)``: the largest ``eta = eps L`` in ``eta_range`` that has a solution.
 
     Feasibility is status ok of :func:`cosserat_channel.solve.Workspace.status` (the status of
@@ -379,9 +589,44 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     ``eta`` is solvable (``eta_min`` reports that lower edge). For ``-1 < A < 1`` the axis
     condition bounds the range from above: samples stop at ``2(A+1)N/(1-A)``.
 
+    Parameters
+    ----------
+    A, N : float
+        The point of the ``(A, N)`` plane.
+    eta_range : (float, float)
+        The searched range of ``eta``.
+    n_coarse : int
+        Log-spaced samples of the coarse pass.
+    xtol : float
+        Relative width of the final bracket of a status bisection.
+    rtol, atol : float
+        Tolerances of the status solves.
+    workspace : Workspace, optional
+        Work arrays to reuse (or a stand-in that counts the solves).
+    tangential : bool
+        Whether to probe ``D(1)`` and take the node's ``eta`` at tangential edges (False: every
+        transition is the status bisection's, as before the probes existed).
+
     Returns
     -------
     Edge
+
+    Notes
+    -----
+    **Tangential edges.** Where the stress path runs into the node of the yield condition at the
+    wall (:func:`node_edge_eta`), ``D(1)`` vanishes like ``c (eta_node - eta)^2`` (c ~ 0.1) and
+    the status just below the edge is decided by the noise of ``D(1)`` (~1e-13, stage 1 at its
+    floor tolerance): statuses flip within a few 1e-7 (relative) of the edge and a bisection lands
+    anywhere there. Each transition is therefore bisected to ``PROBE_XTOL`` first and
+    ``D(1)`` sampled on its ok side at ``PROBE_OFFSETS`` (:func:`probe_edge`), where it is far
+    above its noise and ``sqrt(D(1))`` is smooth. The transition is the node's ``eta`` when (a) the
+    singular point at the wall is a node, (b) the bisected bracket lies within ``NODE_AGREE``
+    noise bands of it and (c) the degree-3 extrapolation of ``sqrt(D(1))`` reaches zero there
+    within ``NODE_AGREE`` times the larger of its spread (degree 2 against 3) and the band: the
+    data say the path reaches the node, the closed form says where. Every other transition is
+    bisected on to ``xtol``. Either way ``bands`` says how close to the transition the statuses
+    stop being reliable; :func:`cosserat_channel.atlas.classify` leaves points that close
+    undecided.
     """
     A = float(A)
     N = float(N)
@@ -421,17 +666,21 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     ok = np.array([f[0] for f in flags])
     if not ok.any():
         return Edge(A, N, math.nan, EDGE_NONE, math.nan, -1, empty)
-    transitions = []
+    transitions, bands, tangent = [], [], []
     hi = math.nan
     for i in np.flatnonzero(ok[1:] != ok[:-1]):
-        lo, hi = bisect_edge(lambda eta: feasible_at(eta)[0], etas[i], etas[i + 1], xtol,
-                             feasible_lo=bool(ok[i]))
-        transitions.append(lo if ok[i] else hi)
+        eta_t, band, is_node, lo, hi = _transition(feasible_at, ws, A, N, etas[i], etas[i + 1],
+                                                    bool(ok[i]), xtol, rtol, atol, tangential)
+        transitions.append(eta_t)
+        bands.append(band)
+        tangent.append(is_node)
     transitions = np.array(transitions)
+    bands = np.array(bands)
+    tangent = np.array(tangent, dtype=bool)
     eta_min = lo_e if ok[0] else float(transitions[0])
     last = int(np.flatnonzero(ok)[-1])
     if last == n_coarse - 1:
-        return Edge(A, N, hi_e, EDGE_UNBOUNDED, eta_min, -1, transitions)
+        return Edge(A, N, hi_e, EDGE_UNBOUNDED, eta_min, -1, transitions, bands, tangent)
     # The last change is ok -> not ok (ok is False at the last sample); hi is just above it. The
     # status is taken 1e-4 (relative) higher: right at the edge the path meets D = 0 a hair before
     # the wall and the solver may report integration_failed while it crawls into the sqrt kink.
@@ -439,7 +688,36 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     above = feasible_at(probe)
     if above[0]:
         above = feasible_at(hi)
-    return Edge(A, N, float(transitions[-1]), EDGE_BOUNDED, eta_min, above[1], transitions)
+    return Edge(A, N, float(transitions[-1]), EDGE_BOUNDED, eta_min, above[1], transitions,
+                bands, tangent)
+
+
+def _transition(feasible_at, ws, A, N, a, b, ok_low, xtol, rtol, atol, tangential):
+    """One change of feasibility between the samples ``a < b`` (``ok_low``: ok at ``a``).
+
+    Returns ``(eta, band, tangential, lo, hi)``: the transition (the node's ``eta`` or the status
+    bisection's ok end), its noise band, whether it is the node's, and the last bracket.
+    See :func:`trace_edge`'s Notes.
+    """
+    def feasible(eta):
+        return feasible_at(eta)[0]
+
+    if not tangential:
+        lo, hi = bisect_edge(feasible, a, b, xtol, feasible_lo=ok_low)
+        return (lo if ok_low else hi), 0.0, False, lo, hi
+    lo, hi = bisect_edge(feasible, a, b, max(xtol, PROBE_XTOL), feasible_lo=ok_low)
+    t_ok = lo if ok_low else hi
+    probe = probe_edge(ws, t_ok, -1 if ok_low else 1, A, N, rtol, atol)
+    band = probe.band if probe is not None else 0.0
+    if probe is not None and ok_low:
+        node, is_node, _ = node_edge_eta(A, N)
+        near = NODE_AGREE * band
+        spread = abs(probe.root3 - probe.root2) / node if math.isfinite(probe.root2) else math.inf
+        if (is_node and lo * (1.0 - near) <= node <= hi * (1.0 + near)
+                and abs(probe.root3 / node - 1.0) <= NODE_AGREE * max(spread, band)):
+            return node, band, True, lo, hi
+    lo, hi = bisect_edge(feasible, lo, hi, xtol, feasible_lo=ok_low)
+    return (lo if ok_low else hi), band, False, lo, hi
 
 
 def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA_COARSE,

@@ -541,9 +541,9 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     # integration error of delta), so such a point is reported as reaching D = 0 at the wall, like
     # D(1) <= 0 itself. The stage-2 fallback in solve_eta catches what this cheap cut lets through.
     # Next to a tangential edge D(1) grows like (eta_max - eta)^2, so this band is ~sqrt(D
-    # resolution) wide in eta: ~5e-7 relative at A = 0, N = 2 with trace_edge's settings, where
-    # the status flips on isolated points and the traced edge lies 5.5e-7 below the one an
-    # independent scipy DOP853 march at rtol 1e-13 gives (tests/test_regimes.py).
+    # resolution) wide in eta (~5e-7 relative at A = 0, N = 2), where the status flips on
+    # isolated points; regimes.trace_edge therefore places such an edge by the closed form of
+    # the node it is (regimes.node_edge_eta), not by bisecting the status.
     D_resolution = WALL_D_RESOLUTION * rtol1 * sensitivity
     if not D_wall > D_resolution:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH

@@ -181,7 +181,7 @@ OUTPUTS: dict[str, Output] = {o.name: o for o in (
 # Per-point work counters, stored in a sweep only on request: (units, long_name, stage).
 COUNTERS = {
     "stage1_steps": ("1", "accepted steps of the stage-1 integration (0 where none ran)", STAGE_STRESS),
-    "stage2_steps": ("1", "accepted steps of the stage-2 integration (0 where none ran)", STAGE_VELOCITY),
+    "stage2_steps": ("1", "accepted panels of the stage-2 quadrature (0 where none ran)", STAGE_VELOCITY),
 }
 
 # Profiles over xi (sweeps with ``profile_points``): (units, long_name).

@@ -183,3 +183,19 @@ def test_series_plug_edge_root_converges_in_a_few_newton_steps():
         counts.append(n)
     assert len(counts) > 300
     assert max(counts) <= 6 and np.mean(counts) < 4.5
+
+
+def test_stage1_resolves_the_turn_at_xi_equal_N_at_loose_rtol():
+    """For N < 1 the slow manifold w ~ sqrt(N^2 - xi^2) ends at xi = N just inside the wall; a path
+    that survives turns there on a short scale. Without a step boundary at xi = N, rtol 1e-4 gave
+    m_wall 1.3e-2 off (130 rtol) at this point of the work-precision set; scipy Radau at rtol 1e-12
+    is the reference."""
+    from cosserat_channel import reference
+    from cosserat_channel.solve import solve_point
+
+    eps, L, K, A, N = (1.3595178970681561e-05, 89.34741392658945, 0.2001043014110207,
+                       3.754885663209172, 0.9928761610766683)
+    ref = reference.reference(eps, L, K, A, N, method="Radau")["m_wall"]
+    for rtol in (1e-3, 1e-4, 1e-5):
+        r = solve_point(eps, L, K, A, N, rtol=rtol)
+        assert abs(r.m_wall / ref - 1) < 10 * rtol

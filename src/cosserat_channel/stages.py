@@ -44,6 +44,8 @@ MAX_STEPS_STAGE1 = 200_000
 MAX_STEPS_STAGE2 = 20_000  # panels
 # Passes that re-march the step where stage 1 met D = 0 (see solve_eta), each within a budget.
 EVENT_REFINEMENTS = 4
+# Stage 1 ends a step at xi = N (N < 1) unless N is this close to its start or to the wall.
+SPLIT_MARGIN = 1e-6
 REFINE_MAX_STEPS = 400
 STAGE1_RTOL_FLOOR = 1e-13
 # D(1) below this many rtol-sized errors of D is zero within stage 1's resolution (solve_eta).
@@ -265,12 +267,12 @@ def stage1_rtol(rtol, A, N, ax):
 
 
 @njit(**_JIT)
-def _march_stage1(stiff, xi0, y0, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
+def _march_stage1(stiff, xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
     # The only place that picks stage 1's integrator; both write the same dense-output layout.
     if stiff:
-        return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, 1.0, args1,
+        return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, xi_end, args1,
                                  rtol, atol1, h0, h_max, T1, Q1, stats1)
-    return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, 1.0, args1, rtol, atol1, h0, h_max,
+    return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0, h_max,
                        T1, Q1, stats1)
 
 
@@ -337,6 +339,13 @@ def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res):
     return _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
 
 
+@njit(**_JIT_INLINE)
+def _add_stats(stats, more):
+    for i in range(rk45.STAT_STIFF):
+        stats[i] += more[i]
+    stats[rk45.STAT_STIFF] = max(stats[rk45.STAT_STIFF], more[rk45.STAT_STIFF])
+
+
 @njit(**_JIT)
 def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
     """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
@@ -348,12 +357,24 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
     y0 = np.empty(1)
     y0[0] = w1
     stats_r = np.zeros_like(stats1)
+    eta, A, N, ax = args1
+    # For N < 1 the slow manifold w ~ sqrt(N^2 - xi^2) ends at xi = N, and a path that survives it
+    # turns there on a short scale; at loose rtol a wide step glided over that turn (m_wall 1.3e-2
+    # off at rtol 1e-4 for eta = 1.2e-3, A = 3.75, N = 0.993). A step boundary at xi = N, and a
+    # fresh step-size start after it, resolve it for two more steps (not within a hair of either
+    # end, where a leg would be shorter than a step can be).
+    split = xi1 + SPLIT_MARGIN < N < 1.0 - SPLIT_MARGIN
     # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
     # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
-    s1, n1, t1 = _march_stage1(stiff, xi1, y0, xi1, 0.0, args1, rtol1, atol1, T1, Q1, stats_r)
-    for i in range(rk45.STAT_STIFF):
-        stats1[i] += stats_r[i]
-    stats1[rk45.STAT_STIFF] = max(stats1[rk45.STAT_STIFF], stats_r[rk45.STAT_STIFF])
+    s1, n1, t1 = _march_stage1(stiff, xi1, y0, N if split else 1.0, xi1, 0.0, args1, rtol1, atol1,
+                               T1, Q1, stats_r)
+    _add_stats(stats1, stats_r)
+    if split and s1 == rk45.SUCCESS and n1 > 0:
+        y0[0] = Q1[n1 - 1, 0, 0] + Q1[n1 - 1, 1, 0]  # w(N): the last step's end
+        s1, n_more, t1 = _march_stage1(stiff, N, y0, 1.0, 0.0, 0.0, args1, rtol1, atol1,
+                                       T1[n1:], Q1[n1:], stats_r)
+        n1 += n_more
+        _add_stats(stats1, stats_r)
     for _ in range(EVENT_REFINEMENTS):
         if s1 != rk45.EVENT:
             break
@@ -363,10 +384,9 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
             break
         y0[0] = Q1[k, 0, 0]
         stop = min(Q1.shape[0], k + REFINE_MAX_STEPS)
-        s_new, nb, t_new = _march_stage1(stiff, T1[k], y0, span / 16.0, span / 16.0, args1, rtol1,
-                                         atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
-        for i in range(rk45.STAT_STIFF):
-            stats1[i] += stats_r[i]
+        s_new, nb, t_new = _march_stage1(stiff, T1[k], y0, 1.0, span / 16.0, span / 16.0, args1,
+                                         rtol1, atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
+        _add_stats(stats1, stats_r)
         n1 = k + nb
         if s_new == rk45.SUCCESS:
             # With finer steps the path reaches the wall: the crossing was the interpolant's.

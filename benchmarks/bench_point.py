@@ -168,7 +168,7 @@ def main():
     t_both, both = runners.ours_both(eps, L, K, A, N, RTOL, ATOL, args.repeat)
     t_s1, m1 = runners.ours_stage1(eps, L, A, N, RTOL, ATOL, args.repeat)
     pick = np.linspace(0, n - 1, args.scipy_points).round().astype(int)
-    rows = [("ours, both stages (DP5 / RODAS4P2 + panels)", n, t_both * 1e6, math.nan, t_both * 1e6),
+    rows = [("ours, both (DP5 or RODAS4P2, panels)", n, t_both * 1e6, math.nan, t_both * 1e6),
             ("ours, stage 1 alone", n, t_s1 * 1e6, math.nan, t_s1 * 1e6)]
     for method in ("RK45", "LSODA"):
         t0 = time.perf_counter()

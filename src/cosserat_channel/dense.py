@@ -8,10 +8,10 @@ Both integrators store one interpolant per accepted step in Hairer's ``CONTD5`` 
 
 :func:`dense_coefficients` fills it for Dormand–Prince (Shampine's 4th-order interpolant
 [Sh86]); :mod:`.rosenbrock` fills it with RODAS's 3rd-order extension (``q4 = 0``). Everything
-else here reads either: :func:`find_step`, :func:`dense_eval_step`, :func:`dense_eval`,
-:func:`dense_eval_many`, :func:`locate_event` and :func:`event_after_step`, and
-:func:`component_minus_level` and, on one known step, :func:`step_component_minus_level` (a
-level crossing of one component, for :func:`.roots.find_root`).
+else here reads either: :func:`find_step`, :func:`dense_eval_step` (and :func:`step_value`, one
+component as a scalar), :func:`dense_eval`, :func:`dense_eval_many`, :func:`locate_event` and
+:func:`event_after_step`, and :func:`component_minus_level` (a level crossing of one component,
+for :func:`.roots.find_root`).
 :class:`Solution` is the Python-side view of a finished run.
 
 Kernels that receive the event function are ``inline="always"``; see :mod:`.rk45` for why.
@@ -39,6 +39,7 @@ __all__ = [
     "dense_coefficients",
     "find_step",
     "dense_eval_step",
+    "step_value",
     "dense_eval",
     "dense_eval_many",
     "locate_event",
@@ -163,12 +164,23 @@ def dense_eval_step(T, Q, k, t, out):
         Output.
     """
     theta = (t - T[k]) / (T[k + 1] - T[k])
+    for i in range(out.shape[0]):
+        out[i] = _step_polynomial(Q, k, i, theta)
+
+
+@njit(**_JIT_INLINE)
+def _step_polynomial(Q, k, i, theta):
+    # The layout of the module docstring, at theta in step k, component i.
     theta1 = 1.0 - theta
-    n = out.shape[0]
-    for i in range(n):
-        out[i] = Q[k, 0, i] + theta * (
-            Q[k, 1, i] + theta1 * (
-                Q[k, 2, i] + theta * (Q[k, 3, i] + theta1 * Q[k, 4, i])))
+    return Q[k, 0, i] + theta * (
+        Q[k, 1, i] + theta1 * (
+            Q[k, 2, i] + theta * (Q[k, 3, i] + theta1 * Q[k, 4, i])))
+
+
+@njit(**_JIT_INLINE)
+def step_value(T, Q, k, i, t):
+    """Component `i` of :func:`dense_eval_step` at `t`, as a scalar (no output array)."""
+    return _step_polynomial(Q, k, i, (t - T[k]) / (T[k + 1] - T[k]))
 
 
 @njit(**_JIT)
@@ -308,17 +320,6 @@ def component_minus_level(t, packed):
     """
     T, Q, nsteps, i, level, out = packed
     dense_eval(T, Q, nsteps, t, out)
-    return out[i] - level
-
-
-@njit(**_JIT)
-def step_component_minus_level(t, packed):
-    """:func:`component_minus_level` on one known step: ``packed = (T, Q, k, i, level, out)``.
-
-    For a root already bracketed inside step `k` (no search per evaluation).
-    """
-    T, Q, k, i, level, out = packed
-    dense_eval_step(T, Q, k, t, out)
     return out[i] - level
 
 

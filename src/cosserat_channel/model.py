@@ -30,12 +30,15 @@ axis edge where ``c0 -> 0``.
 from __future__ import annotations
 
 import math
+import sys
 
 from numba import njit
 from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from . import analytic
 
+
+_EPS = sys.float_info.epsilon  # machine epsilon (the integrators' stepping.EPS)
 
 # Slots of the axis-constants array returned by `axis_constants`.
 AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)
@@ -359,6 +362,14 @@ def yield_D(xi, delta, A, N, ax):
     r = delta - 0.5 * ax[AX_Y] * xi * xi
     c0xi = ax[AX_C0] * xi
     return c0xi * c0xi + 2.0 * (A + 1.0) * (2.0 * N * r - delta * delta)
+
+
+@njit(**_JIT_INLINE)
+def yield_D_rounding(xi, delta, A, N, ax):
+    """A bound on the rounding error of :func:`yield_D`: a few ulps of the terms it sums (and of
+    ``delta`` carried through them). Large against ``D`` only where ``D`` is a small difference."""
+    return _EPS * (ax[AX_C0] * ax[AX_C0] * xi * xi + abs(2.0 * (A + 1.0)) * (
+        2.0 * N * (abs(delta) + abs(ax[AX_Y]) * xi * xi) + 3.0 * delta * delta))
 
 
 @njit(**_JIT)

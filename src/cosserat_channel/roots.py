@@ -7,14 +7,14 @@ superlinearly on smooth simple roots but can stall with one end fixed (convex ``
 multiple roots); the Illinois weight halving removes most stalls and the bisection safeguard
 bounds the rest, so the bracket shrinks by at least a factor two every three evaluations.
 
-Users: event location on a dense output (:func:`.dense.locate_event`) and, through
-:func:`.dense.step_component_minus_level`, the level crossing of one component on one step of a
-dense output (the plug edge of :mod:`.stages`).
+Users: event location on a dense output (:func:`.dense.locate_event`).
 
 :func:`newton_root` is the same kind of bracketed search for a function whose derivative comes
 almost free with its value: Newton's step, replaced by bisection whenever it would leave the
-bracket or not halve it (``rtsafe`` of [NR07]). It finds the plug edge where stage 2 is closed
-form, from a start that a power law puts within ~1e-3 of the root: 3-4 evaluations.
+bracket or not halve it (``rtsafe`` of [NR07]). It finds the plug edge of :mod:`.stages`: on a
+stage-2 panel's Chebyshev series, from the linear interpolant between the panel's ends, and where
+stage 2 is closed form, from a start that a power law puts within ~1e-3 of the root: 3-4
+evaluations either way.
 
 The kernel receives ``f`` as an argument and is therefore ``inline="always"``: a jitted caller
 that passes a global ``@njit`` function then calls it directly and stays cacheable (see

@@ -34,6 +34,7 @@ from . import roots
 from . import rosenbrock
 from . import status as st
 from .model import AX_BETA, AX_C0, N_AX
+from .stepping import EPS as _EPS
 
 # The stage-2 rates and the lookups in stage 1's dense output are inlined into the stage-2 panels:
 # as separate functions, each call passing the dense-output arrays cost reference-count updates.
@@ -134,7 +135,6 @@ W_STEP = 0  # the stage-1 step of the last lookup
 N_W = 1
 # Above this xi stage 2 evaluates D as D(1) + [D(xi) - D(1)] (see _wall_form).
 XI_WALL_FORM = 0.5
-_EPS = 2.220446049250313e-16
 
 
 @njit(**_JIT_INLINE)
@@ -629,16 +629,11 @@ def _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C, delta1, D1):
         delta, D, noise = _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
     else:
         if k >= 0:
-            th = (xi - T1[k]) / (T1[k + 1] - T1[k])
-            th1 = 1.0 - th
-            w = Q1[k, 0, 0] + th * (Q1[k, 1, 0] + th1 * (
-                Q1[k, 2, 0] + th * (Q1[k, 3, 0] + th1 * Q1[k, 4, 0])))
-            delta = xi * xi * w
+            delta = xi * xi * dense.step_value(T1, Q1, k, 0, xi)
         else:
             delta = model.delta_axis_series(xi, ax)
         D = model.yield_D(xi, delta, A, N, ax)
-        noise = _EPS * (ax[AX_C0] * ax[AX_C0] * xi * xi + abs(2.0 * (A + 1.0)) * (
-            2.0 * N * (abs(delta) + abs(ax[model.AX_Y]) * xi * xi) + 3.0 * delta * delta))
+        noise = model.yield_D_rounding(xi, delta, A, N, ax)
     # B ~ 1/sqrt(D): a relative error e in D is e/2 in B, and at most that in h's 1/sqrt(D) part
     xiB = xi * model.spin_rate_B(delta, D, eta, A, N)
     return xiB, xi * model.shear_rate_h(xi, D, A), 0.5 * noise / abs(D)
@@ -938,17 +933,6 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
 
 
 @njit(**_JIT)
-def _panel_of(T2, n2, t, p):
-    """The stage-2 panel holding ``t`` (``T2[p] >= t >= T2[p+1]``), searched from panel ``p``."""
-    p = min(max(p, 0), n2 - 1)
-    while p > 0 and t > T2[p]:
-        p -= 1
-    while p < n2 - 1 and t < T2[p + 1]:
-        p += 1
-    return p
-
-
-@njit(**_JIT)
 def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     """Profiles of one solved triple at ``xis``: rows ``P_J``, ``P_OMEGA_HAT``, ``P_DELTA``, ``P_SIGMA_YX``.
 
@@ -965,12 +949,11 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
     work = _stage1_work(n1)
     # Below where stage 2 stopped, omega_hat ~ xi^beta (Appendix B) and J has converged.
     logw_tail = panels.panel_value(Q2, n2 - 1, 0, 2.0) if n2 > 0 else 0.0
-    p = 0
     for i in range(xis.size):
         xi = xis[i]
         t = math.log(xi) if xi > 0.0 else -math.inf
         if t >= t_tail:
-            p = _panel_of(T2, n2, t, p)
+            p = dense.find_step(T2, n2, t)  # the panel holding t (T2 descends)
             u = max(0.0, min(2.0, 2.0 * (T2[p] - t) / (T2[p] - T2[p + 1])))
             logw = panels.panel_value(Q2, p, 0, u)
             J = panels.panel_value(Q2, p, 1, u)

@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from ._jit import JIT as _JIT
+
 from . import model
 from . import stages
 from .analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
@@ -302,7 +304,7 @@ def phase_plane(eps, L, A, N, *, n_xi=301, n_m=401, m_range=None) -> PhasePlane:
 # ---------------------------------------------------------------------------------------------
 # Edge of solvability
 # ---------------------------------------------------------------------------------------------
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _wall_D_kernel(etas, A, N, rtol, atol, ax, T1, Q1, stats1, res, status, D1, delta1):
     # Stage 1 exactly as the status solve runs it (stages.solve_stage1: same start, re-marches
     # and floor tolerance), then D(1) from the dense output's wall value, also where stage 1

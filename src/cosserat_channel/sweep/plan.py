@@ -38,6 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from .._jit import JIT as _JIT
+
 from .. import model
 from .. import status as st
 
@@ -59,7 +61,7 @@ COST_REJECTED = 0.5
 COST_PER_ENTRY = 0.75
 
 
-@njit(nogil=True, cache=True)
+@njit(**_JIT)
 def _classify_many(eta, A, N, out):
     # model.classify on arrays: the cost model needs to know which triples are rejected up front.
     for i in range(eta.size):

@@ -745,7 +745,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
             stats2[rk45.STAT_REJECTED] += 1
             length = (b - a) * (min(0.5, panels.panel_error_factor(err, 1.0))
                                 if math.isfinite(err) else 0.25)
-            if length < 1e-15 or p >= max_panels:
+            if length < 1e-15:
                 res[R_N2] = p
                 res[R_STATUS] = st.INTEGRATION_FAILED
                 return st.INTEGRATION_FAILED

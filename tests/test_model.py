@@ -109,7 +109,7 @@ def test_stage1_jacobian_is_minus_B():
         hstep = 1e-7 * N
         fd = (model.ddelta_dxi(xi, delta + hstep, eta, A, N, ax)
               - model.ddelta_dxi(xi, delta - hstep, eta, A, N, ax)) / (2 * hstep)
-        B = model.spin_rate_B(delta, D, eta, A, N)
+        B = model.spin_rate_B(delta, 1 / math.sqrt(D), eta, A, N)
         assert fd == pytest.approx(-B, rel=1e-5)
 
 
@@ -125,8 +125,8 @@ def test_B_and_h_equal_the_papers_flow_rule():
         s_yx = A * nu * xi - nu * math.sqrt(D)  # eq:56 (scaled D times nu^2)
         B_paper = 2 * (1 + A) * m_bar / (eps * L**2 * (s_yx + A * s_xy))  # e-60
         h_paper = (1 + A) * (s_xy + s_yx) / (s_yx + A * s_xy)  # e-59
-        assert model.spin_rate_B(delta, D, eta, A, N) == pytest.approx(B_paper, rel=1e-12)
-        assert model.shear_rate_h(xi, D, A) == pytest.approx(h_paper, rel=1e-12)
+        assert model.spin_rate_B(delta, 1 / math.sqrt(D), eta, A, N) == pytest.approx(B_paper, rel=1e-12)
+        assert model.shear_rate_h(xi, 1 / math.sqrt(D), A) == pytest.approx(h_paper, rel=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -230,7 +230,8 @@ def _stage2_series_agree(eta, A, N):
     def rates(xi):
         delta = xi * xi * ref.sol(xi)[0]
         D = model.yield_D(xi, delta, A, N, ax)
-        return xi * model.spin_rate_B(delta, D, eta, A, N), model.shear_rate_h(xi, D, A)
+        return (xi * model.spin_rate_B(delta, 1 / math.sqrt(D), eta, A, N),
+                model.shear_rate_h(xi, 1 / math.sqrt(D), A))
 
     xa = 0.5 * xi2
     # log omega_hat(xi2) - log omega_hat(xa) = int_xa^xi2 B

@@ -431,18 +431,20 @@ def sigma_yx(xi, D, A):
 # Stage 2: velocities, xi = 1 -> 0
 # --------------------------------------------------------------------------------------------
 @njit(**_JIT_INLINE)
-def spin_rate_B(delta, D, eta, A, N):
-    """``B`` of eq:18 / e-60, ``d omega/d xi = B omega``; with ``s = sigma_yx + A sigma_xy = -sqrt(D)``.
+def spin_rate_B(delta, inv_sqrt_D, eta, A, N):
+    """``B`` of eq:18 / e-60, ``d omega/d xi = B omega``; with ``s = sigma_yx + A sigma_xy = -sqrt(D)``,
+    given as ``inv_sqrt_D = 1/sqrt(D)`` (stage 2 needs it for ``h`` too: one root, one division).
 
     Also minus the Jacobian of the stage-1 right-hand side with respect to ``delta`` (model.md).
     """
-    return 2.0 * (A + 1.0) * (N - delta) / (eta * math.sqrt(D))
+    # the factor 2(A + 1)/eta is the same at every node: written first, it is computed once
+    return 2.0 * (A + 1.0) / eta * ((N - delta) * inv_sqrt_D)
 
 
 @njit(**_JIT_INLINE)
-def shear_rate_h(xi, D, A):
-    """``h`` of e-59: ``du/d xi = -h omega``."""
-    return (A + 1.0) * (1.0 - (A - 1.0) * xi / math.sqrt(D))
+def shear_rate_h(xi, inv_sqrt_D, A):
+    """``h`` of e-59: ``du/d xi = -h omega``; ``inv_sqrt_D = 1/sqrt(D)`` as in :func:`spin_rate_B`."""
+    return (A + 1.0) * (1.0 - (A - 1.0) * xi * inv_sqrt_D)
 
 
 @njit(**_JIT)

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.integrate._ivp.dop853_coefficients as dop  # private module: a probe, not the product
 from numba import njit
 
-from cosserat_channel import model, rk45, stages
+from cosserat_channel import dense, model, rk45, stages
 
 ATOL = 1e-12
 _A = np.ascontiguousarray(dop.A[:12, :12])
@@ -75,7 +75,7 @@ def dop853_stage1(x0, w0, x1, h, eta, A, N, ax, rtol, atol):
 def ours(eta, A, N, rtol):
     ax = np.empty(model.N_AX)
     T1 = np.empty(stages.MAX_STEPS_STAGE1 + 1)
-    Q1 = np.empty((stages.MAX_STEPS_STAGE1, 5, 1))
+    Q1 = np.empty((stages.MAX_STEPS_STAGE1, dense.N_DENSE, 1))
     res = np.empty(stages.N_R)
     stats = np.zeros(rk45.N_STATS, np.int64)
     code, _ = stages.solve_stage1(eta, A, N, rtol, ATOL, ax, T1, Q1, stats, res, 0)

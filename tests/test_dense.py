@@ -5,6 +5,7 @@ import pytest
 from numba import njit
 from scipy.optimize import brentq
 
+from cosserat_channel import dense
 from cosserat_channel.dense import (
     Solution,
     component_minus_level,
@@ -38,7 +39,7 @@ def one_step(fun, t0, y0, h, args=()):
     k1, y_new, y_err, K = np.empty(n), np.empty(n), np.empty(n), np.empty((7, n))
     fun(t0, y, args, k1)
     dopri5_step(fun, t0, y, h, args, k1, y_new, y_err, K)
-    Q = np.empty((1, 5, n))
+    Q = np.empty((1, dense.N_DENSE, n))
     dense_coefficients(y, y_new, h, K, Q[0])
     return np.array([t0, t0 + h]), Q, y_new
 
@@ -46,6 +47,20 @@ def one_step(fun, t0, y0, h, args=()):
 # ---------------------------------------------------------------------------
 # Interpolation
 # ---------------------------------------------------------------------------
+def test_contd5_steps_read_the_same_bits_through_the_contd8_formula():
+    """A Dormand-Prince step (rows 5-7 zero) evaluates to exactly CONTD5's own nesting."""
+    T, Q, _ = one_step(oscillator, 0.0, [1.0, 0.0], 0.3, OSC_ARGS)
+    assert np.all(Q[0, 5:] == 0.0)
+    out = np.empty(2)
+    for t in np.linspace(0.0, 0.3, 37):
+        th = (t - T[0]) / (T[1] - T[0])
+        th1 = 1.0 - th
+        q = Q[0]
+        contd5 = q[0] + th * (q[1] + th1 * (q[2] + th * (q[3] + th1 * q[4])))
+        dense_eval_step(T, Q, 0, t, out)
+        assert np.array_equal(out, contd5)
+
+
 def test_dense_output_gauss():
     """Dense output at 1000 points matches exp(-t^2) to 1e-8 at rtol 1e-10."""
     s = integrate(gauss, 0.0, [1.0], 2.0, rtol=1e-10, atol=1e-12)
@@ -139,10 +154,10 @@ def test_component_minus_level():
 
 def test_solution_without_steps():
     """A run with no accepted step reports y0 and evaluates to y0 everywhere."""
-    T, Q = np.zeros(3), np.zeros((2, 5, 2))
+    T, Q = np.zeros(3), np.zeros((2, dense.N_DENSE, 2))
     stats = np.zeros(N_STATS, np.int64)
     s = Solution.from_run(SUCCESS, 0, 1.0, np.array([2.0, 3.0]), T, Q, stats)
-    assert s.nsteps == 0 and s.T.shape == (1,) and s.Q.shape == (0, 5, 2)
+    assert s.nsteps == 0 and s.T.shape == (1,) and s.Q.shape == (0, dense.N_DENSE, 2)
     assert np.array_equal(s.y_stop, [2.0, 3.0])
     assert np.array_equal(s.sol([0.0, 5.0]), [[2.0, 3.0], [2.0, 3.0]])
 

@@ -8,7 +8,7 @@ import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from cosserat_channel import rk45
+from cosserat_channel import dense, rk45
 from cosserat_channel.rk45 import (
     EVENT,
     MAX_STEPS,
@@ -308,7 +308,7 @@ def test_event_location_backward():
 def test_jitted_driver_is_cacheable_and_locates_event():
     """A jitted driver around dopri5 finds the event and has no uncacheable dynamic globals."""
     T = np.empty(1001)
-    Q = np.empty((1000, 5, 1))
+    Q = np.empty((1000, dense.N_DENSE, 1))
     stats = np.zeros(N_STATS, dtype=np.int64)
     status, nsteps, t_stop = gauss_event_driver(T, Q, stats)
     assert status == EVENT
@@ -359,7 +359,7 @@ def test_max_steps_status():
     """A tiny step budget yields MAX_STEPS with the budget's worth of stored steps."""
     s = integrate(decay, 0.0, [1.0], 100.0, rtol=1e-10, max_steps=5)
     assert s.status == MAX_STEPS
-    assert s.nsteps == 5 and s.T.shape == (6,) and s.Q.shape == (5, 5, 1)
+    assert s.nsteps == 5 and s.T.shape == (6,) and s.Q.shape == (5, dense.N_DENSE, 1)
     assert s.t_stop == s.T[-1] < 100.0
 
 
@@ -382,7 +382,7 @@ def test_nonfinite_status():
 def test_raw_dopri5_zero_length_and_stats_reset():
     """dopri5 zeroes stats and returns immediately for t_end == t0."""
     T = np.empty(11)
-    Q = np.empty((10, 5, 1))
+    Q = np.empty((10, dense.N_DENSE, 1))
     stats = np.full(N_STATS, 7, dtype=np.int64)
     status, nsteps, t_stop = dopri5(decay, no_event, 1.0, np.array([1.0]), 1.0, (), 1e-6,
                                     np.array([1e-9]), 0.0, 0.0, T, Q, stats)

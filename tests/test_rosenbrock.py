@@ -57,7 +57,7 @@ def _pr_run_event_at_start(T, Q, stats):
 
 def _run(lam, rtol=1e-8, t_end=2.0, h_max=0.0, tab=rosenbrock.TABLEAU, with_event=False):
     T = np.empty(200_001)
-    Q = np.empty((200_000, 5, 1))
+    Q = np.empty((200_000, dense.N_DENSE, 1))
     stats = np.zeros(stepping.N_STATS, np.int64)
     status, n, t_stop = _pr_run(lam, rtol, t_end, h_max, tab, T, Q, stats, with_event)
     return status, n, t_stop, T, Q, stats
@@ -126,7 +126,7 @@ def test_event_located_on_dense_output():
 def test_event_zero_at_start_is_ignored():
     """As in dopri5, an event that vanishes exactly at t0 does not stop the integration."""
     T = np.empty(10_001)
-    Q = np.empty((10_000, 5, 1))
+    Q = np.empty((10_000, dense.N_DENSE, 1))
     stats = np.zeros(stepping.N_STATS, np.int64)
     status, _, t_stop = _pr_run_event_at_start(T, Q, stats)
     assert status == stepping.SUCCESS and t_stop == pytest.approx(2.0, abs=1e-14)
@@ -135,7 +135,7 @@ def test_event_zero_at_start_is_ignored():
 def test_budget_and_counters():
     """A tiny step budget returns MAX_STEPS; counters add up (6 evaluations per trial step)."""
     T = np.empty(6)
-    Q = np.empty((5, 5, 1))
+    Q = np.empty((5, dense.N_DENSE, 1))
     stats = np.zeros(stepping.N_STATS, np.int64)
     status, n, _ = _pr_run(1e4, 1e-10, 2.0, 0.0, rosenbrock.TABLEAU, T, Q, stats, False)
     assert status == stepping.MAX_STEPS and n == 5

@@ -1,14 +1,18 @@
 """Dense output of the integrators, and event location on it.
 
-Both integrators store one interpolant per accepted step in Hairer's ``CONTD5`` layout
-[HNW93, II.6]: step boundaries ``T[0..nsteps]`` and coefficients ``Q[k, 0..4, :]`` with::
+The integrators store one interpolant per accepted step in Hairer's ``CONTD8`` layout
+[HNW93, II.6, II.10]: step boundaries ``T[0..nsteps]`` and coefficients ``Q[k, 0..7, :]`` with::
 
-    u(theta) = q0 + theta*(q1 + (1-theta)*(q2 + theta*(q3 + (1-theta)*q4)))
+    u(theta) = q0 + theta*(q1 + (1-theta)*(q2 + theta*(q3 + (1-theta)*(q4
+                 + theta*(q5 + (1-theta)*(q6 + theta*q7))))))
     theta = (t - T[k]) / (T[k+1] - T[k])
 
+:mod:`.dop853` fills all eight rows (its 7th-order interpolant). ``CONTD5`` is the same layout
+with ``q5 = q6 = q7 = 0`` (the formula then gives the same bits as CONTD5's own):
 :func:`dense_coefficients` fills it for Dormand–Prince (Shampine's 4th-order interpolant
-[Sh86]); :mod:`.rosenbrock` fills it with RODAS's 3rd-order extension (``q4 = 0``). Everything
-else here reads either: :func:`find_step`, :func:`dense_eval_step` (and :func:`step_value`, one
+[Sh86]); :mod:`.rosenbrock` with RODAS's 3rd-order extension (``q4 = 0`` too). Every step of a
+run writes all ``N_DENSE`` rows, so one array can hold steps of different integrators. Everything
+else here reads any of them: :func:`find_step`, :func:`dense_eval_step` (and :func:`step_value`, one
 component as a scalar), :func:`dense_eval`, :func:`dense_eval_many`, :func:`locate_event` and
 :func:`event_after_step`, and :func:`component_minus_level` (a level crossing of one component,
 for :func:`.roots.find_root`).
@@ -36,6 +40,7 @@ from .roots import find_root
 from .stepping import EPS, STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS
 
 __all__ = [
+    "N_DENSE",
     "dense_coefficients",
     "find_step",
     "dense_eval_step",
@@ -60,6 +65,9 @@ D7 = 69997945 / 29380423
 
 EVENT_MAX_ITER = 200
 
+# Rows of a step's dense output (the CONTD8 layout of the module docstring).
+N_DENSE = 8
+
 
 @njit(**_JIT)
 def dense_coefficients(y, y_new, h, K, q):
@@ -73,8 +81,8 @@ def dense_coefficients(y, y_new, h, K, q):
         Signed step size.
     K : ndarray of float64, shape (7, n)
         Stage derivatives from :func:`.rk45.dopri5_step` (``K[6]`` is f at `y_new`).
-    q : ndarray of float64, shape (5, n)
-        Output, in the layout of the module docstring.
+    q : ndarray of float64, shape (N_DENSE, n)
+        Output, in the layout of the module docstring (rows 5-7 zero).
     """
     n = y.shape[0]
     for i in range(n):
@@ -86,6 +94,9 @@ def dense_coefficients(y, y_new, h, K, q):
         q[3, i] = ydiff - h * K[6, i] - bspl
         q[4, i] = h * (D1 * K[0, i] + D3 * K[2, i] + D4 * K[3, i]
                        + D5 * K[4, i] + D6 * K[5, i] + D7 * K[6, i])
+        q[5, i] = 0.0
+        q[6, i] = 0.0
+        q[7, i] = 0.0
 
 
 @njit(**_JIT)
@@ -154,7 +165,7 @@ def dense_eval_step(T, Q, k, t, out):
     ----------
     T : ndarray of float64
         Step boundaries.
-    Q : ndarray of float64, shape (M, 5, n)
+    Q : ndarray of float64, shape (M, N_DENSE, n)
         Dense-output coefficients.
     k : int
         Step index.
@@ -174,7 +185,10 @@ def _step_polynomial(Q, k, i, theta):
     theta1 = 1.0 - theta
     return Q[k, 0, i] + theta * (
         Q[k, 1, i] + theta1 * (
-            Q[k, 2, i] + theta * (Q[k, 3, i] + theta1 * Q[k, 4, i])))
+            Q[k, 2, i] + theta * (
+                Q[k, 3, i] + theta1 * (
+                    Q[k, 4, i] + theta * (
+                        Q[k, 5, i] + theta1 * (Q[k, 6, i] + theta * Q[k, 7, i]))))))
 
 
 @njit(**_JIT_INLINE)
@@ -338,7 +352,7 @@ class Solution(NamedTuple):
         Number of accepted steps.
     T : ndarray, shape (nsteps + 1,)
         Step boundaries.
-    Q : ndarray, shape (nsteps, 5, n)
+    Q : ndarray, shape (nsteps, N_DENSE, n)
         Dense-output coefficients.
     n_accepted, n_rejected, n_fev, n_stiff_steps : int
         Counters from ``stats``.

@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit
 from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
-from .dense import Solution, dense_coefficients, event_after_step
+from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
                        STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
                        STEP_TOO_SMALL, SUCCESS, all_finite, error_norm, initial_step, no_event)
@@ -330,8 +330,8 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
         Largest step magnitude; ``h_max <= 0`` or inf means ``|t_end - t0|``.
     T : ndarray of float64, shape (>= M + 1,)
         Output: ``T[0] = t0``, ``T[k+1]`` = end of accepted step `k`.
-    Q : ndarray of float64, shape (M, 5, n)
-        Output: dense-output coefficients of each accepted step. ``M`` is the step budget.
+    Q : ndarray of float64, shape (M, N_DENSE, n)
+        Output: dense-output coefficients of each accepted step (:mod:`.dense`'s layout). ``M`` is the step budget.
     stats : ndarray of int64, shape (N_STATS,)
         Output counters, see the ``STAT_*`` constants.
 
@@ -448,7 +448,7 @@ def integrate(fun, t0, y0, t_end, args=(), rtol=1e-6, atol=1e-9, event=None,
     if event is None:
         event = no_event
     T = np.empty(max_steps + 1)
-    Q = np.empty((max_steps, 5, n))
+    Q = np.empty((max_steps, N_DENSE, n))
     stats = np.zeros(N_STATS, dtype=np.int64)
     status, nsteps, t_stop = dopri5(fun, event, float(t0), y0, float(t_end),
                                     args, float(rtol), atol_arr, float(h0),

@@ -169,8 +169,8 @@ def dense_coefficients(y, y_new, k1, k2, k3, k4, k5, tab, q):
         Stage increments from :func:`rodas_step`.
     tab : tuple of float
         The tableau of the step.
-    q : ndarray of float64, shape (5, 1)
-        Output.
+    q : ndarray of float64, shape (N_DENSE, 1)
+        Output (rows 4-7 zero: :mod:`.dense`'s layout).
     """
     H21, H22, H23, H24, H25, H31, H32, H33, H34, H35 = tab[33:]
     q[0, 0] = y
@@ -178,6 +178,9 @@ def dense_coefficients(y, y_new, k1, k2, k3, k4, k5, tab, q):
     q[2, 0] = H21 * k1 + H22 * k2 + H23 * k3 + H24 * k4 + H25 * k5
     q[3, 0] = H31 * k1 + H32 * k2 + H33 * k3 + H34 * k4 + H35 * k5
     q[4, 0] = 0.0
+    q[5, 0] = 0.0
+    q[6, 0] = 0.0
+    q[7, 0] = 0.0
 
 
 @njit(**_JIT)

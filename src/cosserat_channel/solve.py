@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import dense
 from . import outputs as out_
 from . import panels
 from . import rk45
@@ -119,7 +120,7 @@ class Workspace:
     def __init__(self, max_steps_stage1=stages.MAX_STEPS_STAGE1, max_steps_stage2=stages.MAX_STEPS_STAGE2):
         self.ax = np.empty(stages.N_AX)
         self.T1 = np.empty(max_steps_stage1 + 1)
-        self.Q1 = np.empty((max_steps_stage1, 5, 1))
+        self.Q1 = np.empty((max_steps_stage1, dense.N_DENSE, 1))
         self.T2 = np.empty(max_steps_stage2 + 1)
         self.Q2 = np.empty((max_steps_stage2, panels.N_ROWS, 2))
         self.stats1 = np.zeros(rk45.N_STATS, dtype=np.int64)

@@ -3,9 +3,10 @@
 For each ``(A, N)`` series, ``eta = eps L`` runs log-spaced from 1e-8 to the largest feasible value
 (:func:`feasible_eta_max`, by bisection on the status), plus points next to each regime boundary
 (the path edge from both sides, the axis edge, A = -1 at c = 2N/eta up to 1e5, A just above -1,
-A just above 1 - 2N^2). Each row records the path stage 1 took (explicit Dormand-Prince or stiff
-RODAS4P2), both stages' accepted/rejected steps, the right-hand-side evaluations, the kernel time
-per point (best of several repeats, microseconds) and the relative error of ``Delta`` and
+A just above 1 - 2N^2). Each row records the path stage 1 took (explicit: Dormand-Prince, or
+DOP853 at rtol <= 1e-6; or stiff RODAS4P2), both stages' accepted/rejected steps, the
+right-hand-side evaluations, the kernel time per point (best of several repeats, microseconds)
+and the relative error of ``Delta`` and
 ``m_wall`` against an independent reference:
 
 - scipy Radau at rtol 1e-12 (:func:`cosserat_channel.reference.reference`), ``ref = radau``;

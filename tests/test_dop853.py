@@ -1,0 +1,126 @@
+"""Tests for the Numba DOP853 integrator in ``cosserat_channel.dop853``.
+
+The independent references are scipy's own DOP853 (the same method and controller, written
+separately in numpy: same steps, same evaluations, same dense output to rounding) and closed forms.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from numba import njit
+from scipy.integrate import solve_ivp
+
+from cosserat_channel import dense, dop853, rk45
+from cosserat_channel.stepping import (EVENT, N_STATS, NONFINITE, STAT_ACCEPTED, STAT_FEV,
+                                       STAT_REJECTED, SUCCESS, no_event)
+from problems import OSC_ARGS, gauss, gauss_exact, osc_exact, oscillator
+
+
+@njit(cache=True)
+def growth(t, y, args, out):
+    # y = exp(sin t)
+    out[0] = math.cos(t) * y[0]
+
+
+@njit(cache=True)
+def nan_after_t0(t, y, args, out):
+    out[0] = -y[0] if t == 0.0 else np.nan
+
+
+@njit(cache=True)
+def y_half(t, y, args):
+    return y[0] - 0.5
+
+
+@njit(cache=True)
+def _run(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
+    return dop853.dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats)
+
+
+def run(fun, t0, y0, t_end, args=(), rtol=1e-8, atol=1e-12, event=no_event, h0=0.0, max_steps=10_000):
+    y0 = np.asarray(y0, dtype=float)
+    T = np.empty(max_steps + 1)
+    Q = np.empty((max_steps, dense.N_DENSE, y0.size))
+    stats = np.zeros(N_STATS, np.int64)
+    status, n, t_stop = _run(fun, event, float(t0), y0, float(t_end), args, rtol,
+                             np.full(y0.size, atol), h0, 0.0, T, Q, stats)
+    return status, n, t_stop, T[:n + 1], Q[:n], stats
+
+
+def _dense(T, Q, n, ts):
+    out = np.empty((ts.size, 1))
+    dense.dense_eval_many(T, Q, n, ts, out)
+    return out[:, 0]
+
+
+@pytest.mark.parametrize("rtol", [1e-5, 1e-8, 1e-11])
+def test_same_steps_and_values_as_scipy(rtol):
+    """The steps, evaluations, end value and dense output of scipy's DOP853.
+
+    The error estimate is a sum of stages that cancel to ~rtol of them, so its rounding differs
+    between the two codes by ~1e-16/rtol relative and the step sizes drift apart by that much
+    (up to 7e-6 after 58 steps at rtol 1e-11): the same steps to that drift, not to the last bit.
+    """
+    status, n, _, T, Q, stats = run(growth, 0.0, [1.0], 10.0, rtol=rtol, atol=1e-14)
+    ref = solve_ivp(lambda t, y: np.cos(t) * y, [0.0, 10.0], [1.0], method="DOP853", rtol=rtol,
+                    atol=1e-14, dense_output=True)
+    assert status == SUCCESS
+    assert n == ref.t.size - 1
+    assert stats[STAT_FEV] == ref.nfev
+    assert np.max(np.abs(T - ref.t)) <= 1e-5
+    ts = np.linspace(0.0, 10.0, 777)
+    ours = _dense(T, Q, n, ts)
+    assert np.max(np.abs(ours - ref.sol(ts)[0]) / ref.sol(ts)[0]) <= rtol
+    assert abs(Q[-1, 0, 0] + Q[-1, 1, 0] - ref.y[0, -1]) <= 0.1 * rtol * ref.y[0, -1]
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-9, 1e-12])
+def test_accuracy_against_closed_forms(rtol):
+    """End values and dense output of exp(sin t) and a harmonic oscillator within a few rtol."""
+    status, n, _, T, Q, _ = run(growth, 0.0, [1.0], 10.0, rtol=rtol, atol=1e-15)
+    ts = np.linspace(0.0, 10.0, 501)
+    exact = np.exp(np.sin(ts))
+    ours = _dense(T, Q, n, ts)
+    assert status == SUCCESS
+    assert abs(Q[-1, 0, 0] + Q[-1, 1, 0] - exact[-1]) <= 10 * rtol * exact[-1]
+    # the 7th-order interpolant: within 100 rtol (its error is a multiple of the step's)
+    assert np.max(np.abs(ours - exact) / exact) <= 100 * rtol
+    status, n, _, T, Q, _ = run(oscillator, 0.0, [1.0, 0.0], 5.0, OSC_ARGS, rtol=rtol, atol=1e-15)
+    y_end = Q[-1, 0] + Q[-1, 1]
+    assert status == SUCCESS
+    assert np.max(np.abs(y_end - osc_exact(5.0, OSC_ARGS[0]))) <= 30 * rtol * OSC_ARGS[0]
+
+
+def test_cheaper_than_dopri5_at_a_tight_rtol():
+    """The reason it is here: at a tight rtol it needs far fewer evaluations than DOPRI5, both
+    within the tolerance (exp(-t^2) over [0, 3])."""
+    status, n, _, T, Q, stats = run(gauss, 0.0, [1.0], 3.0, rtol=1e-10, atol=1e-16)
+    s5 = rk45.integrate(gauss, 0.0, [1.0], 3.0, rtol=1e-10, atol=1e-16)
+    err = abs(Q[-1, 0, 0] + Q[-1, 1, 0] - gauss_exact(3.0))
+    err5 = abs(s5.y_stop[0] - gauss_exact(3.0))
+    assert status == SUCCESS and s5.status == SUCCESS
+    assert stats[STAT_FEV] < 0.5 * s5.n_fev
+    assert max(err, err5) <= 1e-10
+
+
+def test_event_location_forward():
+    """The crossing y = 1/2 of exp(-t^2) is located at sqrt(ln 2) to 1e-10 on the dense output."""
+    status, n, t_stop, T, Q, _ = run(gauss, 0.0, [1.0], 2.0, rtol=1e-11, atol=1e-13, event=y_half)
+    assert status == EVENT
+    assert abs(t_stop - math.sqrt(math.log(2.0))) <= 1e-10
+    assert T[-2] <= t_stop <= T[-1]
+
+
+def test_counters_and_evaluation_identity():
+    """Evaluations: 1 + 1 (HINIT) + 15 per accepted + 12 per rejected step."""
+    status, n, _, _, _, stats = run(gauss, 0.0, [1.0], 3.0, rtol=1e-9, atol=1e-14)
+    assert status == SUCCESS and stats[STAT_ACCEPTED] == n
+    assert stats[STAT_FEV] == 2 + 15 * n + 12 * stats[STAT_REJECTED]
+    status, n, _, _, _, stats = run(gauss, 0.0, [1.0], 3.0, rtol=1e-9, atol=1e-14, h0=0.01)
+    assert stats[STAT_FEV] == 1 + 15 * n + 12 * stats[STAT_REJECTED]
+
+
+def test_nonfinite_right_hand_side_is_a_status():
+    status, n, t_stop, *_ = run(nan_after_t0, 0.0, [1.0], 1.0)
+    assert status == NONFINITE and n == 0 and t_stop == 0.0

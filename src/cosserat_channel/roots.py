@@ -35,7 +35,7 @@ import math
 from numba import njit
 from ._jit import JIT_INLINE as _JIT_INLINE
 
-__all__ = ["find_root", "newton_root"]
+__all__ = ["find_root", "newton_root", "newton_root_d2"]
 
 
 @njit(**_JIT_INLINE)
@@ -180,5 +180,51 @@ def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
             dx = x - x_new
         if abs(x_new - x) <= tol:
             return x_new, it + 1
+        x = x_new
+    return x, max_iter
+
+
+@njit(**_JIT_INLINE)
+def newton_root_d2(fdf, args, a, b, fa, fb, x0, tol, max_iter):
+    """:func:`newton_root` for an ``fdf(x, args) -> (f, df/dx, d2f/dx2)``, which also stops once
+    the error that Newton's step leaves, ``|f''/(2 f')| step^2``, is predicted below `tol`.
+
+    The curvature term is the leading error of a Newton iterate, so the evaluation that would
+    only confirm a step below `tol` is saved: from a start within ``~sqrt(tol)`` one evaluation
+    suffices, from one within ``~tol^(1/4)`` two. A step that the safeguard replaces by bisection
+    never stops the search.
+    """
+    if fa == 0.0:
+        return a, 0
+    if fb == 0.0:
+        return b, 0
+    lo, hi = (a, b) if fa < 0.0 else (b, a)  # f(lo) < 0 < f(hi)
+    left, right = min(a, b), max(a, b)
+    x = x0 if left < x0 < right else 0.5 * (a + b)
+    dx_old = right - left
+    dx = dx_old
+    for it in range(max_iter):
+        f, df, d2f = fdf(x, args)
+        if f == 0.0:
+            return x, it + 1
+        if f < 0.0:
+            lo = x
+        else:
+            hi = x
+        step = -f / df if df != 0.0 else math.nan
+        x_new = x + step
+        if abs(step) <= tol:
+            return x_new, it + 1
+        if not (min(lo, hi) < x_new < max(lo, hi)) or abs(2.0 * f) > abs(dx_old * df):
+            dx_old = dx
+            dx = 0.5 * (hi - lo)
+            x_new = lo + dx
+            if abs(x_new - x) <= tol:
+                return x_new, it + 1
+        else:
+            dx_old = dx
+            dx = -step
+            if abs(0.5 * d2f / df) * step * step <= tol:
+                return x_new, it + 1
         x = x_new
     return x, max_iter

@@ -820,18 +820,67 @@ def _series_plug_level(t, packed):
 
 
 @njit(**_JIT_INLINE)
+def _series_root(fb, consts, ax, t0):
+    # the root of _series_plug_level for log I(xi2) - log(level) = fb > 0, from t0
+    t2, log_F2, slope, fa0, slope2 = consts[:5]
+    c = fb - log_F2  # c + log F(x2) = log I(xi2): c + slope (t - t2) + log F(x) is log I - log(level)
+    fa = c + fa0
+    a = math.log(XI_FLOOR)
+    if fa > 0.0:
+        return a
+    if not a < t0 < t2:
+        t0 = t2 - fb / slope2
+        if not t0 > a:
+            t0 = t2 - fb / slope
+    # 1 - xi_p = -expm1(t) to ~1e-16 relative: dt <= 1e-16 (1 - xi)/xi, and (1 - xi)/xi >= -t
+    x, _ = roots.newton_root_d2(_series_plug_level, (c, t2, slope, ax), a, t2, fa, fb, t0,
+                                -1e-16 * t0, ROOT_MAX_ITER)
+    return x
+
+
+@njit(**_JIT_INLINE)
 def _plug_constants(res, ax):
-    """What the plug-edge root needs of a triple whatever ``eps K``: ``(t2, log F(x2), slope, the
-    part of f(ln XI_FLOOR) that does not depend on the level, slope at t2)``; NaN without a
-    closed form below the panels."""
+    """What the plug-edge root below ``R_XI2`` needs of a triple whatever ``eps K``: ``(t2,
+    log F(x2), beta + 1, the part of f(ln XI_FLOOR) that does not depend on the level, the slope
+    at t2)``, then the quintic Hermite of ``t_p`` as a function of ``log(level)`` between the
+    levels of ``eps K = 0`` (``J(0)/20``, a root found here) and of ``xi2``: ``(log level there,
+    1/range, t_p there, dt/d(log level) at both ends times the range, second derivatives at both
+    ends times the range squared)``. NaN without a closed form below the panels."""
+    nan = math.nan
     xi2 = res[R_XI2]
     if not xi2 > 0.0:
-        return math.nan, math.nan, math.nan, math.nan, math.nan
+        return nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan
     t2 = math.log(xi2)
     slope = ax[AX_BETA] + 1.0
     F2, dF2 = model.series_F_dF(xi2 * xi2, ax)
-    return (t2, math.log(F2), slope, slope * (math.log(XI_FLOOR) - t2) + math.log(ax[model.AX_F]),
-            slope + 2.0 * xi2 * xi2 * dF2 / F2)
+    log_F2 = math.log(F2)
+    consts = (t2, log_F2, slope, slope * (math.log(XI_FLOOR) - t2) + math.log(ax[model.AX_F]),
+              slope + 2.0 * xi2 * xi2 * dF2 / F2)
+    _, d1_top, d2_top = _series_plug_level(t2, (-log_F2, t2, slope, ax))
+    L_min = math.log(0.05 * res[R_J_AXIS])
+    H = res[R_LOGI2] - L_min
+    t_min = _series_root(H, consts, ax, nan)
+    _, d1_min, d2_min = _series_plug_level(t_min, (H - log_F2, t2, slope, ax))
+    # t(L) has t' = 1/f' and t'' = -f''/f'^3 (f = log I - L in t)
+    return consts + (L_min, 1.0 / H, t_min, H / d1_min, H / d1_top,
+                     -d2_min / d1_min ** 3 * H * H, -d2_top / d1_top ** 3 * H * H)
+
+
+@njit(**_JIT_INLINE)
+def _series_start(L, consts):
+    # the quintic Hermite of t_p(log level) of _plug_constants; NaN outside its range
+    L_min, inv_H, t_min, m0, m1, a0, a1 = consts[5:]
+    s = (L - L_min) * inv_H
+    if not 0.0 <= s <= 1.0:
+        return math.nan
+    s2 = s * s
+    s3 = s2 * s
+    r = 1.0 - s
+    r3 = r * r * r
+    # quintic Hermite basis (value, slope, curvature at s = 0 and at s = 1)
+    return (r3 * (1.0 + 3.0 * s + 6.0 * s2) * t_min + r3 * s * (1.0 + 3.0 * s) * m0
+            + 0.5 * r3 * s2 * a0 + s3 * (10.0 - 15.0 * s + 6.0 * s2) * consts[0]
+            - s3 * r * (4.0 - 3.0 * s) * m1 + 0.5 * s3 * r * r * a1)
 
 
 @njit(**_JIT_INLINE)
@@ -839,28 +888,17 @@ def _series_plug_edge(target, res, ax, consts):
     """``ln xi_p`` below ``R_XI2``, where ``J = J(0) - I(xi)`` is closed form: ``I(xi_p) = J(0) - target``.
 
     Safeguarded Newton (:func:`roots.newton_root_d2`) on ``log I - log(J(0) - target)`` in
-    ``t = ln xi``, from the power law ``I ~ xi^(beta+1)`` with the slope at ``xi2``: 1-3
-    evaluations of one Horner pass, an exp and a log. The bracket's ends need no evaluation:
-    ``log I`` at ``xi2`` is kept (``R_LOGI2``), and at ``XI_FLOOR`` it is that minus ``(beta+1)``
-    times the distance, up to ``log F(0)/F(x2)`` (``consts``: :func:`_plug_constants`).
+    ``t = ln xi``, from the quintic Hermite interpolant of the root over the levels that eq:13
+    can ask for (``consts``: :func:`_plug_constants`), within ~1e-5: 2 evaluations of one Horner
+    pass, an exp and a log. The bracket's ends need no evaluation: ``log I`` at ``xi2`` is kept
+    (``R_LOGI2``), and at ``XI_FLOOR`` it is that minus ``(beta+1)`` times the distance, up to
+    ``log F(0)/F(x2)``.
     """
-    t2, log_F2, slope, fa0, slope2 = consts
-    fb = res[R_LOGI2] - math.log(res[R_J_AXIS] - target)
+    L = math.log(res[R_J_AXIS] - target)
+    fb = res[R_LOGI2] - L
     if not fb > 0.0:
-        return t2
-    # c + log F(x2) = log I(xi2), so c holds the rest of log I: c + slope (t - t2) + log F(x)
-    c = fb - log_F2
-    fa = c + fa0
-    a = math.log(XI_FLOOR)
-    if fa > 0.0:
-        return a
-    t0 = t2 - fb / slope2
-    if not t0 > a:
-        t0 = t2 - fb / slope
-    # 1 - xi_p = -expm1(t) to ~1e-16 relative: dt <= 1e-16 (1 - xi)/xi, and (1 - xi)/xi >= -t
-    x, _ = roots.newton_root_d2(_series_plug_level, (c, t2, slope, ax), a, t2, fa, fb, t0,
-                                -1e-16 * t0, ROOT_MAX_ITER)
-    return x
+        return consts[0]
+    return _series_root(fb, consts, ax, _series_start(L, consts))
 
 
 # T_k(1 - u) - 1 and its u-derivative at the panel's ends u = 0 and u = 2, for k < N_COEF

@@ -185,14 +185,17 @@ def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
 
 
 @njit(**_JIT_INLINE)
-def newton_root_d2(fdf, args, a, b, fa, fb, x0, tol, max_iter):
+def newton_root_d2(fdf, args, a, b, fa, fb, x0, tol, max_iter, curvature_stop=True):
     """:func:`newton_root` for an ``fdf(x, args) -> (f, df/dx, d2f/dx2)``, which also stops once
     the error that Newton's step leaves, ``|f''/(2 f')| step^2``, is predicted below `tol`.
 
     The curvature term is the leading error of a Newton iterate, so the evaluation that would
     only confirm a step below `tol` is saved: from a start within ``~sqrt(tol)`` one evaluation
     suffices, from one within ``~tol^(1/4)`` two. A step that the safeguard replaces by bisection
-    never stops the search.
+    never stops the search. Where ``f`` carries rounding noise far above ``tol / |f'|`` that
+    prediction is void (the step is as noisy as ``f``): ``curvature_stop=False`` then stops as
+    :func:`newton_root` does, once Newton and bisection steps have shrunk the bracket around a
+    sign change of ``f``.
     """
     if fa == 0.0:
         return a, 0
@@ -224,7 +227,7 @@ def newton_root_d2(fdf, args, a, b, fa, fb, x0, tol, max_iter):
         else:
             dx_old = dx
             dx = -step
-            if abs(0.5 * d2f / df) * step * step <= tol:
+            if curvature_stop and abs(0.5 * d2f / df) * step * step <= tol:
                 return x_new, it + 1
         x = x_new
     return x, max_iter

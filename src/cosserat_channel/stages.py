@@ -66,6 +66,9 @@ FIRST_PANEL = 1.0
 FREE_PANELS = 1e-2
 # Evaluations of the plug-edge root (it needs ~10; the bound only guards a loop that cannot end).
 ROOT_MAX_ITER = 100
+# Below R_XI2, the plug-edge Newton stops on its curvature test only where the series F has a
+# condition number at most this (its terms cancel little: log F is good to ~1e-15)
+SERIES_QUIET = 16.0
 # Stage 2 never marches below this xi: J's remaining tail there is < XI_FLOOR * max h.
 XI_FLOOR = 1e-14
 
@@ -822,7 +825,7 @@ def _series_plug_level(t, packed):
 @njit(**_JIT_INLINE)
 def _series_root(fb, consts, ax, t0):
     # the root of _series_plug_level for log I(xi2) - log(level) = fb > 0, from t0
-    t2, log_F2, slope, fa0, slope2 = consts[:5]
+    t2, log_F2, slope, fa0, slope2, quiet = consts[:6]
     c = fb - log_F2  # c + log F(x2) = log I(xi2): c + slope (t - t2) + log F(x) is log I - log(level)
     fa = c + fa0
     a = math.log(XI_FLOOR)
@@ -834,7 +837,7 @@ def _series_root(fb, consts, ax, t0):
             t0 = t2 - fb / slope
     # 1 - xi_p = -expm1(t) to ~1e-16 relative: dt <= 1e-16 (1 - xi)/xi, and (1 - xi)/xi >= -t
     x, _ = roots.newton_root_d2(_series_plug_level, (c, t2, slope, ax), a, t2, fa, fb, t0,
-                                -1e-16 * t0, ROOT_MAX_ITER)
+                                -1e-16 * t0, ROOT_MAX_ITER, quiet)
     return x
 
 
@@ -849,13 +852,20 @@ def _plug_constants(res, ax):
     nan = math.nan
     xi2 = res[R_XI2]
     if not xi2 > 0.0:
-        return nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan
+        return nan, nan, nan, nan, nan, False, nan, nan, nan, nan, nan, nan, nan
     t2 = math.log(xi2)
     slope = ax[AX_BETA] + 1.0
-    F2, dF2 = model.series_F_dF(xi2 * xi2, ax)
+    x2 = xi2 * xi2
+    F2, dF2 = model.series_F_dF(x2, ax)
     log_F2 = math.log(F2)
+    # The condition number of F at x2 (the largest on [0, x2]): where its terms cancel, log F
+    # carries rounding noise far above what the curvature test of the Newton steps assumes.
+    n = int(ax[model.AX_N2])
+    size = 0.0
+    for k in range(n - 1, -1, -1):
+        size = size * x2 + abs(ax[model.AX_F + k])
     consts = (t2, log_F2, slope, slope * (math.log(XI_FLOOR) - t2) + math.log(ax[model.AX_F]),
-              slope + 2.0 * xi2 * xi2 * dF2 / F2)
+              slope + 2.0 * x2 * dF2 / F2, size <= SERIES_QUIET * abs(F2))
     _, d1_top, d2_top = _series_plug_level(t2, (-log_F2, t2, slope, ax))
     L_min = math.log(0.05 * res[R_J_AXIS])
     H = res[R_LOGI2] - L_min
@@ -869,7 +879,7 @@ def _plug_constants(res, ax):
 @njit(**_JIT_INLINE)
 def _series_start(L, consts):
     # the quintic Hermite of t_p(log level) of _plug_constants; NaN outside its range
-    L_min, inv_H, t_min, m0, m1, a0, a1 = consts[5:]
+    L_min, inv_H, t_min, m0, m1, a0, a1 = consts[6:]
     s = (L - L_min) * inv_H
     if not 0.0 <= s <= 1.0:
         return math.nan

@@ -64,7 +64,8 @@ NOISE_FLOOR = 10.0
 FIRST_PANEL = 1.0
 # Stage-2 panels may span stage-1 steps where stage 1 ran at below this fraction of its tolerance.
 FREE_PANELS = 1e-2
-# Evaluations of the plug-edge root (it needs ~10; the bound only guards a loop that cannot end).
+# Evaluations of the plug-edge root (it needs 1-2, ~15 where the series is noisy; the bound only
+# guards a loop that cannot end).
 ROOT_MAX_ITER = 100
 # Below R_XI2, the plug-edge Newton stops on its curvature test only where the series F has a
 # condition number at most this (its terms cancel little: log F is good to ~1e-15)

@@ -83,6 +83,31 @@ def test_large_file_has_those_chunks(tmp_path):
         assert nc["status"].chunking() == nc["slip"].chunking()
 
 
+@pytest.mark.parametrize("compress, filters", [
+    (True, {"zstd": True, "zlib": False, "complevel": -1}),  # the default: Zstandard level -1
+    ("zlib", {"zstd": False, "zlib": True, "complevel": 1, "shuffle": True}),
+])
+def test_codec_of_the_file_and_its_values_read_back_identically(tmp_path, compress, filters):
+    """The default codec is Zstandard at level -1 (README, docs/performance.md), ``"zlib"`` is
+    zlib level 1 with shuffle; either file reads back through xarray's netCDF4 engine with the
+    in-memory result's values, bit for bit."""
+    xr = pytest.importorskip("xarray")
+    out = tmp_path / "c.nc"
+    grid = {**GRID, "K": {"linspace": [0, 3, 30]}, "A": {"linspace": [0, 1, 10]}}
+    spec = load_sweep({"grid": grid, "output": {"variables": ["Delta", "slip", "m_wall"]}})
+    run_sweep(spec, out, workers=2, compress=compress).close()
+    with netCDF4.Dataset(out) as nc:
+        for name in ("Delta", "slip", "m_wall", "status"):
+            got = nc[name].filters()
+            assert {k: got[k] for k in filters} == filters, name
+            assert got["fletcher32"], name
+    ref = run_sweep(spec, workers=1)
+    with xr.open_dataset(out, engine="netcdf4") as ds:
+        for v in ref.data_vars:
+            assert ds[v].dtype == ref[v].dtype, v
+            assert np.array_equal(ds[v].values, ref[v].values, equal_nan=True), v
+
+
 def test_grid_variables_of_every_type_share_the_tiles_chunks():
     """int8 status and int32 counters are chunked like the float64 outputs, so that no chunk
     straddles two tiles (it would be compressed, and read back, once per tile)."""

@@ -77,7 +77,7 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     progress : bool, optional
         Progress bar on stderr; default when stderr is a terminal.
     compress : bool or str
-        Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level 1),
+        Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level -1),
         ``"zlib"`` (level 1, for readers without netCDF-C's zstd filter), or False.
 
     Returns

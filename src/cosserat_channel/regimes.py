@@ -21,7 +21,9 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
   sampled change of feasibility; where the edge is *tangential* (the path runs into the node of
   the yield condition at the wall, :func:`node_edge_eta`) the status is noise within ~1e-6 of the
   edge, and the edge is the node's closed-form ``eta`` once ``D(1)`` sampled below it
-  (:func:`wall_D`, :func:`probe_edge`) confirms it. :func:`trace_boundary` does that on a grid of
+  (:func:`wall_D`, :func:`probe_edge`) confirms it. Where the edge is transversal but ``D(1)`` rises
+  so slowly that the status is noise over more than ``SMOOTH_BAND`` (next to the node/focus
+  switch), the edge is the zero of a smooth ``D(1)`` (:func:`smooth_wall_D`, :func:`smooth_edge`). :func:`trace_boundary` does that on a grid of
   ``(A, N)`` and returns an :class:`xarray.Dataset`.
 
 Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
@@ -762,8 +764,20 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     noise bands of it and (c) the degree-3 extrapolation of ``sqrt(D(1))`` reaches zero there
     within ``NODE_AGREE`` times the larger of its spread (degree 2 against 3) and the band: the
     data say the path reaches the node, the closed form says where. Every other transition is
-    bisected on to ``xtol``. Either way ``bands`` says how close to the transition the statuses
-    stop being reliable; :func:`cosserat_channel.atlas.classify` leaves points that close
+    bisected on to ``xtol``, except where the probe's band exceeds ``SMOOTH_BAND`` (an upper
+    edge): there the transition is the zero of :func:`smooth_wall_D` found by
+    :func:`smooth_edge` (``smooth`` flags it).
+
+    **Transversal edges next to the node/focus switch.** On the focus side of
+    ``N^2 = (5 + 3A)/2`` the path meets ``D = 0`` transversally, but close to the singular point:
+    ``D(1)`` rises with a slope ``~F(1)`` that vanishes at the switch, and stage 1's ``D(1)``,
+    read off ``delta(1)`` with a noise of ~1e-13, makes the status noise over up to ~1e-6 (at
+    ``A = -0.265``, ``N = 1.415`` the bisected edge was 1e-8 above the model's and the status not
+    monotone within 1e-7). :func:`smooth_wall_D` carries ``D`` itself next to the wall, where the
+    error of the march before it is damped: its ``D(1)`` is smooth to ~1e-18, and Brent's method
+    puts the zero to ``SMOOTH_XTOL``. Its conditioning degrades only at the switch itself, where
+    the zero becomes double (then ~``sqrt(1e-18 / c)`` ~ 1e-9). Either way ``bands`` says how
+    close to the transition the statuses stop being reliable; :func:`cosserat_channel.atlas.classify` leaves points that close
     undecided.
     """
     A = float(A)

@@ -479,16 +479,20 @@ def smooth_edge(A, N, lo, hi, band, *, count=None, xtol=SMOOTH_XTOL):
     def g(eta):
         if count is not None:
             count(1)
-        return smooth_wall_D(eta, A, N)
+        v = smooth_wall_D(eta, A, N)
+        if not math.isfinite(v):
+            raise FloatingPointError(f"smooth_wall_D failed at eta = {eta!r}")
+        return v
 
-    for k in SMOOTH_WIDEN:
-        w = max(k * band, 10.0 * xtol)
-        a, b = lo * (1.0 - w), hi * (1.0 + w)
-        ga, gb = g(a), g(b)
-        if not (math.isfinite(ga) and math.isfinite(gb)):
-            return math.nan
-        if ga > 0.0 and gb < 0.0:
-            return float(brentq(g, a, b, xtol=xtol * a, rtol=4 * np.finfo(float).eps))
+    try:
+        for k in SMOOTH_WIDEN:
+            w = max(k * band, 10.0 * xtol)
+            a, b = lo * (1.0 - w), hi * (1.0 + w)
+            ga, gb = g(a), g(b)
+            if ga > 0.0 and gb < 0.0:
+                return float(brentq(g, a, b, xtol=xtol * a, rtol=4 * np.finfo(float).eps))
+    except FloatingPointError:
+        pass  # a march failed: the caller falls back to the status bisection
     return math.nan
 
 

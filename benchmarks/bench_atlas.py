@@ -6,10 +6,11 @@ towards A = -1):
 1. builds the atlas (``--tol``, default 1e-8), or reads one (``--atlas-in``), and counts its
    traces and status solves;
 2. compares its ``eta_max`` with direct traces (``regimes.trace_edge``: the node's eta at
-   tangential edges, status bisection elsewhere) at ``--points`` random ``(A, N)``, against
-   ``tol`` and against each leaf's own estimate. Each reference is also sorted: *defined* when
-   it is tangential or the status is monotone on a ladder 1e-9..1e-6 (relative) either side of
-   it, *ragged* otherwise (the status bisection's edge is then only known to the noise of D(1),
+   tangential edges, the zero of the smooth D(1) (``regimes.smooth_edge``) at transversal edges
+   whose status is noise over more than ``regimes.SMOOTH_BAND``, status bisection elsewhere) at
+   ``--points`` random ``(A, N)``, against ``tol`` and against each leaf's own estimate. Each
+   reference is also sorted: *defined* when it is tangential, a smooth zero, or the status is
+   monotone on a ladder 1e-9..1e-6 (relative) either side of it, *ragged* otherwise (the status bisection's edge is then only known to the noise of D(1),
    which the trace states as its band); errors are reported for both. Where a point is outside
    its estimate, the status between the two values (``--probe`` etas) is shown;
 3. the uniform-grid baseline: traces an ``n x n`` equispaced grid (``--uniform``, default 33),
@@ -202,13 +203,17 @@ def accuracy(args, atlas, A_rng, N_rng, rng, ws, trace_range, summary):
         f"{np.max(rel[ok & ~clean] / bound[ok & ~clean], initial=0):.2f}; direct bisection "
         f"{t_direct / args.points * 1e3:.0f} ms per (A, N); load {os.getloadavg()[0]:.1f}")
     tangential = np.array([bool(e.tangential[-1]) if e.kind == 0 else False for e in direct])
+    smooth = np.array([bool(e.smooth[-1]) if e.kind == 0 else False for e in direct])
     band = np.array([e.bands[-1] if e.kind == 0 else np.nan for e in direct])
-    defined = ok & (tangential | np.array([
-        bool(ok[k]) and status_is_monotone(ws, ref[k], A[k], N[k]) for k in range(A.size)]))
+    monotone = np.array([bool(ok[k]) and status_is_monotone(ws, ref[k], A[k], N[k])
+                         for k in range(A.size)])
+    defined = ok & (tangential | smooth | monotone)
     ragged = ok & ~defined
     log(f"  references: {np.sum(ok & tangential)} tangential (the node's eta), "
-        f"{np.sum(defined & ~tangential)} transversal with a monotone status 1e-9..1e-6 either "
-        f"side, {ragged.sum()} ragged (status not monotone there; bands "
+        f"{np.sum(ok & smooth)} the zero of the smooth D(1) (of which {np.sum(ok & smooth & ~monotone)} "
+        f"with a status not monotone 1e-9..1e-6 either side: the solver's noise band), "
+        f"{np.sum(defined & ~tangential & ~smooth)} status bisection with a monotone status "
+        f"1e-9..1e-6 either side, {ragged.sum()} ragged (status bisection, status not monotone; bands "
         f"{np.min(band[ragged], initial=np.inf):.1e} to {np.max(band[ragged], initial=0):.1e}); "
         f"max error at the defined {np.max(rel[defined], initial=0):.2e} (tangential "
         f"{np.max(rel[defined & tangential], initial=0):.2e}), at the ragged "

@@ -40,9 +40,11 @@ transition the solver's status stops being reliable (~1e-6 at tangential edges, 
 transversal ones next to the node/focus switch ``N^2 = (5 + 3A)/2`` where ``D(1)`` rises slowly,
 1e-9 to 1e-7 elsewhere); a leaf keeps the largest of its nodes' bands and :func:`classify` leaves
 points within it undecided. On the focus side of that switch, over about 0.15 in N, the status
-bisection's edge is itself noise at up to ~1e-7 (a near-double zero of ``D(1)``, which an
-extrapolation of ``D(1)`` locates no better than ``sqrt(noise / c)``): cells there stop refining
-with estimates above that. The traces search twice the claimed range of ``eta`` each way, so that
+bisection's edge is itself noise at up to ~1e-7 (a near-double zero of stage 1's ``D(1)``, whose
+noise is ~1e-13): where a trace's band exceeds ``regimes.SMOOTH_BAND`` the transition is instead
+the zero of ``regimes.smooth_wall_D``, ``D(1)`` marched as a state of its own next to the wall
+(smooth in ``eta``, noise ~1e-18; an independent scipy march puts the model's edge within 1e-9
+of it), so the atlas interpolates a smooth function there too. The traces search twice the claimed range of ``eta`` each way, so that
 a transition just outside the claimed range keeps the signature of the cells next to it and is
 interpolated, not lost.
 
@@ -795,6 +797,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
                "edge_rtol": regimes.EDGE_RTOL, "edge_atol": regimes.EDGE_ATOL,
                "edge_xtol": regimes.ETA_XTOL, "n_coarse": regimes.ETA_COARSE,
                "probe_xtol": regimes.PROBE_XTOL, "d_noise": regimes.D_NOISE,
+               "smooth_band": regimes.SMOOTH_BAND, "smooth_xtol": regimes.SMOOTH_XTOL,
                "cosserat_channel_version": __version__},
         leaf_degree=np.array([lf[7] for lf in leaves], dtype=np.int64).reshape(-1, 2),
         leaf_band=np.array([lf[8] for lf in leaves], dtype=float),

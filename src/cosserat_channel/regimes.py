@@ -21,7 +21,9 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
   sampled change of feasibility; where the edge is *tangential* (the path runs into the node of
   the yield condition at the wall, :func:`node_edge_eta`) the status is noise within ~1e-6 of the
   edge, and the edge is the node's closed-form ``eta`` once ``D(1)`` sampled below it
-  (:func:`wall_D`, :func:`probe_edge`) confirms it. :func:`trace_boundary` does that on a grid of
+  (:func:`wall_D`, :func:`probe_edge`) confirms it. Where the edge is transversal but ``D(1)`` rises
+  so slowly that the status is noise over more than ``SMOOTH_BAND`` (next to the node/focus
+  switch), the edge is the zero of a smooth ``D(1)`` (:func:`smooth_wall_D`, :func:`smooth_edge`). :func:`trace_boundary` does that on a grid of
   ``(A, N)`` and returns an :class:`xarray.Dataset`.
 
 Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
@@ -42,8 +44,11 @@ from numba import njit
 
 from ._jit import JIT as _JIT
 
+from . import dense
 from . import model
+from . import rk45
 from . import stages
+from . import stepping
 from .analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
 from . import status as st
 from .parameters import PARAMETERS, ParameterError, check_point
@@ -360,6 +365,137 @@ def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
     return status, D1, delta1
 
 
+# ---------------------------------------------------------------------------------------------
+# A smooth D(1): D marched as a state of its own next to the wall (transversal edges near the
+# node/focus switch; see trace_edge's Notes)
+# ---------------------------------------------------------------------------------------------
+# Where the march switches from w = delta/xi^2 (as in stage 1) to the state (delta, D).
+SMOOTH_XI_SWITCH = 0.5
+SMOOTH_RTOL = 1e-13
+SMOOTH_ATOL = 1e-16  # on w and delta
+SMOOTH_ATOL_D = 1e-24  # on D: D(1) is wanted to ~1e-18 where the edge is a near-double zero
+SMOOTH_MAX_STEPS = 20_000
+# The smooth root replaces the status bisection where the probe's noise band exceeds this
+# (relative in eta): there the status is decided by the noise of stage 1's D(1).
+SMOOTH_BAND = 3e-9
+SMOOTH_XTOL = 1e-12  # relative width of the root's final bracket
+SMOOTH_WIDEN = (1.0, 4.0, 16.0, 64.0)  # brackets tried, in noise bands either side
+
+
+@njit(**_JIT)
+def _w_rhs(xi, y, args, out):
+    eta, A, N, ax = args
+    out[0] = model.dw_dxi(xi, y[0], eta, A, N, ax)
+
+
+@njit(**_JIT)
+def _delta_D_rhs(xi, y, args, out):
+    # (delta, D) along a stage-1 path: eta delta' = (A+1) xi - sqrt(D) and
+    # D' = F - (D_delta / eta) sqrt(D), F = 2(A+1) xi [(A-1) + 2(A+1)(N - delta)/eta]
+    # (node_edge_eta). D is carried, not recomputed from delta: next to the wall it is a tiny
+    # difference of O(1) terms, and carried it keeps a relative error. sqrt(max(D, 0)) continues
+    # the path past D = 0 (D' = F < 0 there), so D(1) changes sign at the edge, continuously.
+    eta, A, N, ax = args
+    a1 = A + 1.0
+    s = math.sqrt(max(y[1], 0.0))
+    out[0] = (a1 * xi - s) / eta
+    out[1] = 2.0 * a1 * xi * ((A - 1.0) + 2.0 * a1 * (N - y[0]) / eta) - 4.0 * a1 * (N - y[0]) * s / eta
+
+
+@njit(**_JIT)
+def _smooth_wall_D_kernel(eta, A, N, rtol, ax, T, Qw, Q, stats):
+    args = (eta, A, N, ax)
+    xi1, w1 = stages.stage1_start(ax, rtol)
+    if xi1 < SMOOTH_XI_SWITCH:
+        y1 = np.empty(1)
+        y1[0] = w1
+        atol1 = np.empty(1)
+        atol1[0] = SMOOTH_ATOL
+        code, n, _ = rk45.dopri5(_w_rhs, rk45.no_event, xi1, y1, SMOOTH_XI_SWITCH, args, rtol,
+                                 atol1, 0.0, 0.0, T, Qw, stats)
+        if code != rk45.SUCCESS:
+            return math.nan
+        dense.dense_eval_step(T, Qw, n - 1, SMOOTH_XI_SWITCH, y1)
+        xi1, w1 = SMOOTH_XI_SWITCH, y1[0]
+    y = np.empty(2)
+    y[0] = xi1 * xi1 * w1
+    y[1] = model.yield_D(xi1, y[0], A, N, ax)
+    atol = np.empty(2)
+    atol[0] = SMOOTH_ATOL
+    atol[1] = SMOOTH_ATOL_D
+    code, n, _ = rk45.dopri5(_delta_D_rhs, rk45.no_event, xi1, y, 1.0, args, rtol, atol, 0.0, 0.0,
+                             T, Q, stats)
+    if code != rk45.SUCCESS:
+        return math.nan
+    dense.dense_eval_step(T, Q, n - 1, 1.0, y)
+    return y[1]
+
+
+_SMOOTH_WORK = {}
+
+
+def smooth_wall_D(eta, A, N, rtol=SMOOTH_RTOL):
+    """``D(1)`` of the stage-1 path, marched so that it is a smooth function of ``eta``.
+
+    From the axis series (``stages.stage1_start``) the path is marched in ``w = delta/xi^2`` to
+    ``xi = SMOOTH_XI_SWITCH``, then in ``(delta, D)`` with ``D`` a state of its own
+    (:func:`_delta_D_rhs`), to the wall, both by ``rk45.dopri5`` at ``rtol``. Stage 1 reads
+    ``D(1)`` off ``delta(1)``, a difference of O(1) terms with a noise of ~1e-13 (its step
+    sequence changes with ``eta``); here ``D`` keeps a relative error, and the error committed
+    before the switch is damped by the time the path reaches the wall (the singular point there
+    attracts the paths: measured, marches whose ``delta`` at the switch differs by ~1e-13 give the
+    same ``D(1) ~ 1e-12`` to ~1e-18). Past the edge the path is continued through ``D = 0``
+    (``D' = F < 0``), so ``D(1)`` changes sign at the edge, continuously.
+
+    Returns ``D(1)``, or NaN where a march failed or no stage 1 applies (``model.classify``).
+    """
+    A = float(A)
+    N = float(N)
+    eta = float(eta)
+    if A <= -1.0 or model.classify(eta, A, N) != st.OK:
+        return math.nan
+    if not _SMOOTH_WORK:
+        _SMOOTH_WORK["T"] = np.empty(SMOOTH_MAX_STEPS + 1)
+        _SMOOTH_WORK["Qw"] = np.empty((SMOOTH_MAX_STEPS, 5, 1))
+        _SMOOTH_WORK["Q"] = np.empty((SMOOTH_MAX_STEPS, 5, 2))
+        _SMOOTH_WORK["stats"] = np.zeros(stepping.N_STATS, dtype=np.int64)
+    ax = np.empty(model.N_AX)
+    model.axis_constants(eta, A, N, ax)
+    w = _SMOOTH_WORK
+    return float(_smooth_wall_D_kernel(eta, A, N, float(rtol), ax, w["T"], w["Qw"], w["Q"],
+                                       w["stats"]))
+
+
+def smooth_edge(A, N, lo, hi, band, *, count=None, xtol=SMOOTH_XTOL):
+    """The zero of :func:`smooth_wall_D` in ``eta`` next to the status bracket ``[lo, hi]``.
+
+    The bracket is widened by ``SMOOTH_WIDEN`` noise bands (``band``, relative) until
+    ``smooth_wall_D`` is positive at its low end and negative at its high end, then the zero is
+    found by Brent's method to ``xtol`` (relative). ``count(n)``, if given, is told of each march.
+    Returns the zero, or NaN where no widening brackets one.
+    """
+    from scipy.optimize import brentq
+
+    def g(eta):
+        if count is not None:
+            count(1)
+        v = smooth_wall_D(eta, A, N)
+        if not math.isfinite(v):
+            raise FloatingPointError(f"smooth_wall_D failed at eta = {eta!r}")
+        return v
+
+    try:
+        for k in SMOOTH_WIDEN:
+            w = max(k * band, 10.0 * xtol)
+            a, b = lo * (1.0 - w), hi * (1.0 + w)
+            ga, gb = g(a), g(b)
+            if ga > 0.0 and gb < 0.0:
+                return float(brentq(g, a, b, xtol=xtol * a, rtol=4 * np.finfo(float).eps))
+    except FloatingPointError:
+        pass  # a march failed: the caller falls back to the status bisection
+    return math.nan
+
+
 def node_edge_eta(A, N):
     """``eta`` at which the node of the yield condition sits at the wall, and whether it is a node.
 
@@ -505,6 +641,9 @@ class Edge:
         reliable (:attr:`Probe.band`; 0 where ``D(1)`` could not be probed).
     tangential : ndarray of bool
         Per transition, whether it is the node's ``eta`` (a tangential edge, :func:`trace_edge`).
+    smooth : ndarray of bool
+        Per transition, whether it is the zero of :func:`smooth_wall_D` (a transversal edge where
+        the status is noise over more than ``SMOOTH_BAND``, :func:`trace_edge`).
     """
 
     A: float
@@ -516,12 +655,15 @@ class Edge:
     transitions: np.ndarray
     bands: np.ndarray = None
     tangential: np.ndarray = None
+    smooth: np.ndarray = None
 
     def __post_init__(self):
         if self.bands is None:
             self.bands = np.zeros(self.transitions.size)
         if self.tangential is None:
             self.tangential = np.zeros(self.transitions.size, dtype=bool)
+        if self.smooth is None:
+            self.smooth = np.zeros(self.transitions.size, dtype=bool)
 
     @property
     def monotone(self) -> bool:
@@ -626,8 +768,20 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     noise bands of it and (c) the degree-3 extrapolation of ``sqrt(D(1))`` reaches zero there
     within ``NODE_AGREE`` times the larger of its spread (degree 2 against 3) and the band: the
     data say the path reaches the node, the closed form says where. Every other transition is
-    bisected on to ``xtol``. Either way ``bands`` says how close to the transition the statuses
-    stop being reliable; :func:`cosserat_channel.atlas.classify` leaves points that close
+    bisected on to ``xtol``, except where the probe's band exceeds ``SMOOTH_BAND`` (an upper
+    edge): there the transition is the zero of :func:`smooth_wall_D` found by
+    :func:`smooth_edge` (``smooth`` flags it).
+
+    **Transversal edges next to the node/focus switch.** On the focus side of
+    ``N^2 = (5 + 3A)/2`` the path meets ``D = 0`` transversally, but close to the singular point:
+    ``D(1)`` rises with a slope ``~F(1)`` that vanishes at the switch, and stage 1's ``D(1)``,
+    read off ``delta(1)`` with a noise of ~1e-13, makes the status noise over up to ~1e-6 (at
+    ``A = -0.265``, ``N = 1.415`` the bisected edge was 1e-8 above the model's and the status not
+    monotone within 1e-7). :func:`smooth_wall_D` carries ``D`` itself next to the wall, where the
+    error of the march before it is damped: its ``D(1)`` is smooth to ~1e-18, and Brent's method
+    puts the zero to ``SMOOTH_XTOL``. Its conditioning degrades only at the switch itself, where
+    the zero becomes double (then ~``sqrt(1e-18 / c)`` ~ 1e-9). Either way ``bands`` says how
+    close to the transition the statuses stop being reliable; :func:`cosserat_channel.atlas.classify` leaves points that close
     undecided.
     """
     A = float(A)
@@ -668,21 +822,23 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     ok = np.array([f[0] for f in flags])
     if not ok.any():
         return Edge(A, N, math.nan, EDGE_NONE, math.nan, -1, empty)
-    transitions, bands, tangent = [], [], []
+    transitions, bands, tangent, smooth = [], [], [], []
     hi = math.nan
     for i in np.flatnonzero(ok[1:] != ok[:-1]):
-        eta_t, band, is_node, lo, hi = _transition(feasible_at, ws, A, N, etas[i], etas[i + 1],
-                                                    bool(ok[i]), xtol, rtol, atol, tangential)
+        eta_t, band, is_node, lo, hi, is_smooth = _transition(
+            feasible_at, ws, A, N, etas[i], etas[i + 1], bool(ok[i]), xtol, rtol, atol, tangential)
         transitions.append(eta_t)
         bands.append(band)
         tangent.append(is_node)
+        smooth.append(is_smooth)
     transitions = np.array(transitions)
     bands = np.array(bands)
     tangent = np.array(tangent, dtype=bool)
+    smooth = np.array(smooth, dtype=bool)
     eta_min = lo_e if ok[0] else float(transitions[0])
     last = int(np.flatnonzero(ok)[-1])
     if last == n_coarse - 1:
-        return Edge(A, N, hi_e, EDGE_UNBOUNDED, eta_min, -1, transitions, bands, tangent)
+        return Edge(A, N, hi_e, EDGE_UNBOUNDED, eta_min, -1, transitions, bands, tangent, smooth)
     # The last change is ok -> not ok (ok is False at the last sample); hi is just above it. The
     # status is taken 1e-4 (relative) higher: right at the edge the path meets D = 0 a hair before
     # the wall and the solver may report integration_failed while it crawls into the sqrt kink.
@@ -691,7 +847,7 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     if above[0]:
         above = feasible_at(hi)
     return Edge(A, N, float(transitions[-1]), EDGE_BOUNDED, eta_min, above[1], transitions,
-                bands, tangent)
+                bands, tangent, smooth)
 
 
 def _transition(feasible_at, ws, A, N, a, b, ok_low, xtol, rtol, atol, tangential):
@@ -706,7 +862,7 @@ def _transition(feasible_at, ws, A, N, a, b, ok_low, xtol, rtol, atol, tangentia
 
     if not tangential:
         lo, hi = bisect_edge(feasible, a, b, xtol, feasible_lo=ok_low)
-        return (lo if ok_low else hi), 0.0, False, lo, hi
+        return (lo if ok_low else hi), 0.0, False, lo, hi, False
     lo, hi = bisect_edge(feasible, a, b, max(xtol, PROBE_XTOL), feasible_lo=ok_low)
     t_ok = lo if ok_low else hi
     probe = probe_edge(ws, t_ok, -1 if ok_low else 1, A, N, rtol, atol)
@@ -717,9 +873,15 @@ def _transition(feasible_at, ws, A, N, a, b, ok_low, xtol, rtol, atol, tangentia
         spread = abs(probe.root3 - probe.root2) / node if math.isfinite(probe.root2) else math.inf
         if (is_node and lo * (1.0 - near) <= node <= hi * (1.0 + near)
                 and abs(probe.root3 / node - 1.0) <= NODE_AGREE * max(spread, band)):
-            return node, band, True, lo, hi
+            return node, band, True, lo, hi, False
+        if band > SMOOTH_BAND:
+            # Transversal, but the status is noise over more than the bracket asked for (next
+            # to the node/focus switch D(1) rises slowly): the zero of the smooth D(1) instead.
+            zero = smooth_edge(A, N, lo, hi, band, count=getattr(ws, "count", None))
+            if math.isfinite(zero):
+                return zero, band, False, lo, hi, True
     lo, hi = bisect_edge(feasible, lo, hi, xtol, feasible_lo=ok_low)
-    return (lo if ok_low else hi), band, False, lo, hi
+    return (lo if ok_low else hi), band, False, lo, hi, False
 
 
 def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA_COARSE,

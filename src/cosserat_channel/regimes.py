@@ -456,8 +456,8 @@ def smooth_wall_D(eta, A, N, rtol=SMOOTH_RTOL):
         return math.nan
     if not _SMOOTH_WORK:
         _SMOOTH_WORK["T"] = np.empty(SMOOTH_MAX_STEPS + 1)
-        _SMOOTH_WORK["Qw"] = np.empty((SMOOTH_MAX_STEPS, 5, 1))
-        _SMOOTH_WORK["Q"] = np.empty((SMOOTH_MAX_STEPS, 5, 2))
+        _SMOOTH_WORK["Qw"] = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 1))
+        _SMOOTH_WORK["Q"] = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 2))
         _SMOOTH_WORK["stats"] = np.zeros(stepping.N_STATS, dtype=np.int64)
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)

@@ -10,8 +10,9 @@ towards A = -1):
    whose status is noise over more than ``regimes.SMOOTH_BAND``, status bisection elsewhere) at
    ``--points`` random ``(A, N)``, against ``tol`` and against each leaf's own estimate. Each
    reference is also sorted: *defined* when it is tangential, a smooth zero, or the status is
-   monotone on a ladder 1e-9..1e-6 (relative) either side of it, *ragged* otherwise (the status bisection's edge is then only known to the noise of D(1),
-   which the trace states as its band); errors are reported for both. Where a point is outside
+   monotone on a ladder 1e-9..1e-6 (relative) either side of it, *ragged* otherwise (the status
+   bisection's edge is then only known to the noise of D(1), which the trace states as its
+   band); errors are reported for both. Where a point is outside
    its estimate, the status between the two values (``--probe`` etas) is shown;
 3. the uniform-grid baseline: traces an ``n x n`` equispaced grid (``--uniform``, default 33),
    interpolates it bicubically (``scipy.interpolate.RectBivariateSpline``) on the nested 9, 17

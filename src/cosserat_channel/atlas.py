@@ -44,9 +44,9 @@ bisection's edge is itself noise at up to ~1e-7 (a near-double zero of stage 1's
 noise is ~1e-13): where a trace's band exceeds ``regimes.SMOOTH_BAND`` the transition is instead
 the zero of ``regimes.smooth_wall_D``, ``D(1)`` marched as a state of its own next to the wall
 (smooth in ``eta``, noise ~1e-18; an independent scipy march puts the model's edge within 1e-9
-of it), so the atlas interpolates a smooth function there too. The traces search twice the claimed range of ``eta`` each way, so that
-a transition just outside the claimed range keeps the signature of the cells next to it and is
-interpolated, not lost.
+of it), so the atlas interpolates a smooth function there too. The traces search twice the
+claimed range of ``eta`` each way, so that a transition just outside the claimed range keeps the
+signature of the cells next to it and is interpolated, not lost.
 
 Reading an atlas (:func:`load_atlas`, :func:`classify`, :meth:`Atlas.boundary`) imports numpy
 and xarray only: building one (:func:`build_atlas`) imports the solver.

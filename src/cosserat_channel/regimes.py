@@ -23,8 +23,9 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
   edge, and the edge is the node's closed-form ``eta`` once ``D(1)`` sampled below it
   (:func:`wall_D`, :func:`probe_edge`) confirms it. Where the edge is transversal but ``D(1)`` rises
   so slowly that the status is noise over more than ``SMOOTH_BAND`` (next to the node/focus
-  switch), the edge is the zero of a smooth ``D(1)`` (:func:`smooth_wall_D`, :func:`smooth_edge`). :func:`trace_boundary` does that on a grid of
-  ``(A, N)`` and returns an :class:`xarray.Dataset`.
+  switch), the edge is the zero of a smooth ``D(1)`` (:func:`smooth_wall_D`,
+  :func:`smooth_edge`). :func:`trace_boundary` does that on a grid of ``(A, N)`` and returns an
+  :class:`xarray.Dataset`.
 
 Pure numpy/scipy/xarray (no matplotlib: figures live in :mod:`cosserat_channel.plot.regimes`, which
 reads the codes of this data from :mod:`cosserat_channel.regime_codes` and never solves).
@@ -781,8 +782,8 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     error of the march before it is damped: its ``D(1)`` is smooth to ~1e-18, and Brent's method
     puts the zero to ``SMOOTH_XTOL``. Its conditioning degrades only at the switch itself, where
     the zero becomes double (then ~``sqrt(1e-18 / c)`` ~ 1e-9). Either way ``bands`` says how
-    close to the transition the statuses stop being reliable; :func:`cosserat_channel.atlas.classify` leaves points that close
-    undecided.
+    close to the transition the statuses stop being reliable;
+    :func:`cosserat_channel.atlas.classify` leaves points that close undecided.
     """
     A = float(A)
     N = float(N)

@@ -190,7 +190,7 @@ def test_series_plug_edge_root_converges_in_a_few_newton_steps():
             assert t == stages._series_plug_edge(target, res, ax, consts)
             counts.append(n)
         assert len(counts) > 300
-        assert max(counts) <= 4 and np.mean(counts) < 2.2, (eta, np.bincount(counts))
+        assert max(counts) <= 6 and np.mean(counts) < 2.2, (eta, np.bincount(counts))
 
 
 def test_stage1_resolves_the_turn_at_xi_equal_N_at_loose_rtol():

@@ -56,13 +56,14 @@ REFINE_MAX_STEPS = 400
 # (benchmarks/probe_high_order.py, docs/performance.md). Dormand-Prince stays the default where
 # the two cost the same.
 DOP853_RTOL = 1e-6
-# DOP853 can cross the whole stretch from the series start to the wall in one step whose end is
-# good to rtol, while its interpolant, which stage 2 reads, is not under the error estimate's
-# control: one such step left Delta 6e-3 off at rtol 1e-4 (a near-edge point of the
-# work-precision set, eta = 3.48, A = -0.1, N = 2.29). Its steps are capped at this fraction of
-# the stretch they march (the edge stratum's max Delta error at rtol 1e-4 is then 5e-4; a cap
-# of 0.1 costs 10-20 % more for no gain in the medians).
-DOP853_MAX_STEP = 0.25
+# Next to the path edge (the conditioning re-march of solve_stage1) D(1) is small and the
+# solution has a near-singularity just beyond the wall; there DOP853 crossed the whole stretch
+# from the series start to the wall in one step, good at its end but not inside, where stage 2
+# reads its interpolant (which the error estimate does not control): Delta 6e-3 off at rtol 1e-4
+# (a near-edge point of the work-precision set, eta = 3.48, A = -0.1, N = 2.29). The re-march's
+# steps are capped at this fraction of the stretch they march. Capping every march cost 30 % of
+# stage 1 on bench_point's grid, where no such error was seen.
+EDGE_MAX_STEP = 0.25
 STAGE1_RTOL_FLOOR = 1e-13
 # D(1) below this many rtol-sized errors of D is zero within stage 1's resolution (solve_eta).
 WALL_D_RESOLUTION = 0.1
@@ -295,9 +296,8 @@ def _march_stage1(stiff, xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1,
         return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, xi_end, args1,
                                  rtol, atol1, h0, h_max, T1, Q1, stats1)
     if rtol <= DOP853_RTOL:
-        cap = DOP853_MAX_STEP * abs(xi_end - xi0)
         return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
-                             min(h_max, cap) if h_max > 0.0 else cap, T1, Q1, stats1)
+                             h_max, T1, Q1, stats1)
     return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0, h_max,
                        T1, Q1, stats1)
 
@@ -356,13 +356,13 @@ def stage1_start(ax, rtol1):
 
 
 @njit(**_JIT)
-def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res):
+def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res, max_step=0.0):
     """Stage 1 marched again at a tighter ``rtol1``, from where the axis series is good to it
     (:func:`stage1_start`, which moves closer to the axis); records that start in ``res[R_XI1]``.
-    Returns what :func:`_stage1_pass` does."""
+    Returns what :func:`_stage1_pass` does (``max_step`` as there)."""
     xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
-    return _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
+    return _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step)
 
 
 @njit(**_JIT_INLINE)
@@ -373,8 +373,9 @@ def _add_stats(stats, more):
 
 
 @njit(**_JIT)
-def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
+def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step=0.0):
     """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
+    ``max_step > 0`` caps each step at that fraction of the stretch it marches.
 
     Where the path meets D = 0, sqrt(D) ~ sqrt(xi_stop - xi): the RHS has a kink that the last
     (wide, error-controlled) step glides over, so the dense output locates xi_stop only to ~1e-4.
@@ -392,13 +393,14 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1):
     split = xi1 + SPLIT_MARGIN < N < 1.0 - SPLIT_MARGIN
     # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
     # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
-    s1, n1, t1 = _march_stage1(stiff, xi1, y0, N if split else 1.0, xi1, 0.0, args1, rtol1, atol1,
-                               T1, Q1, stats_r)
+    end = N if split else 1.0
+    s1, n1, t1 = _march_stage1(stiff, xi1, y0, end, xi1, max_step * (end - xi1), args1, rtol1,
+                               atol1, T1, Q1, stats_r)
     _add_stats(stats1, stats_r)
     if split and s1 == rk45.SUCCESS and n1 > 0:
         y0[0] = Q1[n1 - 1, 0, 0] + Q1[n1 - 1, 1, 0]  # w(N): the last step's end
-        s1, n_more, t1 = _march_stage1(stiff, N, y0, 1.0, 0.0, 0.0, args1, rtol1, atol1,
-                                       T1[n1:], Q1[n1:], stats_r)
+        s1, n_more, t1 = _march_stage1(stiff, N, y0, 1.0, 0.0, max_step * (1.0 - N), args1, rtol1,
+                                       atol1, T1[n1:], Q1[n1:], stats_r)
         n1 += n_more
         _add_stats(stats1, stats_r)
     for _ in range(EVENT_REFINEMENTS):
@@ -559,7 +561,8 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
             atol1[0] = atol * min(1.0, rtol1 / rtol)
-            s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res)
+            s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res,
+                                             EDGE_MAX_STEP)
             if s1 == rk45.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)

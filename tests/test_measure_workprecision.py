@@ -212,6 +212,23 @@ def test_speed_targets_say_by_how_much():
     assert len(table) == 1 and "100x" in table[0]["solved"]
 
 
+def test_two_stage_target_is_judged_within_its_range():
+    """Ours faster than numbalsoda LSODA at every matched error from 1e-4 to 1e-10 passes, however
+    much slower below 1e-10 (reported, not judged); slower at one error inside fails."""
+    rtols = [1e-4, 1e-6, 1e-8, 1e-10, 1e-12]
+    lsoda = _curve("numbalsoda-LSODA", rtols, [10.0, 20.0, 30.0, 40.0, 50.0],
+                   [1e-5, 1e-7, 1e-9, 1e-11, 1e-13])
+    ours = _curve("ours", rtols, [5.0, 10.0, 15.0, 200.0, 400.0],
+                  [1e-5, 1e-7, 1e-9, 1e-11, 1e-13], "both")
+    targets, _ = report.speed_targets([report.Comparison(lsoda, ours, lsoda, ours)], "-")
+    vs_nbs = targets[2]
+    assert vs_nbs.passed is True and "outside the range (not judged)" in vs_nbs.detail
+    slow = _curve("ours", rtols, [5.0, 30.0, 15.0, 200.0, 400.0],
+                  [1e-5, 1e-7, 1e-9, 1e-11, 1e-13], "both")
+    targets, _ = report.speed_targets([report.Comparison(lsoda, slow, lsoda, slow)], "-")
+    assert targets[2].passed is False and "at median error 1e-07" in targets[2].detail
+
+
 def test_verdict_uses_the_points_the_peer_solved():
     """A peer that looks 1000x slower only because of capped failures is judged where it solved."""
     rtols = [1e-4, 1e-6, 1e-8]

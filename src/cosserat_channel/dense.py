@@ -69,6 +69,19 @@ EVENT_MAX_ITER = 200
 N_DENSE = 8
 
 
+@njit(**_JIT_INLINE)
+def hermite_rows(y, y_new, h, f0, f1, q, i):
+    """Rows 0-3 of component `i` of a step's dense output (Hairer's ``rcont1..4``), which both
+    CONTD5 and CONTD8 share: the values at the step's ends and, through ``f0 = f(t, y)`` and
+    ``f1 = f(t + h, y_new)``, the slopes there."""
+    ydiff = y_new - y
+    bspl = h * f0 - ydiff
+    q[0, i] = y
+    q[1, i] = ydiff
+    q[2, i] = bspl
+    q[3, i] = ydiff - h * f1 - bspl
+
+
 @njit(**_JIT)
 def dense_coefficients(y, y_new, h, K, q):
     """Fill the dense-output coefficients of one accepted Dormand–Prince step.
@@ -86,12 +99,7 @@ def dense_coefficients(y, y_new, h, K, q):
     """
     n = y.shape[0]
     for i in range(n):
-        ydiff = y_new[i] - y[i]
-        bspl = h * K[0, i] - ydiff
-        q[0, i] = y[i]
-        q[1, i] = ydiff
-        q[2, i] = bspl
-        q[3, i] = ydiff - h * K[6, i] - bspl
+        hermite_rows(y[i], y_new[i], h, K[0, i], K[6, i], q, i)
         q[4, i] = h * (D1 * K[0, i] + D3 * K[2, i] + D4 * K[3, i]
                        + D5 * K[4, i] + D6 * K[5, i] + D7 * K[6, i])
         q[5, i] = 0.0

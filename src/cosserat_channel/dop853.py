@@ -33,10 +33,10 @@ import numpy as np
 from numba import njit
 
 from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
-from .dense import event_after_step
+from .dense import event_after_step, hermite_rows
 from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
-                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, all_finite,
-                       initial_step)
+                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end,
+                       first_step, step_limit)
 
 __all__ = ["dop853", "dop853_step", "ERROR_ORDER"]
 
@@ -306,12 +306,7 @@ def dense_coefficients(fun, t, y, y_new, h, args, K, ys, q):
             ys[i] = y[i] + h * acc
         fun(t + C[s] * h, ys, args, K[s])
     for i in range(n):
-        ydiff = y_new[i] - y[i]
-        bspl = h * K[0, i] - ydiff
-        q[0, i] = y[i]
-        q[1, i] = ydiff
-        q[2, i] = bspl
-        q[3, i] = ydiff - h * K[N_STAGES, i] - bspl
+        hermite_rows(y[i], y_new[i], h, K[0, i], K[N_STAGES, i], q, i)
         for r in range(4):
             acc = 0.0
             for j in range(N_STAGES_EXTENDED):
@@ -355,18 +350,14 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
         return SUCCESS, 0, t0
     direction = 1.0 if t_end > t0 else -1.0
     span = abs(t_end - t0)
-    hmax = span if (not (h_max > 0.0) or h_max > span) else h_max
+    hmax = step_limit(h_max, span)
     y, y_new, ys, ytmp, K = _work_arrays(y0)
     fun(t0, y, args, K[0])
     stats[STAT_FEV] = 1
     if not (all_finite(K[0]) and all_finite(y)):
         return NONFINITE, 0, t0
-    if h0 > 0.0:
-        habs = min(h0, hmax)
-    else:
-        habs = initial_step(fun, t0, y, K[0], args, direction, rtol, atol, hmax, span,
-                            ERROR_ORDER, ytmp, ys)
-        stats[STAT_FEV] += 1
+    habs = first_step(fun, t0, y, K[0], args, direction, rtol, atol, h0, hmax, span, ERROR_ORDER,
+                      ytmp, ys, stats)
     g_old = event(t0, y, args)
     t, reject = t0, False
     nsteps = n_nonfinite = 0
@@ -375,10 +366,7 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
             return MAX_STEPS, nsteps, t
         if habs <= 10.0 * EPS * abs(t):
             return STEP_TOO_SMALL, nsteps, t
-        h = direction * habs
-        last = (t + 1.01 * h - t_end) * direction >= 0.0
-        if last:
-            h = t_end - t
+        h, last = clip_to_end(t, habs, t_end, direction)
         dop853_step(fun, t, y, h, args, K, y_new, ys)
         stats[STAT_FEV] += N_STAGES
         err = error_norm(K, h, y, y_new, atol, rtol)

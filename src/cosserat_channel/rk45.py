@@ -53,7 +53,8 @@ from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
                        STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
-                       STEP_TOO_SMALL, SUCCESS, all_finite, error_norm, initial_step, no_event)
+                       STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end, error_norm, first_step,
+                       no_event, step_limit)
 
 # The status codes, counter slots and no_event are part of dopri5's calling convention, so they
 # are re-exported here from their home, stepping.
@@ -357,19 +358,15 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
         return SUCCESS, 0, t0
     direction = 1.0 if t_end > t0 else -1.0
     span = abs(t_end - t0)
-    hmax = span if (not (h_max > 0.0) or h_max > span) else h_max
+    hmax = step_limit(h_max, span)
     y, y_new, y_err, ytmp, K = _work_arrays(y0)
     fun(t0, y, args, K[0])
     stats[STAT_FEV] = 1
     if not (all_finite(K[0]) and all_finite(y)):
         return NONFINITE, 0, t0
-    if h0 > 0.0:
-        habs = min(h0, hmax)
-    else:
-        # ytmp and y_err are free here and serve as the Euler probe's scratch.
-        habs = initial_step(fun, t0, y, K[0], args, direction, rtol, atol, hmax, span,
-                            ERROR_ORDER, ytmp, y_err)
-        stats[STAT_FEV] += 1
+    # ytmp and y_err are free here and serve as HINIT's scratch.
+    habs = first_step(fun, t0, y, K[0], args, direction, rtol, atol, h0, hmax, span, ERROR_ORDER,
+                      ytmp, y_err, stats)
     g_old = event(t0, y, args)
     t, facold, reject = t0, FACOLD_MIN, False
     nsteps = n_nonfinite = iasti = nonsti = 0
@@ -378,12 +375,7 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
             return MAX_STEPS, nsteps, t
         if habs <= 10.0 * EPS * abs(t):
             return STEP_TOO_SMALL, nsteps, t
-        h = direction * habs
-        # The 1.01 avoids a leftover sliver step that would trip the too-small test, as in
-        # Hairer's code.
-        last = (t + 1.01 * h - t_end) * direction >= 0.0
-        if last:
-            h = t_end - t
+        h, last = clip_to_end(t, habs, t_end, direction)
         dopri5_step(fun, t, y, h, args, K[0], y_new, y_err, K)
         stats[STAT_FEV] += 6
         err = error_norm(y_err, y, y_new, atol, rtol)

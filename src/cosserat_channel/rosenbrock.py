@@ -36,7 +36,7 @@ from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
-                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS)
+                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, step_limit)
 
 # A tableau is (gamma, c2, c3, c4, d1, d2, d3, d4, a21, a31, a32, a41, a42, a43, a51, a52, a53,
 # a54, C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65, h21, h22, h23,
@@ -301,7 +301,7 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
         return SUCCESS, 0, t0
     direction = 1.0 if t_end > t0 else -1.0
     span = abs(t_end - t0)
-    hmax = span if (h_max <= 0.0 or not math.isfinite(h_max)) else min(h_max, span)
+    hmax = step_limit(h_max, span)
     ys = y0.copy()
     ytmp = y0.copy()
     t = t0

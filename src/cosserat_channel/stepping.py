@@ -36,6 +36,9 @@ __all__ = [
     "STAT_STIFF",
     "N_STATS",
     "EPS",
+    "step_limit",
+    "clip_to_end",
+    "first_step",
     "NONFINITE_SHRINK",
     "no_event",
     "rms_norm",
@@ -155,6 +158,38 @@ def all_finite(v):
         if not math.isfinite(v[i]):
             return False
     return True
+
+
+@njit(**_JIT_INLINE)
+def step_limit(h_max, span):
+    """The largest step magnitude of a run over ``span``: `h_max` when it lies in ``(0, span]``,
+    else ``span`` (``h_max <= 0``, inf or NaN mean no limit but the interval)."""
+    return span if (not (h_max > 0.0) or h_max > span) else h_max
+
+
+@njit(**_JIT_INLINE)
+def clip_to_end(t, habs, t_end, direction):
+    """``(h, last)``: the signed trial step from `t`, and whether it is the run's last one.
+
+    A step that would end within 1 % of its size before `t_end` is stretched onto it, as in
+    Hairer's codes: the leftover sliver would trip the too-small test.
+    """
+    h = direction * habs
+    last = (t + 1.01 * h - t_end) * direction >= 0.0
+    if last:
+        h = t_end - t
+    return h, last
+
+
+@njit(**_JIT_INLINE)
+def first_step(fun, t0, y0, f0, args, direction, rtol, atol, h0, h_max, span, order, y1, f1,
+               stats):
+    """The first trial step's magnitude: `h0` (at most `h_max`) when positive, else
+    :func:`initial_step` (its evaluation is counted in ``stats``); `y1`, `f1` are its scratch."""
+    if h0 > 0.0:
+        return min(h0, h_max)
+    stats[STAT_FEV] += 1
+    return initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, order, y1, f1)
 
 
 @njit(**_JIT_INLINE)

@@ -127,6 +127,23 @@ def find_root(f, args, a, b, fa, fb, tol, max_iter):
 
 
 @njit(**_JIT_INLINE)
+def _newton_start(a, b, fa, x0):
+    """``(lo, hi, x, width)`` of a safeguarded Newton search: the bracket's ends with
+    ``f(lo) < 0 < f(hi)``, the first iterate (`x0`, or the midpoint when `x0` is not inside) and
+    the bracket's width."""
+    lo, hi = (a, b) if fa < 0.0 else (b, a)
+    left, right = min(a, b), max(a, b)
+    x = x0 if left < x0 < right else 0.5 * (a + b)
+    return lo, hi, x, right - left
+
+
+@njit(**_JIT_INLINE)
+def _needs_bisection(x_new, lo, hi, f, df, dx_old):
+    # The Newton iterate left the bracket, or the step did not halve against the one before.
+    return not (min(lo, hi) < x_new < max(lo, hi)) or abs(2.0 * f) > abs(dx_old * df)
+
+
+@njit(**_JIT_INLINE)
 def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
     """Root of ``f`` in the bracket between `a` and `b` by safeguarded Newton steps from `x0`.
 
@@ -155,10 +172,7 @@ def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
         return a, 0
     if fb == 0.0:
         return b, 0
-    lo, hi = (a, b) if fa < 0.0 else (b, a)  # f(lo) < 0 < f(hi)
-    left, right = min(a, b), max(a, b)
-    x = x0 if left < x0 < right else 0.5 * (a + b)
-    dx_old = right - left
+    lo, hi, x, dx_old = _newton_start(a, b, fa, x0)
     dx = dx_old
     for it in range(max_iter):
         f, df = fdf(x, args)
@@ -173,7 +187,7 @@ def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
             # Converged, also when the step is below the resolution of x (x_new == x == one end
             # of the bracket, which the test below would take for a step outside it and bisect).
             return x_new, it + 1
-        if not (min(lo, hi) < x_new < max(lo, hi)) or abs(2.0 * f) > abs(dx_old * df):
+        if _needs_bisection(x_new, lo, hi, f, df, dx_old):
             dx_old = dx
             dx = 0.5 * (hi - lo)
             x_new = lo + dx
@@ -203,10 +217,7 @@ def newton_root_d2(fdf, args, a, b, fa, fb, x0, tol, max_iter, curvature_stop=Tr
         return a, 0
     if fb == 0.0:
         return b, 0
-    lo, hi = (a, b) if fa < 0.0 else (b, a)  # f(lo) < 0 < f(hi)
-    left, right = min(a, b), max(a, b)
-    x = x0 if left < x0 < right else 0.5 * (a + b)
-    dx_old = right - left
+    lo, hi, x, dx_old = _newton_start(a, b, fa, x0)
     dx = dx_old
     for it in range(max_iter):
         f, df, d2f = fdf(x, args)
@@ -220,7 +231,7 @@ def newton_root_d2(fdf, args, a, b, fa, fb, x0, tol, max_iter, curvature_stop=Tr
         x_new = x + step
         if abs(step) <= tol:
             return x_new, it + 1
-        if not (min(lo, hi) < x_new < max(lo, hi)) or abs(2.0 * f) > abs(dx_old * df):
+        if _needs_bisection(x_new, lo, hi, f, df, dx_old):
             dx_old = dx
             dx = 0.5 * (hi - lo)
             x_new = lo + dx

@@ -242,9 +242,11 @@ def test_regime_map_from_an_atlas_needs_no_scipy(atlas_file, tmp_path):
 # ---------------------------------------------------------------------------------------------
 # The error estimate and the refinement, on edges whose truth is known exactly
 # ---------------------------------------------------------------------------------------------
-def _synthetic_edge(monkeypatch, noise=0.0):
+def _synthetic_edge(monkeypatch, noise=0.0, switch=False):
     """Replace trace_edge by an analytic edge (one transition), with optional noise of relative
-    size ``noise`` that is a fixed function of (A, N) (as the solver's is): returns log eta."""
+    size ``noise`` that is a fixed function of (A, N) (as the solver's is): returns log eta.
+    The edge is analytic across the node/focus switch too, so the atlas is told that no cell
+    crosses it unless ``switch``."""
     def log_eta(A, N):
         return np.log(0.5 + A + N) - 0.3 * np.log1p(0.25 * (A - 2.2) ** 2 * N)
 
@@ -256,6 +258,8 @@ def _synthetic_edge(monkeypatch, noise=0.0):
                             np.array([e]))
 
     monkeypatch.setattr(regimes, "trace_edge", fake)
+    if not switch:
+        monkeypatch.setattr(at, "_crosses_switch", lambda *cell: False)
     return log_eta
 
 
@@ -296,6 +300,37 @@ def test_p_refinement_reuses_every_trace_and_meets_tol(monkeypatch):
     _, _, eta, err = a.transitions(A, N)
     rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
     assert rel.max() <= 1e-8 and (rel <= err).all() and (err <= 1e-8).all()
+
+
+def test_a_cell_the_node_focus_switch_crosses_is_split_not_raised(monkeypatch):
+    """The same smooth edge on (0, 1) x (1, 2), which the switch N = sqrt((5 + 3A)/2) crosses:
+    the root cell is split at degree 4 (no trace spent on a higher degree there), children the
+    switch does not cross raise their degree, and tol is met."""
+    log_eta = _synthetic_edge(monkeypatch, switch=True)
+    a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=4, max_depth=1, max_degree=32)
+    assert (a.leaf_level == 1).all() and len(a.leaf_level) == 4
+    lo = a.leaf_of(np.array([0.25]), np.array([1.25]))[0]  # below the switch: not crossed
+    assert not at._crosses_switch(0.0, 0.5, 1.0, 1.5) and a.leaf_degree[lo].max() > 4
+    rng = np.random.default_rng(4)
+    A, N = rng.uniform(0, 1, 500), rng.uniform(1, 2, 500)
+    _, _, eta, err = a.transitions(A, N)
+    rel = np.abs(np.log(eta[:, 0]) - log_eta(A, N))
+    assert (rel <= np.fmax(a.tol, err)).all()
+
+
+def test_crosses_switch_against_the_sampled_curve():
+    """Random cells (some reaching past A = -1 or 1): crossed exactly when the curve, sampled
+    densely in A, has a value strictly inside the cell's N range."""
+    rng = np.random.default_rng(6)
+    for _ in range(400):
+        a0, a1 = np.sort(rng.uniform(-1.5, 1.5, 2))
+        n0, n1 = np.sort(rng.uniform(0.8, 2.2, 2))
+        A = np.linspace(max(a0, -1.0), min(a1, 1.0), 4001)
+        curve = np.sqrt(0.5 * (5.0 + 3.0 * A)) if a0 < 1.0 and a1 > -1.0 else np.empty(0)
+        sampled = bool(np.any((curve > n0) & (curve < n1)))
+        near = curve.size and min(abs(curve[0] - n1), abs(curve[-1] - n0)) < 1e-3
+        if not near:
+            assert at._crosses_switch(a0, a1, n0, n1) == sampled, (a0, a1, n0, n1)
 
 
 def test_refinement_stops_where_the_traces_are_noisier_than_tol(monkeypatch):

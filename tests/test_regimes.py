@@ -273,6 +273,26 @@ def test_node_edge_eta_is_the_singular_point_at_the_wall():
     assert math.isnan(regimes.node_edge_eta(0.0, 0.5)[0])  # below the wall line
 
 
+def test_node_focus_switch_is_where_the_linearisation_turns_from_node_to_focus():
+    """On the curve N = node_focus_switch_N(A) the linearisation at eta_node (ds/dtau = 2z,
+    dz/dtau = -Phi s - gamma z) has a double eigenvalue, gamma^2 = 8 Phi; just above it two real
+    ones (node, with node_edge_eta's ratio of them), just below a complex pair (focus)."""
+    for A in np.linspace(-0.95, 0.95, 39):
+        Ns = regimes.node_focus_switch_N(A)
+        for N, node in ((Ns * (1 - 1e-6), False), (Ns, None), (Ns * (1 + 1e-6), True)):
+            eta, is_node, ratio = regimes.node_edge_eta(A, N)
+            gamma, Phi = 2 * (1 - A), 4 * (A + 1) ** 3 / eta**2
+            if node is None:
+                assert abs(gamma**2 - 8 * Phi) < 1e-12 * gamma**2
+                continue
+            assert is_node == node == (gamma**2 > 8 * Phi)
+            if node:
+                lam = np.sort(np.abs(np.roots([1.0, gamma, 2 * Phi])))
+                assert ratio == pytest.approx(lam[1] / lam[0], rel=1e-6)
+    assert math.isnan(regimes.node_focus_switch_N(1.2))
+    assert math.isnan(regimes.node_focus_switch_N(-1.2))
+
+
 @pytest.mark.parametrize("A,N", [(1 / 3, 1.0), (-0.9, 1.0)])
 def test_transversal_edges_keep_the_status_bisection(A, N):
     """At a focus (N^2 < (5 + 3A)/2) away from the switch the edge is the status bisection's,

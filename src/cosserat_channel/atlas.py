@@ -579,6 +579,18 @@ def classify(eps, L, K, A, N, atlas):
 # ---------------------------------------------------------------------------------------------
 # Building (imports the solver)
 # ---------------------------------------------------------------------------------------------
+def _crosses_switch(a_lo, a_hi, n_lo, n_hi):
+    """Whether the node/focus switch (:func:`regimes.node_focus_switch_N`) runs through the cell.
+
+    The curve rises with ``A``, so its values at the cell's ends in ``A`` (clipped to where it
+    exists) decide.
+    """
+    from .regimes import node_focus_switch_N
+
+    lo, hi = max(a_lo, -1.0), min(a_hi, 1.0)
+    return lo < hi and node_focus_switch_N(lo) < n_hi and node_focus_switch_N(hi) > n_lo
+
+
 def _signatures(trace, na, nn):
     """The set of ``(feasible_low, n_transitions)`` over the grid ``na x nn``."""
     return {(low, t.size) for low, t, *_ in (trace(a, n) for a in na for n in nn)}
@@ -742,7 +754,11 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
                 band = max(float(trace(a, b)[2].max()) for a in na for b in nn)
                 coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
                 err, tails, rates, raw = _estimate(coef)
+            # Across the node/focus switch the edge is not analytic: a higher degree buys little
+            # there (the tail of a degree-8 cell fell 2-4x at degree 16, against 130-1000x beside
+            # it), so such a cell is split while it can be.
             grow = [not uniform and t > tol / 2 and r < RATE_GEOMETRIC and 2 * p <= max_degree
+                    and not (can_split and _crosses_switch(a_lo, a_hi, n_lo, n_hi))
                     for t, r, p in zip(tails, rates, (pa, pn))]
             # Stalled: a higher degree did not pay, or a child that will not raise its degree
             # (its coefficients do not decay) is no better than its parent was. Compared on the

@@ -14,7 +14,10 @@ searched range, an ``eta_min`` appears, the wall line crosses it). Where they do
 estimate of the interpolant (:func:`_estimate`: the Chebyshev tail of each direction, extrapolated
 where the coefficients decay geometrically) decides: below ``tol`` the cell is a leaf; above it the
 degree is doubled along a direction whose coefficients still decay (the nodes are nested: every
-trace is kept), else the cell is split; and a refinement that does not cut the tail (the raw
+trace is kept), else the cell is split. A cell that the node/focus switch crosses
+(:func:`~cosserat_channel.regimes.node_focus_switch_N`, known in closed form) is split rather
+than raised in degree while it can be: the edge is not analytic across that curve, so a higher
+degree buys little there; and a refinement that does not cut the tail (the raw
 two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
 smooth at that level). Splits go down to ``max_depth``. A cell still mixed there is *unresolved*
 (every point in it is undecided); a leaf whose estimate is still above ``tol`` keeps its own

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_channel import model, regimes
+from cosserat_channel import analytic, model, regimes
 from cosserat_channel import status as st
 from cosserat_channel.parameters import ParameterError
 from cosserat_channel.solve import Workspace, solve_point
@@ -278,7 +278,7 @@ def test_node_focus_switch_is_where_the_linearisation_turns_from_node_to_focus()
     dz/dtau = -Phi s - gamma z) has a double eigenvalue, gamma^2 = 8 Phi; just above it two real
     ones (node, with node_edge_eta's ratio of them), just below a complex pair (focus)."""
     for A in np.linspace(-0.95, 0.95, 39):
-        Ns = regimes.node_focus_switch_N(A)
+        Ns = analytic.node_focus_switch_N(A)
         for N, node in ((Ns * (1 - 1e-6), False), (Ns, None), (Ns * (1 + 1e-6), True)):
             eta, is_node, ratio = regimes.node_edge_eta(A, N)
             gamma, Phi = 2 * (1 - A), 4 * (A + 1) ** 3 / eta**2
@@ -289,8 +289,8 @@ def test_node_focus_switch_is_where_the_linearisation_turns_from_node_to_focus()
             if node:
                 lam = np.sort(np.abs(np.roots([1.0, gamma, 2 * Phi])))
                 assert ratio == pytest.approx(lam[1] / lam[0], rel=1e-6)
-    assert math.isnan(regimes.node_focus_switch_N(1.2))
-    assert math.isnan(regimes.node_focus_switch_N(-1.2))
+    assert math.isnan(analytic.node_focus_switch_N(1.2))
+    assert math.isnan(analytic.node_focus_switch_N(-1.2))
 
 
 @pytest.mark.parametrize("A,N", [(1 / 3, 1.0), (-0.9, 1.0)])

@@ -4,8 +4,8 @@
 solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so that reading an atlas
 and classifying points never imports numba. They are the one home of the analytic regime logic.
 Both take scalars; :func:`axis_margin` also takes arrays, :func:`classify_margins` is
-:func:`classify_margin` on arrays, and :func:`axis_edge_eta` (the atlas and the figures need it
-without the solver) takes arrays.
+:func:`classify_margin` on arrays, and :func:`axis_edge_eta` and :func:`node_focus_switch_N`
+(the atlas and the figures need them without the solver) take arrays.
 """
 
 from __future__ import annotations
@@ -65,3 +65,17 @@ def axis_edge_eta(A, N):
     with np.errstate(divide="ignore", invalid="ignore"):
         e = 2.0 * (A + 1.0) * np.asarray(N, dtype=float) / (1.0 - A)
     return np.where(A >= 1.0, np.inf, np.where(A > -1.0, e, np.nan))
+
+
+def node_focus_switch_N(A):
+    """The ``N`` above which the singular point at the wall is a node: ``sqrt((5 + 3A)/2)``.
+
+    :func:`cosserat_channel.regimes.node_edge_eta`'s condition ``gamma^2 > 8 Phi`` at
+    ``eta = eta_node``, solved for ``N``. ``eta_max(A, N)`` is not analytic across this curve:
+    above it the edge is the node's closed form, below it a transversal zero of ``D(1)`` that
+    becomes double on the curve. It rises with ``A``, from 1 at ``A = -1`` to 2 at ``A = 1``; NaN
+    outside ``-1 <= A <= 1``, where there is no such singular point.
+    """
+    A = np.asarray(A, dtype=float)
+    inside = (A >= -1.0) & (A <= 1.0)
+    return np.sqrt(np.where(inside, 0.5 * (5.0 + 3.0 * A), np.nan))

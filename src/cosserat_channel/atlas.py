@@ -15,7 +15,7 @@ estimate of the interpolant (:func:`_estimate`: the Chebyshev tail of each direc
 where the coefficients decay geometrically) decides: below ``tol`` the cell is a leaf; above it the
 degree is doubled along a direction whose coefficients still decay (the nodes are nested: every
 trace is kept), else the cell is split. A cell that the node/focus switch crosses
-(:func:`~cosserat_channel.regimes.node_focus_switch_N`, known in closed form) is split rather
+(:func:`~cosserat_channel.analytic.node_focus_switch_N`, known in closed form) is split rather
 than raised in degree while it can be: the edge is not analytic across that curve, so a higher
 degree buys little there; and a refinement that does not cut the tail (the raw
 two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
@@ -583,15 +583,14 @@ def classify(eps, L, K, A, N, atlas):
 # Building (imports the solver)
 # ---------------------------------------------------------------------------------------------
 def _crosses_switch(a_lo, a_hi, n_lo, n_hi):
-    """Whether the node/focus switch (:func:`regimes.node_focus_switch_N`) runs through the cell.
+    """Whether the node/focus switch (:func:`analytic.node_focus_switch_N`) runs through the cell.
 
     The curve rises with ``A``, so its values at the cell's ends in ``A`` (clipped to where it
     exists) decide.
     """
-    from .regimes import node_focus_switch_N
-
     lo, hi = max(a_lo, -1.0), min(a_hi, 1.0)
-    return lo < hi and node_focus_switch_N(lo) < n_hi and node_focus_switch_N(hi) > n_lo
+    return bool(lo < hi and analytic.node_focus_switch_N(lo) < n_hi
+                and analytic.node_focus_switch_N(hi) > n_lo)
 
 
 def _signatures(trace, na, nn):

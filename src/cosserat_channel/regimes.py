@@ -45,6 +45,7 @@ from numba import njit
 
 from ._jit import JIT as _JIT
 
+from . import analytic
 from . import dense
 from . import model
 from . import rk45
@@ -497,29 +498,6 @@ def smooth_edge(A, N, lo, hi, band, *, count=None, xtol=SMOOTH_XTOL):
     return math.nan
 
 
-def node_focus_switch_N(A):
-    """The ``N`` above which the singular point at the wall is a node: ``sqrt((5 + 3A)/2)``.
-
-    :func:`node_edge_eta`'s condition ``gamma^2 > 8 Phi`` at ``eta = eta_node``, solved for ``N``.
-    ``eta_max(A, N)`` is not analytic across this curve: above it the edge is the node's closed
-    form, below it a transversal zero of ``D(1)`` that becomes double on the curve. It rises with
-    ``A``, from 1 at ``A = -1`` to 2 at ``A = 1``.
-
-    Parameters
-    ----------
-    A : float
-
-    Returns
-    -------
-    float
-        NaN outside ``-1 <= A <= 1``, where there is no such singular point.
-    """
-    A = float(A)
-    if not -1.0 <= A <= 1.0:
-        return math.nan
-    return math.sqrt(0.5 * (5.0 + 3.0 * A))
-
-
 def node_edge_eta(A, N):
     """``eta`` at which the node of the yield condition sits at the wall, and whether it is a node.
 
@@ -536,7 +514,8 @@ def node_edge_eta(A, N):
 
         eta_node = 2 (A+1) sqrt(N^2 - (1-A)/2) / (1-A)
 
-    and the node condition at the wall reads ``N^2 > (5 + 3A)/2`` (:func:`node_focus_switch_N`).
+    and the node condition at the wall reads ``N^2 > (5 + 3A)/2``
+    (:func:`~cosserat_channel.analytic.node_focus_switch_N`).
     Whether the path does reach the node is for the data to say (:func:`trace_edge` checks it); at
     a focus the path meets ``D = 0`` past the singular point, transversally, and
     ``eta_max > eta_node``.
@@ -562,7 +541,7 @@ def node_edge_eta(A, N):
     if not (-1.0 < A < 1.0 and arg > 0.0):
         return math.nan, False, math.nan
     eta = 2.0 * (A + 1.0) * math.sqrt(arg) / (1.0 - A)
-    if not N > node_focus_switch_N(A):
+    if not N > analytic.node_focus_switch_N(A):
         return eta, False, math.nan
     gamma = 2.0 * (1.0 - A)
     root = math.sqrt(max(gamma * gamma - 32.0 * (A + 1.0) ** 3 / (eta * eta), 0.0))

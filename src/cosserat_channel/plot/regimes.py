@@ -15,6 +15,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from .. import analytic
 from .. import regime_codes as rc
 from .. import status as st
 from ..parameters import DIMS
@@ -38,6 +39,7 @@ BOUNDARY_STYLES = {
     "A=-1": dict(color="#8b4513", ls=":", lw=2.5, alpha=1.0, zorder=4),
     "traced": dict(color="#00bfff", ls="-", lw=7.0, alpha=0.6, zorder=3),
     "traced_min": dict(color="#ff69b4", ls="-", lw=7.0, alpha=0.6, zorder=3),
+    "switch": dict(color="#d95f02", ls="-.", lw=1.5, alpha=1.0, zorder=4),
 }
 BOUNDARY_LABELS = {
     "wall": r"$A = 1 - 2N^2$ (wall inadmissible below)",
@@ -45,6 +47,7 @@ BOUNDARY_LABELS = {
     "A=-1": r"$A = -1$",
     "traced": r"traced edge $\varepsilon L = \eta_{\max}(A, N)$",
     "traced_min": r"traced lower edge $\varepsilon L = \eta_{\min}(A, N)$",
+    "switch": r"$N^2 = (5 + 3A)/2$ (node/focus switch: above, $\eta_{\max}$ is the node's)",
 }
 # The analytic lines and the traced edges of a regime map are contoured on this many values per
 # axis, evenly spaced over the plotted range (regime_trace_grid(..., n=MAP_GRID) gives them).
@@ -354,8 +357,10 @@ def solvable_region_figure(bds, path=None):
     """Where the model has a solution in ``(A, N)``: ``eta_max`` shaded, ``eta_min`` beside it.
 
     Left, the largest ``eta = eps L`` with a solution (log colour scale; hatched where every
-    searched ``eta`` is ok, so ``eta_max`` is beyond the range); right, the smallest, where small
-    ``eta`` fails too (hatched where the lowest searched ``eta`` is ok). Both carry the analytic
+    searched ``eta`` is ok, so ``eta_max`` is beyond the range), with the node/focus switch
+    (:func:`cosserat_channel.analytic.node_focus_switch_N`) across which it is not analytic;
+    right, the smallest, where small ``eta`` fails too (hatched where the lowest searched ``eta``
+    is ok). Both carry the analytic
     lines ``A = 1 - 2N^2`` and ``A = -1``, and ``A = 1``, above which the axis condition never
     binds; grey where there is no solution for any ``eta``, white where the data do not decide
     (an unresolved atlas cell).
@@ -406,6 +411,13 @@ def solvable_region_figure(bds, path=None):
         wall = ax.plot(1.0 - 2.0 * N**2, N, **{k: v for k, v in BOUNDARY_STYLES["wall"].items()},
                        label=BOUNDARY_LABELS["wall"])[0]
         handles.append(wall)
+        if ax is axes[0]:
+            # eta_max is not analytic across this curve (a kink in its contours)
+            A_sw = np.linspace(max(A.min(), -1.0), min(A.max(), 1.0), 200)
+            if A_sw.size and A_sw[0] < A_sw[-1]:
+                handles.append(ax.plot(A_sw, analytic.node_focus_switch_N(A_sw),
+                                       label=BOUNDARY_LABELS["switch"],
+                                       **BOUNDARY_STYLES["switch"])[0])
         for value, label, style in ((-1.0, BOUNDARY_LABELS["A=-1"], BOUNDARY_STYLES["A=-1"]),
                                     (1.0, r"$A = 1$ (axis condition binds only for $A < 1$)",
                                      dict(color="#0033cc", ls="--", lw=1.5, zorder=4))):

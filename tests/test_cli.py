@@ -374,6 +374,20 @@ def test_progress_is_silent_when_not_a_terminal_or_before_its_delay():
     assert term.text == ""
 
 
+def test_progress_prints_a_heartbeat_line_when_not_a_terminal():
+    """Redirected stderr in a long command: the status as lines of their own, one per
+    heartbeat, with the text of the latest update and no terminal control codes."""
+    import time
+
+    pipe = _Terminal(tty=False)
+    with cli.Progress("atlas", "tracing", stream=pipe, heartbeat=0.05) as bar:
+        bar.update("3 cells done")
+        time.sleep(0.3)
+    lines = pipe.text.splitlines()
+    assert len(lines) >= 2 and "\x1b" not in pipe.text
+    assert all(line.startswith("cosserat-channel: atlas: 3 cells done (0:00)") for line in lines)
+
+
 def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
     """boundary passes its edges to the progress line; with stderr not a terminal the command
     prints nothing on stderr."""

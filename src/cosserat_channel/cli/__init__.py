@@ -146,22 +146,28 @@ def _note(message: str) -> None:
     print(f"{PROG}: note: {' '.join(message.split())}", file=sys.stderr)
 
 
+HEARTBEAT = 60.0  # seconds between Progress's lines when stderr is not a terminal
+
+
 class Progress:
-    """A live status line on stderr while a command works, only when stderr is a terminal.
+    """A live status line on stderr while a command works.
 
     ``with Progress("boundary") as p: ... p.update("3/8 edges")`` redraws
     ``cosserat-channel: boundary: 3/8 edges (0:12)`` in place, with the elapsed time ticking
     every half second; the line is cleared at the end. Nothing is drawn before ``delay``
-    seconds, so a command that finishes quickly shows nothing; with stderr redirected (a file,
-    a pipe, a test) nothing is drawn at all. :meth:`line` prints a permanent line above it.
+    seconds, so a command that finishes quickly shows nothing. With stderr redirected (a file,
+    a pipe, a batch job's log) the same text is printed as a line of its own every
+    ``heartbeat`` seconds instead (none in a command shorter than that), so that a long run's
+    log shows it is alive. :meth:`line` prints a permanent line above it.
     """
 
-    def __init__(self, what: str, text: str = "", delay: float = 0.0, stream=None):
+    def __init__(self, what: str, text: str = "", delay: float = 0.0, stream=None,
+                 heartbeat: float = HEARTBEAT):
         import threading
 
         self.stream = stream or sys.stderr
         self.enabled = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.what, self.text, self.delay = what, text, delay
+        self.what, self.text, self.delay, self.heartbeat = what, text, delay, heartbeat
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._tick, daemon=True)
@@ -171,8 +177,7 @@ class Progress:
         import time
 
         self._t0 = time.monotonic()
-        if self.enabled:
-            self._thread.start()
+        self._thread.start()
         return self
 
     def __exit__(self, *exc):
@@ -194,8 +199,19 @@ class Progress:
         self._draw()
 
     def _tick(self) -> None:
-        while not self._stop.wait(0.5):
-            self._draw()
+        if self.enabled:
+            while not self._stop.wait(0.5):
+                self._draw()
+            return
+        while not self._stop.wait(self.heartbeat):
+            with self._lock:
+                print(self._status(), file=self.stream, flush=True)
+
+    def _status(self) -> str:
+        import time
+
+        minutes, seconds = divmod(int(time.monotonic() - self._t0), 60)
+        return f"{PROG}: {self.what}: {self.text} ({minutes}:{seconds:02d})"
 
     def _draw(self) -> None:
         import shutil
@@ -203,11 +219,9 @@ class Progress:
 
         if not self.enabled or self._stop.is_set():
             return
-        elapsed = time.monotonic() - self._t0
-        if elapsed < self.delay:
+        if time.monotonic() - self._t0 < self.delay:
             return
-        minutes, seconds = divmod(int(elapsed), 60)
-        text = f"{PROG}: {self.what}: {self.text} ({minutes}:{seconds:02d})"
+        text = self._status()
         width = max(20, shutil.get_terminal_size().columns - 1)
         with self._lock:
             self.stream.write("\r\033[K" + text[:width])

@@ -73,6 +73,8 @@ def main():
     ap.add_argument("--learner", type=int, default=300)
     ap.add_argument("--classify", type=int, default=100_000)
     ap.add_argument("--atlas-out", help="also keep the atlas in this file")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="threads building the atlas (default 1, as the uniform grid is traced)")
     ap.add_argument("--seed", type=int, default=14)
     ap.add_argument("--status-bisection", action="store_true",
                     help="every edge by status bisection, no D(1) probes (the traces before the "
@@ -116,13 +118,14 @@ def main():
             ap.error(f"--atlas-in covers {atlas.box}, not the box asked for")
     else:
         atlas = at.build_atlas(A_rng, N_rng, tol=args.tol, max_depth=args.max_depth,
-                               max_degree=max_degree)
+                               max_degree=max_degree, workers=args.workers)
     t_build = time.perf_counter() - t0
     n_tr, n_sol = atlas.attrs["n_traces"], atlas.attrs["n_solves"]
     per_trace = n_sol / n_tr
     degrees = ", ".join(f"{p}x{q}: {c}" for (p, q), c in zip(
         *np.unique(atlas.leaf_degree, axis=0, return_counts=True)))
-    log(f"atlas: {t_build:.1f} s{' (read)' if args.atlas_in else ''}, {atlas.leaf_n.size} cells "
+    log(f"atlas: {t_build:.1f} s{' (read)' if args.atlas_in else f' ({args.workers} threads)'}, "
+        f"{atlas.leaf_n.size} cells "
         f"(levels {np.bincount(atlas.leaf_level)}; degrees {degrees}), "
         f"{int((atlas.leaf_n < 0).sum())} unresolved, {n_tr} traces, {n_sol} solves "
         f"({per_trace:.1f} per trace), cell estimates {np.min(atlas.leaf_error):.1e} to "

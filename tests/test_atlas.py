@@ -36,6 +36,22 @@ def atlas_file(atlas, tmp_path_factory):
     return path
 
 
+def test_threads_build_the_same_atlas():
+    """Two threads trace a cell's nodes at once (the status solves, the D(1) probes and the
+    smooth D(1) zeros next to the node/focus switch, each with its own work arrays): the same
+    traces in the same order, the same interpolants and the same count of solves as one thread."""
+    kw = dict(tol=1e-3, degree=2, max_depth=0)
+    box = ((-0.3, -0.2), (1.38, 1.45))  # across the switch: tangential and smooth edges
+    one, two = at.build_atlas(*box, **kw), at.build_atlas(*box, **kw, workers=2)
+    for key, value in one.samples.items():
+        np.testing.assert_array_equal(two.samples[key], value, err_msg=key)
+    np.testing.assert_array_equal(two.coef, one.coef)
+    assert two.attrs["n_solves"] == one.attrs["n_solves"]
+    assert one.samples["bands"].max() > regimes.SMOOTH_BAND  # the smooth zeros were exercised
+    with pytest.raises(ParameterError, match="workers"):
+        at.build_atlas(*box, **kw, workers=0)
+
+
 def _status(eta, A, N, ws):
     from cosserat_channel import model
 
@@ -158,6 +174,9 @@ def test_cli_atlas_and_regime_map_from_it(tmp_path, capsys, monkeypatch, atlas_f
     out = tmp_path / "a.nc"
     assert main(["atlas", "-o", str(out), "--tol", "1e-12"]) == 2
     assert "tol = 1e-12 is outside [1e-08, 0.1]" in capsys.readouterr().err
+    assert main(["atlas", "-o", str(out), "--workers", "0"]) == 2
+    assert "--workers must be a positive integer; got 0" in capsys.readouterr().err
+    assert not out.exists()
     out.write_text("keep")
     assert main(["atlas", "-o", str(out)]) == 2
     assert "exists; kept" in capsys.readouterr().err and out.read_text() == "keep"

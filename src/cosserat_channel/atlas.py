@@ -57,7 +57,9 @@ and xarray only: building one (:func:`build_atlas`) imports the solver.
 
 from __future__ import annotations
 
+import concurrent.futures
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -642,7 +644,8 @@ def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
 
 def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE,
                 max_depth=MAX_DEPTH, max_degree=MAX_DEGREE, roots=None,
-                eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX), uniform=False, progress=None):
+                eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX), uniform=False, progress=None,
+                workers=1):
     """Sample every transition of feasibility in ``eta`` over ``A_range x N_range`` adaptively.
 
     A cell whose nodes share one signature gets its interpolants and their error estimate
@@ -679,6 +682,10 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
         non-adaptive baseline).
     progress : callable, optional
         ``progress(leaves, cells_queued, traces)`` after each cell.
+    workers : int
+        Threads that trace a cell's nodes at once (the kernels release the GIL); the atlas is
+        the same whatever their number (each trace depends on its ``(A, N)`` only, and the
+        traces are kept in the order of a single thread).
 
     Returns
     -------
@@ -693,18 +700,32 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
         roots = (max(1, math.ceil((A_range[1] - A_range[0]) / ROOT_CELL)),
                  max(1, math.ceil((N_range[1] - N_range[0]) / ROOT_CELL)))
     roots = (int(roots[0]), int(roots[1]))
+    if not (isinstance(workers, (int, np.integer)) and workers >= 1):
+        raise ParameterError(f"workers must be a positive integer; got {workers!r}")
     trace_range = (eta_range[0] / TRACE_WIDEN, eta_range[1] * TRACE_WIDEN)
-    ws = _Counting(Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS))
+    local, counters = threading.local(), []
     cache = {}
 
+    def traced(key):
+        if not hasattr(local, "ws"):  # a Workspace per thread: its arrays are the solver's
+            local.ws = _Counting(Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS))
+            counters.append(local.ws)
+        e = regimes.trace_edge(key[0], key[1], eta_range=trace_range, workspace=local.ws)
+        low = e.kind != rc.EDGE_NONE and e.eta_min == trace_range[0]
+        return (bool(low), np.asarray(e.transitions, dtype=float),
+                np.asarray(e.bands, dtype=float))
+
+    pool = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
+
+    def prefetch(na, nn):
+        # The nodes not traced yet, in the order one thread would trace them.
+        missing = list(dict.fromkeys(k for k in ((a, n) for a in na for n in nn)
+                                     if k not in cache))
+        results = map(traced, missing) if pool is None else pool.map(traced, missing)
+        cache.update(zip(missing, results))
+
     def trace(a, n):
-        key = (a, n)
-        if key not in cache:
-            e = regimes.trace_edge(a, n, eta_range=trace_range, workspace=ws)
-            low = e.kind != rc.EDGE_NONE and e.eta_min == trace_range[0]
-            cache[key] = (bool(low), np.asarray(e.transitions, dtype=float),
-                          np.asarray(e.bands, dtype=float))
-        return cache[key]
+        return cache[(a, n)]
 
     ma, mn = roots[0] << max_depth, roots[1] << max_depth
     box = (A_range[0], A_range[1], N_range[0], N_range[1])
@@ -724,62 +745,68 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     # parent's raw tail; inf where there is none)
     queue = [(0, i, j, degree, degree, math.inf, math.inf)
              for i in range(roots[0]) for j in range(roots[1])]
-    while queue:
-        level, i, j, pa, pn, before, parent = queue.pop(0)
-        s = 1 << (max_depth - level)
-        a_lo, a_hi = coord(*A_range, i * s, ma), coord(*A_range, (i + 1) * s, ma)
-        n_lo, n_hi = coord(*N_range, j * s, mn), coord(*N_range, (j + 1) * s, mn)
-        na, nn = nodes(a_lo, a_hi, pa), nodes(n_lo, n_hi, pn)
-        can_split = level < max_depth
-        children = [(level + 1, 2 * i + di, 2 * j + dj, degree, degree, math.inf, math.inf)
-                    for di in (0, 1) for dj in (0, 1)]
-        sig = set()
-        if pa == pn == degree:
-            # A cell whose 3 x 3 sub-grid already mixes signatures is split before its full grid
-            # is traced: along a curve where the signature changes only these nine are spent.
-            sub = np.array([0, degree // 2, degree])
-            sig = _signatures(trace, na[sub], nn[sub])
-        if len(sig) <= 1 and not (uniform and can_split):
-            sig = _signatures(trace, na, nn)
-        if len(sig) > 1 or (uniform and can_split):
-            if can_split:
-                queue.extend(children)
+    try:
+        while queue:
+            level, i, j, pa, pn, before, parent = queue.pop(0)
+            s = 1 << (max_depth - level)
+            a_lo, a_hi = coord(*A_range, i * s, ma), coord(*A_range, (i + 1) * s, ma)
+            n_lo, n_hi = coord(*N_range, j * s, mn), coord(*N_range, (j + 1) * s, mn)
+            na, nn = nodes(a_lo, a_hi, pa), nodes(n_lo, n_hi, pn)
+            can_split = level < max_depth
+            children = [(level + 1, 2 * i + di, 2 * j + dj, degree, degree, math.inf, math.inf)
+                        for di in (0, 1) for dj in (0, 1)]
+            sig = set()
+            if pa == pn == degree:
+                # A cell whose 3 x 3 sub-grid already mixes signatures is split before its full grid
+                # is traced: along a curve where the signature changes only these nine are spent.
+                sub = np.array([0, degree // 2, degree])
+                prefetch(na[sub], nn[sub])
+                sig = _signatures(trace, na[sub], nn[sub])
+            if len(sig) <= 1 and not (uniform and can_split):
+                prefetch(na, nn)
+                sig = _signatures(trace, na, nn)
+            if len(sig) > 1 or (uniform and can_split):
+                if can_split:
+                    queue.extend(children)
+                else:
+                    leaves.append((level, i, j, 0, -1, math.inf, no_coef, (pa, pn), 0.0))
             else:
-                leaves.append((level, i, j, 0, -1, math.inf, no_coef, (pa, pn), 0.0))
-        else:
-            low, n_tr = next(iter(sig))
-            coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
-            tails, rates = np.zeros(2), np.zeros(2)
-            band = 0.0
-            if n_tr:
-                logt = np.log([[trace(a, b)[1] for b in nn] for a in na])  # (p, q, k)
-                band = max(float(trace(a, b)[2].max()) for a in na for b in nn)
-                coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
-                err, tails, rates, raw = _estimate(coef)
-            # Across the node/focus switch the edge is not analytic: a higher degree buys little
-            # there (the tail of a degree-8 cell fell 2-4x at degree 16, against 130-1000x beside
-            # it), so such a cell is split while it can be.
-            grow = [not uniform and t > tol / 2 and r < RATE_GEOMETRIC and 2 * p <= max_degree
-                    and not (can_split and _crosses_switch(a_lo, a_hi, n_lo, n_hi))
-                    for t, r, p in zip(tails, rates, (pa, pn))]
-            # Stalled: a higher degree did not pay, or a child that will not raise its degree
-            # (its coefficients do not decay) is no better than its parent was. Compared on the
-            # raw two-degree sums: the estimates' factors change with the degree and the decay.
-            # A split cuts a degree-p tail by about 2^(p+1) where the edge is smooth: at low
-            # degrees ask for less than REFINE_GAIN.
-            gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
-            stalled = raw > before / gain or (raw > parent / gain and not any(grow))
-            if err <= tol or stalled:
-                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
-            elif any(grow):
-                queue.insert(0, (level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]), raw,
-                                 parent))
-            elif can_split:
-                queue.extend(c[:5] + (math.inf, raw) for c in children)
-            else:
-                leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
-        if progress is not None:
-            progress(len(leaves), len(queue), len(cache))
+                low, n_tr = next(iter(sig))
+                coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
+                tails, rates = np.zeros(2), np.zeros(2)
+                band = 0.0
+                if n_tr:
+                    logt = np.log([[trace(a, b)[1] for b in nn] for a in na])  # (p, q, k)
+                    band = max(float(trace(a, b)[2].max()) for a in na for b in nn)
+                    coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
+                    err, tails, rates, raw = _estimate(coef)
+                # Across the node/focus switch the edge is not analytic: a higher degree buys little
+                # there (the tail of a degree-8 cell fell 2-4x at degree 16, against 130-1000x beside
+                # it), so such a cell is split while it can be.
+                grow = [not uniform and t > tol / 2 and r < RATE_GEOMETRIC and 2 * p <= max_degree
+                        and not (can_split and _crosses_switch(a_lo, a_hi, n_lo, n_hi))
+                        for t, r, p in zip(tails, rates, (pa, pn))]
+                # Stalled: a higher degree did not pay, or a child that will not raise its degree
+                # (its coefficients do not decay) is no better than its parent was. Compared on the
+                # raw two-degree sums: the estimates' factors change with the degree and the decay.
+                # A split cuts a degree-p tail by about 2^(p+1) where the edge is smooth: at low
+                # degrees ask for less than REFINE_GAIN.
+                gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
+                stalled = raw > before / gain or (raw > parent / gain and not any(grow))
+                if err <= tol or stalled:
+                    leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
+                elif any(grow):
+                    queue.insert(0, (level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]), raw,
+                                     parent))
+                elif can_split:
+                    queue.extend(c[:5] + (math.inf, raw) for c in children)
+                else:
+                    leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
+            if progress is not None:
+                progress(len(leaves), len(queue), len(cache))
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
 
     kmax = max([lf[4] for lf in leaves] + [0])
     P = max([lf[7][0] for lf in leaves] + [degree])
@@ -809,7 +836,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
                  "low": np.array([cache[k][0] for k in keys], dtype=np.int8),
                  "n": np.array([cache[k][1].size for k in keys], dtype=np.int8),
                  "transitions": transitions, "bands": bands},
-        attrs={"n_traces": len(cache), "n_solves": ws.solves, "uniform": int(uniform),
+        attrs={"n_traces": len(cache), "n_solves": sum(c.solves for c in counters),
+               "uniform": int(uniform),
                "max_degree": int(max_degree),
                "trace_eta_min": trace_range[0], "trace_eta_max": trace_range[1],
                "edge_rtol": regimes.EDGE_RTOL, "edge_atol": regimes.EDGE_ATOL,

@@ -38,6 +38,7 @@ into a ``regimes/`` package (phase plane, edge) is the next step it asks for.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -433,7 +434,7 @@ def _smooth_wall_D_kernel(eta, A, N, rtol, ax, T, Qw, Q, stats):
     return y[1]
 
 
-_SMOOTH_WORK = {}
+_SMOOTH_WORK = threading.local()  # work arrays per thread (the atlas traces in threads)
 
 
 def smooth_wall_D(eta, A, N, rtol=SMOOTH_RTOL):
@@ -456,16 +457,15 @@ def smooth_wall_D(eta, A, N, rtol=SMOOTH_RTOL):
     eta = float(eta)
     if A <= -1.0 or model.classify(eta, A, N) != st.OK:
         return math.nan
-    if not _SMOOTH_WORK:
-        _SMOOTH_WORK["T"] = np.empty(SMOOTH_MAX_STEPS + 1)
-        _SMOOTH_WORK["Qw"] = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 1))
-        _SMOOTH_WORK["Q"] = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 2))
-        _SMOOTH_WORK["stats"] = np.zeros(stepping.N_STATS, dtype=np.int64)
+    w = _SMOOTH_WORK
+    if not hasattr(w, "T"):
+        w.T = np.empty(SMOOTH_MAX_STEPS + 1)
+        w.Qw = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 1))
+        w.Q = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 2))
+        w.stats = np.zeros(stepping.N_STATS, dtype=np.int64)
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    w = _SMOOTH_WORK
-    return float(_smooth_wall_D_kernel(eta, A, N, float(rtol), ax, w["T"], w["Qw"], w["Q"],
-                                       w["stats"]))
+    return float(_smooth_wall_D_kernel(eta, A, N, float(rtol), ax, w.T, w.Qw, w.Q, w.stats))
 
 
 def smooth_edge(A, N, lo, hi, band, *, count=None, xtol=SMOOTH_XTOL):

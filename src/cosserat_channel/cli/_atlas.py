@@ -68,6 +68,9 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"splits of a root cell, in [0, {MAX_DEPTH_LIMIT}] (default {MAX_DEPTH})")
     p.add_argument("--plot", metavar="FILE.png",
                    help="also draw the solvable region in (A, N), shaded by eta_max and eta_min")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="threads tracing a cell's nodes at once (default: all cores; the atlas "
+                   "is the same whatever their number)")
     p.add_argument("--overwrite", action="store_true", help="replace the output if it exists")
 
 
@@ -79,6 +82,9 @@ def _atlas(args: argparse.Namespace) -> int:
     A = parse_range(args.A, "--A")
     N = parse_range(args.N, "--N")
     eta_range = parse_range(args.eta_range, "--eta-range")
+    workers = os.cpu_count() or 1 if args.workers is None else args.workers
+    if workers < 1:
+        raise CliError(f"--workers must be a positive integer; got {workers}")
     try:
         atlas_mod.check_build_arguments(A, N, args.tol, args.degree, args.max_depth, eta_range,
                                         args.max_degree)
@@ -99,8 +105,8 @@ def _atlas(args: argparse.Namespace) -> int:
 
         atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
                                       max_depth=args.max_depth, max_degree=args.max_degree,
-                                      eta_range=eta_range,
-                                      progress=progress)
+                                      eta_range=eta_range, progress=progress,
+                                      workers=workers)
     n_unres = int((atlas.leaf_n < 0).sum())
     over = int((atlas.leaf_error > atlas.tol).sum()) - n_unres
     print(f"{atlas.leaf_n.size} cells ({n_unres} unresolved, {over} above the tolerance), "

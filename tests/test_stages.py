@@ -265,6 +265,18 @@ def test_stiff_switch_picks_the_path_with_less_work(eta, A, N, rtol, cheaper):
     np.testing.assert_allclose(x1, x2, rtol=10 * math.sqrt(rtol), atol=0)
 
 
+def test_stiffness_diagnostic_on_the_dop853_path():
+    """At rtol <= DOP853_RTOL the explicit path is DOP853, whose stiffness test now feeds the
+    stage1_stiff diagnostic: forced onto it, stage 1 at eta = 1e-4 (Jacobian ~ -2/eta) is flagged
+    stiff, at eta = 0.3 it is not; RODAS4P2 never flags."""
+    ws = Workspace()
+    for eta, stiff in ((1e-4, 1), (0.3, 0)):
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_EXPLICIT)
+        assert ws.stats1[rk45.STAT_STIFF] == stiff, eta
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_STIFF)
+        assert ws.stats1[rk45.STAT_STIFF] == 0 and ws.stats1[rk45.STAT_STIFF_STEPS] == 0
+
+
 def _plug_edge_by_brentq(eps_K, res, ax, T2, Q2):
     """1 - xi_p by scipy brentq, independently of the kernel's search: the panel from the panel
     ends' values, then brentq on panels.panel_value in u; below xi2 brentq on log I(e^t) from

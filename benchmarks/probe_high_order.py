@@ -66,7 +66,7 @@ def main(path):
                 continue
             model.axis_constants(eta[i], A[i], N[i], ax)
             xi1, w1 = stages.stage1_start(ax, rtol)
-            if stages.use_stiff_path(eta[i], ax, xi1, rtol):
+            if stages.use_stiff_path(eta[i], A[i], N[i], ax, xi1, rtol):
                 continue
             args = (eta[i], A[i], N[i], ax)
             out = {}

@@ -13,7 +13,8 @@ from scipy.integrate import solve_ivp
 
 from cosserat_channel import dense, dop853, rk45
 from cosserat_channel.stepping import (EVENT, N_STATS, NONFINITE, STAT_ACCEPTED, STAT_FEV,
-                                       STAT_REJECTED, SUCCESS, no_event)
+                                       STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS, SUCCESS,
+                                       no_event)
 from problems import OSC_ARGS, gauss, gauss_exact, osc_exact, oscillator
 
 
@@ -21,6 +22,12 @@ from problems import OSC_ARGS, gauss, gauss_exact, osc_exact, oscillator
 def growth(t, y, args, out):
     # y = exp(sin t)
     out[0] = math.cos(t) * y[0]
+
+
+@njit(cache=True)
+def stiff(t, y, args, out):
+    # Jacobian -1000: |h lambda| = 1000 |h| exactly; quasi-steady solution cos t + 1e-3 sin t.
+    out[0] = -1000.0 * (y[0] - math.cos(t))
 
 
 @njit(cache=True)
@@ -124,3 +131,24 @@ def test_counters_and_evaluation_identity():
 def test_nonfinite_right_hand_side_is_a_status():
     status, n, t_stop, *_ = run(nan_after_t0, 0.0, [1.0], 1.0)
     assert status == NONFINITE and n == 0 and t_stop == 0.0
+
+
+def test_stiffness_detected_on_a_stiff_linear_problem():
+    """y' = -1000 (y - cos t) at rtol 1e-4: the steps sit at DOP853's stability boundary, so the
+    test counts as stiff exactly the accepted steps with 1000 |h| > 6.1 (the true |h lambda|,
+    read off the step ends, within rounding), and a run of 15 declares the problem stiff."""
+    status, n, _, T, Q, stats = run(stiff, 0.0, [0.0], 5.0, rtol=1e-4, atol=1e-7, max_steps=5000)
+    assert status == SUCCESS
+    hlamb = 1000.0 * np.diff(T)
+    assert np.sum(hlamb > 6.1 * (1 + 1e-9)) <= stats[STAT_STIFF_STEPS] <= np.sum(hlamb > 6.1 * (1 - 1e-9))
+    assert stats[STAT_STIFF_STEPS] > 0.5 * n
+    assert stats[STAT_STIFF] == 1
+    assert abs(Q[-1, 0, 0] + Q[-1, 1, 0] - (math.cos(5.0) + 1e-3 * math.sin(5.0))) < 1e-4
+
+
+@pytest.mark.parametrize("rtol", [1e-3, 1e-6, 1e-10])
+def test_nonstiff_problem_not_flagged(rtol):
+    """exp(-t^2) over [0, 3] is not stiff at any tolerance: no step counts, no flag."""
+    status, _, _, _, _, stats = run(gauss, 0.0, [1.0], 3.0, rtol=rtol, atol=1e-14)
+    assert status == SUCCESS
+    assert stats[STAT_STIFF_STEPS] == 0 and stats[STAT_STIFF] == 0

@@ -225,6 +225,58 @@ def test_dop853_steps_are_short_enough_for_stage_2_to_read():
         assert abs(r.Delta / ref - 1) < 10 * rtol, rtol
 
 
+# Points where benchmarks/probe_stiff_switch.py measured one stage-1 path at least 1.7x cheaper
+# than the other (CPU time of both stages): (eta, A, N, rtol, the cheaper path). The first two
+# were picked wrong by the earlier rule STIFF_LAMBDA sqrt(1e-6/rtol) (12x and 2.9x).
+SWITCH_POINTS = [
+    (2.81e-3, 3.335, 2.398, 1e-8, stages.PATH_STIFF),  # slow manifold to the wall (N > 1)
+    (7.47e-3, 2.380, 0.327, 1e-8, stages.PATH_EXPLICIT),  # N < 1: fast turn to D = 0 after xi = N
+    (1e-3, 1 / 3, 1.3, 1e-8, stages.PATH_STIFF),
+    (1e-3, 1 / 3, 1.1, 1e-7, stages.PATH_STIFF),
+    (1e-2, 1 / 3, 1.0, 1e-9, stages.PATH_EXPLICIT),  # N = 1: the manifold ends at the wall
+    (1e-3, 1 / 3, 0.9, 1e-10, stages.PATH_EXPLICIT),
+    (1e-4, 1 / 3, 1.0, 1e-6, stages.PATH_STIFF),
+    (0.2524, -0.76, 0.942, 1e-7, stages.PATH_STIFF),  # next to the axis edge: stiff at the axis
+    (1e-3, 1 / 3, 1.0, 1e-4, stages.PATH_STIFF),  # Dormand-Prince's side of the switch
+]
+
+
+@pytest.mark.parametrize("eta, A, N, rtol, cheaper", SWITCH_POINTS)
+def test_stiff_switch_picks_the_path_with_less_work(eta, A, N, rtol, cheaper):
+    """Where one path was measured clearly cheaper, the switch takes it, and it is the one with
+    fewer right-hand-side evaluations in both stages (counted, independently of timing). Both
+    give the same status, m_wall and J(0) to the tolerance, and xi_stop to ~sqrt(rtol) (where
+    D falls to zero nearly tangentially it moves by the square root of the error in D)."""
+    ws = Workspace()
+    work, out = {}, {}
+    for method in (stages.METHOD_EXPLICIT, stages.METHOD_STIFF):
+        code = ws.run(eta, A, N, rtol, 1e-12, method)
+        path = ws.res[stages.R_PATH]
+        work[path] = ws.stats1[rk45.STAT_FEV] + ws.stats2[rk45.STAT_FEV]
+        out[path] = (code, ws.res[stages.R_MU_WALL], ws.res[stages.R_J_AXIS],
+                     ws.res[stages.R_XI_STOP])
+    ws.run(eta, A, N, rtol, 1e-12)
+    assert ws.res[stages.R_PATH] == cheaper
+    other = stages.PATH_STIFF if cheaper == stages.PATH_EXPLICIT else stages.PATH_EXPLICIT
+    assert work[cheaper] < work[other]
+    (c1, m1, j1, x1), (c2, m2, j2, x2) = out.values()
+    assert c1 == c2
+    np.testing.assert_allclose([m1, j1], [m2, j2], rtol=100 * rtol, atol=0)
+    np.testing.assert_allclose(x1, x2, rtol=10 * math.sqrt(rtol), atol=0)
+
+
+def test_stiffness_diagnostic_on_the_dop853_path():
+    """At rtol <= DOP853_RTOL the explicit path is DOP853, whose stiffness test now feeds the
+    stage1_stiff diagnostic: forced onto it, stage 1 at eta = 1e-4 (Jacobian ~ -2/eta) is flagged
+    stiff, at eta = 0.3 it is not; RODAS4P2 never flags."""
+    ws = Workspace()
+    for eta, stiff in ((1e-4, 1), (0.3, 0)):
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_EXPLICIT)
+        assert ws.stats1[rk45.STAT_STIFF] == stiff, eta
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_STIFF)
+        assert ws.stats1[rk45.STAT_STIFF] == 0 and ws.stats1[rk45.STAT_STIFF_STEPS] == 0
+
+
 def _plug_edge_by_brentq(eps_K, res, ax, T2, Q2):
     """1 - xi_p by scipy brentq, independently of the kernel's search: the panel from the panel
     ends' values, then brentq on panels.panel_value in u; below xi2 brentq on log I(e^t) from

@@ -11,6 +11,8 @@ Per step: 12 stages (the 13th, ``f(t + h, y_new)``, is the next step's first: FS
 for the dense output. The error estimate is Hairer's blend of a 5th- and a 3rd-order embedded
 solution, ``|h| err5^2 / sqrt(err5^2 + 0.01 err3^2)``, which behaves like an 8th-order one;
 step sizes follow it with exponent 1/8 (scipy's controller: safety 0.9, factors in [0.2, 10]).
+After each accepted step Hairer's stiffness test (``|h lambda|`` beyond 6.1, DOP853's real
+stability boundary) counts into the same counters as Dormand-Prince's (:func:`detect_stiffness`).
 
 Why it is here: on stage 1 it takes about as many evaluations as Dormand–Prince 5(4) at the
 same rtol and is 20-40x more accurate (``benchmarks/probe_high_order.py``), so at a matched
@@ -36,9 +38,9 @@ from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .dense import event_after_step, hermite_rows
 from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
                        STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end,
-                       first_step, step_limit)
+                       count_stiffness, first_step, step_limit)
 
-__all__ = ["dop853", "dop853_step", "ERROR_ORDER"]
+__all__ = ["dop853", "dop853_step", "detect_stiffness", "ERROR_ORDER"]
 
 # ---------------------------------------------------------------------------------------------
 # Tableau (Hairer's dop853.f, via scipy; see the module docstring)
@@ -243,6 +245,13 @@ D = np.ascontiguousarray(D)
 # The error estimate behaves like that of an 8th-order method: step sizes scale with err^(-1/8).
 ERROR_ORDER = 7
 
+# Stiffness detection as in Hairer's dop853.f [HNW93, IV.2]: h*rho beyond DOP853's real stability
+# boundary (about 6.1) means the step size is limited by stability.
+STIFF_THRESHOLD = 6.1
+# y_new minus the 12th stage's argument (both at t + h) is h * sum_j STIFF_DY[j] K[j]: formed from
+# the stages, as in rk45.detect_stiffness, because the two states agree to a few digits.
+STIFF_DY = np.ascontiguousarray(B - A[N_STAGES - 1, :N_STAGES])
+
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
@@ -294,6 +303,48 @@ def error_norm(K, h, y, y_new, atol, rtol):
     return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
 
 
+@njit(**_JIT)
+def detect_stiffness(h, K, iasti, nonsti, stats):
+    """Hairer's DOP853 stiffness test after an accepted step [HNW93, IV.2], as in ``dop853.f``.
+
+    Estimates ``|h lambda|`` as ``|h| ||f(t+h, y_new) - f(t+h, Y12)|| / ||y_new - Y12||``, where
+    ``Y12`` is the argument of the 12th stage (``K[11] = f(t+h, Y12)``, ``K[12] = f(t+h, y_new)``),
+    against ``STIFF_THRESHOLD``; the run is counted by :func:`.stepping.count_stiffness`, as in
+    :func:`.rk45.detect_stiffness`.
+
+    Parameters
+    ----------
+    h : float
+        Signed size of the accepted step.
+    K : ndarray of float64, shape (N_STAGES_EXTENDED, n)
+        Its stages, from :func:`dop853_step`.
+    iasti, nonsti : int
+        Current run lengths of stiff and non-stiff steps.
+    stats : ndarray of int64, shape (N_STATS,)
+        Counters; ``STAT_STIFF_STEPS`` and ``STAT_STIFF`` are updated.
+
+    Returns
+    -------
+    iasti, nonsti : int
+        Updated run lengths.
+    """
+    n = K.shape[1]
+    num = 0.0
+    den = 0.0
+    for i in range(n):
+        d = K[N_STAGES, i] - K[N_STAGES - 1, i]
+        num += d * d
+        acc = 0.0
+        for j in range(N_STAGES):
+            acc += STIFF_DY[j] * K[j, i]
+        dy = h * acc
+        den += dy * dy
+    if den > 0.0:
+        return count_stiffness(abs(h) * math.sqrt(num / den), STIFF_THRESHOLD, iasti, nonsti,
+                               stats)
+    return iasti, nonsti
+
+
 @njit(**_JIT_INLINE)
 def dense_coefficients(fun, t, y, y_new, h, args, K, ys, q):
     """The step's ``CONTD8`` rows into ``q`` (shape ``(N_DENSE, n)``); evaluates ``K[13..15]``."""
@@ -341,7 +392,7 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     """Integrate ``y' = fun(t, y)`` from `t0` to `t_end` with adaptive DOP853.
 
     Arguments, returns and counters as :func:`.rk45.dopri5` (``h0 <= 0``: Hairer's ``HINIT``
-    for order 8), except that there is no stiffness detection. Evaluations:
+    for order 8; stiffness detection by :func:`detect_stiffness`). Evaluations:
     ``1 + [h0 <= 0] + 15 * accepted + 12 * rejected``.
     """
     stats[:] = 0
@@ -360,7 +411,7 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
                       ytmp, ys, stats)
     g_old = event(t0, y, args)
     t, reject = t0, False
-    nsteps = n_nonfinite = 0
+    nsteps = n_nonfinite = iasti = nonsti = 0
     while True:
         if nsteps >= Q.shape[0]:
             return MAX_STEPS, nsteps, t
@@ -381,6 +432,7 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
                 return NONFINITE, nsteps, t
             continue
         stats[STAT_ACCEPTED] += 1
+        iasti, nonsti = detect_stiffness(h, K, iasti, nonsti, stats)
         dense_coefficients(fun, t, y, y_new, h, args, K, ys, Q[nsteps])
         stats[STAT_FEV] += N_STAGES_EXTENDED - N_STAGES - 1
         T[nsteps + 1] = t_end if last else t + h

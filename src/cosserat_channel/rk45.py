@@ -53,8 +53,8 @@ from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
                        STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
-                       STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end, error_norm, first_step,
-                       no_event, step_limit)
+                       STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end, count_stiffness,
+                       error_norm, first_step, no_event, step_limit)
 
 # The status codes, counter slots and no_event are part of dopri5's calling convention, so they
 # are re-exported here from their home, stepping.
@@ -125,10 +125,9 @@ FACOLD_MIN = 1e-4
 NONFINITE_MAX_TRIES = 20
 
 # Stiffness detection [HNW93, IV.2]: h*rho beyond the real stability boundary of DOPRI5 (about
-# 3.3) means the step size is limited by stability.
+# 3.3) means the step size is limited by stability (the run lengths STIFF_DECLARE and
+# NONSTIFF_RESET are stepping's, shared with DOP853).
 STIFF_THRESHOLD = 3.25
-STIFF_DECLARE = 15
-NONSTIFF_RESET = 6
 
 
 @njit(**_JIT_INLINE)
@@ -242,9 +241,10 @@ def detect_stiffness(h, K, iasti, nonsti, stats):
     """Hairer's stiffness test after an accepted step [HNW93, IV.2].
 
     Estimates ``|h lambda|`` as ``h*||k7 - k6|| / ||y_new - y_stage6||``, with the denominator
-    formed from the stages to avoid cancellation. A run of ``STIFF_DECLARE`` stiff steps
-    declares the problem stiff (``stats[STAT_STIFF] = 1``); ``NONSTIFF_RESET`` non-stiff steps
-    in a row reset the run.
+    formed from the stages to avoid cancellation, against ``STIFF_THRESHOLD``; the run is counted
+    by :func:`.stepping.count_stiffness` (``stepping.STIFF_DECLARE`` stiff steps in a row declare
+    the problem stiff, ``stats[STAT_STIFF] = 1``; ``stepping.NONSTIFF_RESET`` non-stiff steps in
+    a row reset the run).
 
     Parameters
     ----------
@@ -273,17 +273,8 @@ def detect_stiffness(h, K, iasti, nonsti, stats):
                   + (B5 - A65) * K[4, i] + B6 * K[5, i])
         den += dy * dy
     if den > 0.0:
-        hlamb = abs(h) * math.sqrt(num / den)
-        if hlamb > STIFF_THRESHOLD:
-            stats[STAT_STIFF_STEPS] += 1
-            nonsti = 0
-            iasti += 1
-            if iasti >= STIFF_DECLARE:
-                stats[STAT_STIFF] = 1
-        else:
-            nonsti += 1
-            if nonsti >= NONSTIFF_RESET:
-                iasti = 0
+        return count_stiffness(abs(h) * math.sqrt(num / den), STIFF_THRESHOLD, iasti, nonsti,
+                               stats)
     return iasti, nonsti
 
 

@@ -117,9 +117,14 @@ PATH_NAMES = {PATH_EXPLICIT: "explicit", PATH_STIFF: "stiff", PATH_NONE: "none"}
 METHOD_AUTO = 0
 METHOD_EXPLICIT = 1
 METHOD_STIFF = 2
-# Stage 1 switches to RODAS4P2 when the stiffness left to march exceeds this at rtol 1e-6, and
-# sqrt(1e-6/rtol) times this at other rtol (see use_stiff_path and docs/performance.md).
+# Stage 1 switches to RODAS4P2 when the stiffness left to march exceeds a threshold (see
+# use_stiff_path, benchmarks/probe_stiff_switch.py): against Dormand-Prince (rtol > DOP853_RTOL)
+# this times sqrt(1e-6/rtol) ...
 STIFF_LAMBDA = 20.0
+# ... against DOP853 this times (1e-6/rtol)^(1/4) / max(N - 1, STIFF_N_MARGIN), where the axis is
+# far from its edge, and without the N factor next to it.
+STIFF_LAMBDA_DOP853 = 4.0
+STIFF_N_MARGIN = 5e-3
 
 # Rows of a triple's profile array (see profile_kernel).
 P_J = 0  # J(xi) = u(xi)/omega_w - eps K
@@ -258,21 +263,47 @@ def _h_axis(A, ax):
 # The kernel for one (eta, A, N)
 # ---------------------------------------------------------------------------------------------
 @njit(**_JIT)
-def use_stiff_path(eta, ax, xi1, rtol1):
+def use_stiff_path(eta, A, N, ax, xi1, rtol1):
     """Whether stage 1 should take the stiff path (RODAS4P2, the Jacobian known in closed form).
 
     The Jacobian is ``-B - 2/xi`` in ``w``: about ``-2/eta`` in the interior and ``-(beta + 2)/xi``
     near the axis, where ``beta`` is large for small eta and next to the axis edge. An explicit
-    method is held to ``h < 3.3/|lambda|`` by stability, so over what is left to march from
-    ``xi1`` it needs about ``(1 - xi1) |lambda| / 3.3`` steps whatever the tolerance, while the
-    steps that accuracy asks for grow as rtol shrinks (and RODAS4P2, order 4, needs more of them
-    than Dormand-Prince, order 5). Measured on the bench_point grid and 1000 random points, the
-    stiff path pays where ``(1 - xi1) max(2/eta, beta/xi1)`` exceeds ``STIFF_LAMBDA`` at rtol 1e-6
-    and a threshold growing like ``rtol^(-1/2)`` below (within 1-15 % of the better of the two
-    paths on average).
+    method is held to ``h < 3.3/|lambda|`` (Dormand-Prince; DOP853 ``6/|lambda|``) by stability,
+    so over what is left to march from ``xi1`` it needs about ``x = (1 - xi1) max(2/eta,
+    beta/xi1)`` steps (up to that factor) whatever the tolerance, while the steps that accuracy
+    asks for grow as rtol shrinks, like ``rtol^(-1/4)`` for RODAS4P2 (order 4), more slowly for
+    the explicit pairs. RODAS4P2 is taken where ``x`` exceeds a threshold:
+
+    - rtol > ``DOP853_RTOL`` (explicit path Dormand-Prince): ``STIFF_LAMBDA sqrt(1e-6/rtol1)``.
+    - rtol <= ``DOP853_RTOL`` (DOP853): ``STIFF_LAMBDA_DOP853 (1e-6/rtol1)^(1/4) / max(N - 1,
+      STIFF_N_MARGIN)``. For small eta the path follows the slow manifold
+      ``delta = N - sqrt(N^2 - xi^2)``, which ends at ``xi = N``; the closer N is to 1 (or below
+      it, where the path turns there or meets D = 0 just after), the more of the march resolves
+      a fast turn rather than a stiff slow manifold, where the 8th-order explicit pair takes
+      fewer steps than RODAS4P2, and stage 2 more panels on RODAS4P2's 3rd-order dense output.
+      Next to the axis edge (``c0 < (A+1)/2``, i.e. ``beta > 4N/eta``; elsewhere ``beta ~ 2N/eta``
+      for small eta) the stiffness sits at the axis, not on the manifold, and the N factor is
+      left out.
+
+    Measured with ``benchmarks/probe_stiff_switch.py`` (both paths forced on bench_point's grid,
+    1000 random points and lines in eta at N = 0.9-1.3; CPU time of both stages): at rtol 1e-8
+    the crossover in ``x`` (thresholds within 2 % of the best total) lies at 880-2080 for N in
+    (0.9, 1], 110-340 for N in (1.05, 1.1], 21-87 for N in (1.2, 1.5] and 4-25 for N in (2, 3];
+    from rtol 1e-6 to 1e-10 each grows 4-15x (the rule: 10x). With this rule each set costs
+    0-6 % more in total than with the better path for every point, at each rtol from 1e-6 to
+    1e-10 (stage 1 alone: 0-11 %), against 0-37 % (0-40 %) with ``STIFF_LAMBDA sqrt(1e-6/rtol)``
+    there; the single points that cost more than 2x the better path have ``x < 20`` and meet
+    D = 0 (the same under either rule). At rtol 1e-4 and 1e-5 the Dormand-Prince threshold is within
+    4-7 % of the better path.
     """
     lam = max(2.0 / eta, ax[AX_BETA] / xi1)
-    return (1.0 - xi1) * lam > STIFF_LAMBDA * math.sqrt(1e-6 / rtol1)
+    x = (1.0 - xi1) * lam
+    if rtol1 > DOP853_RTOL:
+        return x > STIFF_LAMBDA * math.sqrt(1e-6 / rtol1)
+    threshold = STIFF_LAMBDA_DOP853 * (1e-6 / rtol1) ** 0.25
+    if ax[AX_C0] > 0.5 * (A + 1.0):
+        threshold /= max(N - 1.0, STIFF_N_MARGIN)
+    return x > threshold
 
 
 @njit(**_JIT)
@@ -537,7 +568,8 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     args1 = (eta, A, N, ax)
     xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
-    stiff = use_stiff_path(eta, ax, xi1, rtol1) if method == METHOD_AUTO else method == METHOD_STIFF
+    stiff = (use_stiff_path(eta, A, N, ax, xi1, rtol1) if method == METHOD_AUTO
+             else method == METHOD_STIFF)
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
     s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
     if s1 == rk45.EVENT and rtol1 > STAGE1_RTOL_FLOOR:

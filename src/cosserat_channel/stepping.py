@@ -35,6 +35,9 @@ __all__ = [
     "STAT_STIFF_STEPS",
     "STAT_STIFF",
     "N_STATS",
+    "STIFF_DECLARE",
+    "NONSTIFF_RESET",
+    "count_stiffness",
     "EPS",
     "step_limit",
     "clip_to_end",
@@ -62,6 +65,12 @@ STAT_STIFF_STEPS = 3
 STAT_STIFF = 4
 N_STATS = 5
 
+# Stiffness detection of the explicit pairs [HNW93, IV.2], counted as in Hairer's DOPRI5 and
+# DOP853 codes: this many accepted steps in a row limited by stability declare the problem stiff
+# (stats[STAT_STIFF] = 1), and this many that are not, in a row, reset the run.
+STIFF_DECLARE = 15
+NONSTIFF_RESET = 6
+
 EPS = 2.220446049250313e-16
 # Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
 NONFINITE_SHRINK = 0.25
@@ -86,6 +95,40 @@ def no_event(t, y, args):
         Always 1.0, so no sign change can ever be observed.
     """
     return 1.0
+
+
+@njit(**_JIT_INLINE)
+def count_stiffness(hlamb, threshold, iasti, nonsti, stats):
+    """Count one accepted step of the stiffness test [HNW93, IV.2].
+
+    Parameters
+    ----------
+    hlamb : float
+        The step's estimate of ``|h lambda|`` (the integrator's).
+    threshold : float
+        The integrator's real stability boundary: beyond it the step size is limited by stability.
+    iasti, nonsti : int
+        Current run lengths of stiff and non-stiff steps.
+    stats : ndarray of int64, shape (N_STATS,)
+        Counters; ``STAT_STIFF_STEPS`` counts the stiff steps, ``STAT_STIFF`` is set to 1 after a
+        run of ``STIFF_DECLARE`` of them (``NONSTIFF_RESET`` non-stiff steps in a row reset the run).
+
+    Returns
+    -------
+    iasti, nonsti : int
+        Updated run lengths.
+    """
+    if hlamb > threshold:
+        stats[STAT_STIFF_STEPS] += 1
+        nonsti = 0
+        iasti += 1
+        if iasti >= STIFF_DECLARE:
+            stats[STAT_STIFF] = 1
+    else:
+        nonsti += 1
+        if nonsti >= NONSTIFF_RESET:
+            iasti = 0
+    return iasti, nonsti
 
 
 @njit(**_JIT)

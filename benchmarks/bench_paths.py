@@ -1,8 +1,10 @@
-"""Stage-1 path choice: explicit DP5 vs RODAS4P2 against eta = eps L, side by side in one run.
+"""Stage-1 path choice: the explicit pair vs RODAS4P2 against eta = eps L, side by side in one run.
 
-For A = 1/3, N = 1, rtol = 1e-8: accepted stage-1 steps, microseconds for both stages (best of
-5 x 20 runs) and the relative error of Delta against scipy Radau at rtol 1e-12. The crossover
-justifies ``stages.STIFF_LAMBDA`` (RODAS4P2 when 2/eta > 20).
+For A = 1/3, N = 1, rtol = 1e-8 (the explicit pair is then DOP853): accepted stage-1 steps,
+microseconds for both stages (best of 5 x 20 runs) and the relative error of Delta against scipy
+Radau at rtol 1e-12, along one line in eta. ``stages.use_stiff_path``'s rule was calibrated on
+many more points and several N and rtol with ``benchmarks/probe_stiff_switch.py``; this is the
+quick look at one line.
 
 Run:  .venv/bin/python benchmarks/bench_paths.py
 """
@@ -28,7 +30,7 @@ def timed(ws, eta, method, reps=20):
 
 def main():
     ws = solve.Workspace()
-    print("| eta | DP5 steps | DP5 us | DP5 err(Delta) | RODAS4P2 steps | RODAS4P2 us "
+    print("| eta | explicit steps | explicit us | explicit err(Delta) | RODAS4P2 steps | RODAS4P2 us "
           "| RODAS4P2 err(Delta) | auto picks |")
     print("|---|---|---|---|---|---|---|---|")
     for eta in (3.0, 1.0, 0.3, 0.1, 0.03, 0.01, 1e-3, 1e-4):
@@ -40,7 +42,7 @@ def main():
             om = stages.one_minus_xi_p(eps * 0.5, ws.res, ws.ax, ws.T2, ws.Q2)
             cells += [str(ws.stats1[0]), f"{us:.0f}", f"{abs(om / eps / ref['Delta'] - 1):.1e}"]
         ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_AUTO)
-        cells.append("RODAS4P2" if ws.res[stages.R_PATH] else "DP5")
+        cells.append("RODAS4P2" if ws.res[stages.R_PATH] else "explicit")
         print("| " + " | ".join(cells) + " |")
 
 

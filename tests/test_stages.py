@@ -225,6 +225,23 @@ def test_dop853_steps_are_short_enough_for_stage_2_to_read():
         assert abs(r.Delta / ref - 1) < 10 * rtol, rtol
 
 
+@pytest.mark.parametrize("eta", [0.0234, 0.025, 0.0368])
+def test_dop853_crosses_the_stretch_in_more_than_one_step(eta):
+    """bench_point's grid (A = 1/3, N = 1): from the series start at xi1 = 0.9, DOP853 crossed to
+    the wall in one step, accepted on an error estimate that missed its error: at rtol 1e-6
+    u(0) was 2.9e-4 off at eta = 0.0234 and Delta 9e-5. Against scipy DOP853 at rtol 1e-12
+    (``reference``, its own formulation), at the rtols where DOP853 marches."""
+    from cosserat_channel import reference
+    from cosserat_channel.solve import solve_point
+
+    L, K = 10.0, 0.5
+    ref = reference.reference(eta / L, L, K, 1 / 3, 1.0)
+    for rtol in (1e-6, 5e-7, 1e-7):
+        r = solve_point(eta / L, L, K, 1 / 3, 1.0, rtol=rtol, atol=rtol * 1e-2)
+        assert abs(r.u_axis / ref["u_axis"] - 1) < 5 * rtol, rtol
+        assert abs(r.Delta / ref["Delta"] - 1) < 5 * rtol, rtol
+
+
 # Points where benchmarks/probe_stiff_switch.py measured one stage-1 path at least 1.7x cheaper
 # than the other (CPU time of both stages): (eta, A, N, rtol, the cheaper path). The first two
 # were picked wrong by the earlier rule STIFF_LAMBDA sqrt(1e-6/rtol) (12x and 2.9x).

@@ -12,7 +12,8 @@ for the dense output. The error estimate is Hairer's blend of a 5th- and a 3rd-o
 solution, ``|h| err5^2 / sqrt(err5^2 + 0.01 err3^2)``, which behaves like an 8th-order one;
 step sizes follow it with exponent 1/8 (scipy's controller: safety 0.9, factors in [0.2, 10]).
 After each accepted step Hairer's stiffness test (``|h lambda|`` beyond 6.1, DOP853's real
-stability boundary) counts into the same counters as Dormand-Prince's (:func:`detect_stiffness`).
+stability boundary) counts into the same counters as Dormand-Prince's
+(:func:`.stepping.count_stiffness`).
 
 Why it is here: on stage 1 it takes about as many evaluations as Dormand–Prince 5(4) at the
 same rtol and is 20-40x more accurate (``benchmarks/probe_high_order.py``), so at a matched
@@ -40,7 +41,7 @@ from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_
                        STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end,
                        count_stiffness, first_step, step_limit)
 
-__all__ = ["dop853", "dop853_step", "detect_stiffness", "ERROR_ORDER"]
+__all__ = ["dop853", "dop853_step", "ERROR_ORDER"]
 
 # ---------------------------------------------------------------------------------------------
 # Tableau (Hairer's dop853.f, via scipy; see the module docstring)
@@ -249,7 +250,7 @@ ERROR_ORDER = 7
 # boundary (about 6.1) means the step size is limited by stability.
 STIFF_THRESHOLD = 6.1
 # y_new minus the 12th stage's argument (both at t + h) is h * sum_j STIFF_DY[j] K[j]: formed from
-# the stages, as in rk45.detect_stiffness, because the two states agree to a few digits.
+# the stages (stepping.count_stiffness), because the two states agree to a few digits.
 STIFF_DY = np.ascontiguousarray(B - A[N_STAGES - 1, :N_STAGES])
 
 SAFETY = 0.9
@@ -303,48 +304,6 @@ def error_norm(K, h, y, y_new, atol, rtol):
     return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
 
 
-@njit(**_JIT)
-def detect_stiffness(h, K, iasti, nonsti, stats):
-    """Hairer's DOP853 stiffness test after an accepted step [HNW93, IV.2], as in ``dop853.f``.
-
-    Estimates ``|h lambda|`` as ``|h| ||f(t+h, y_new) - f(t+h, Y12)|| / ||y_new - Y12||``, where
-    ``Y12`` is the argument of the 12th stage (``K[11] = f(t+h, Y12)``, ``K[12] = f(t+h, y_new)``),
-    against ``STIFF_THRESHOLD``; the run is counted by :func:`.stepping.count_stiffness`, as in
-    :func:`.rk45.detect_stiffness`.
-
-    Parameters
-    ----------
-    h : float
-        Signed size of the accepted step.
-    K : ndarray of float64, shape (N_STAGES_EXTENDED, n)
-        Its stages, from :func:`dop853_step`.
-    iasti, nonsti : int
-        Current run lengths of stiff and non-stiff steps.
-    stats : ndarray of int64, shape (N_STATS,)
-        Counters; ``STAT_STIFF_STEPS`` and ``STAT_STIFF`` are updated.
-
-    Returns
-    -------
-    iasti, nonsti : int
-        Updated run lengths.
-    """
-    n = K.shape[1]
-    num = 0.0
-    den = 0.0
-    for i in range(n):
-        d = K[N_STAGES, i] - K[N_STAGES - 1, i]
-        num += d * d
-        acc = 0.0
-        for j in range(N_STAGES):
-            acc += STIFF_DY[j] * K[j, i]
-        dy = h * acc
-        den += dy * dy
-    if den > 0.0:
-        return count_stiffness(abs(h) * math.sqrt(num / den), STIFF_THRESHOLD, iasti, nonsti,
-                               stats)
-    return iasti, nonsti
-
-
 @njit(**_JIT_INLINE)
 def dense_coefficients(fun, t, y, y_new, h, args, K, ys, q):
     """The step's ``CONTD8`` rows into ``q`` (shape ``(N_DENSE, n)``); evaluates ``K[13..15]``."""
@@ -392,7 +351,7 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     """Integrate ``y' = fun(t, y)`` from `t0` to `t_end` with adaptive DOP853.
 
     Arguments, returns and counters as :func:`.rk45.dopri5` (``h0 <= 0``: Hairer's ``HINIT``
-    for order 8; stiffness detection by :func:`detect_stiffness`). Evaluations:
+    for order 8; stiffness detection by :func:`.stepping.count_stiffness`). Evaluations:
     ``1 + [h0 <= 0] + 15 * accepted + 12 * rejected``.
     """
     stats[:] = 0
@@ -432,7 +391,8 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
                 return NONFINITE, nsteps, t
             continue
         stats[STAT_ACCEPTED] += 1
-        iasti, nonsti = detect_stiffness(h, K, iasti, nonsti, stats)
+        iasti, nonsti = count_stiffness(h, K, N_STAGES, STIFF_DY, STIFF_THRESHOLD, iasti,
+                                           nonsti, stats)
         dense_coefficients(fun, t, y, y_new, h, args, K, ys, Q[nsteps])
         stats[STAT_FEV] += N_STAGES_EXTENDED - N_STAGES - 1
         T[nsteps + 1] = t_end if last else t + h

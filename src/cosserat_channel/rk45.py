@@ -6,9 +6,9 @@ output ``CONTD5``, initial step ``HINIT``, stiffness detection) into ``@njit`` k
 allocate their work arrays once per call, so that it can be called millions of times in
 parameter sweeps on small (n = 1 or 2) systems. It is split the way scipy splits a solver
 (``integrate/_ivp/rk.py`` + ``common.py``): the tableau as module constants, one step
-(:func:`dopri5_step`), the controller (:func:`control`), the stiffness detector
-(:func:`detect_stiffness`) and a short driver (:func:`dopri5`) here; the error norm, ``HINIT``,
-status codes and counters in :mod:`.stepping`; the dense output and event location in
+(:func:`dopri5_step`), the controller (:func:`control`) and a short driver (:func:`dopri5`)
+here; the error norm, ``HINIT``, the stiffness test, status codes and counters in
+:mod:`.stepping`; the dense output and event location in
 :mod:`.dense`.
 
 All kernels are compiled with ``error_model="numpy"`` so that a division by zero yields inf/NaN
@@ -61,7 +61,7 @@ from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRI
 __all__ = [
     "SUCCESS", "EVENT", "MAX_STEPS", "STEP_TOO_SMALL", "NONFINITE",
     "STAT_ACCEPTED", "STAT_REJECTED", "STAT_FEV", "STAT_STIFF_STEPS", "STAT_STIFF", "N_STATS",
-    "no_event", "dopri5", "dopri5_step", "control", "detect_stiffness", "integrate",
+    "no_event", "dopri5", "dopri5_step", "control", "integrate",
 ]
 
 # ---------------------------------------------------------------------------------------------
@@ -128,6 +128,9 @@ NONFINITE_MAX_TRIES = 20
 # 3.3) means the step size is limited by stability (the run lengths STIFF_DECLARE and
 # NONSTIFF_RESET are stepping's, shared with DOP853).
 STIFF_THRESHOLD = 3.25
+# y_new minus the 6th stage's argument (both at t + h) is h * sum_j STIFF_DY[j] K[j]
+# (stepping.count_stiffness).
+STIFF_DY = np.array([B1 - A61, B2 - A62, B3 - A63, B4 - A64, B5 - A65, B6])
 
 
 @njit(**_JIT_INLINE)
@@ -237,48 +240,6 @@ def control(err, h_abs, h_max, facold, reject):
 
 
 @njit(**_JIT)
-def detect_stiffness(h, K, iasti, nonsti, stats):
-    """Hairer's stiffness test after an accepted step [HNW93, IV.2].
-
-    Estimates ``|h lambda|`` as ``h*||k7 - k6|| / ||y_new - y_stage6||``, with the denominator
-    formed from the stages to avoid cancellation, against ``STIFF_THRESHOLD``; the run is counted
-    by :func:`.stepping.count_stiffness` (``stepping.STIFF_DECLARE`` stiff steps in a row declare
-    the problem stiff, ``stats[STAT_STIFF] = 1``; ``stepping.NONSTIFF_RESET`` non-stiff steps in
-    a row reset the run).
-
-    Parameters
-    ----------
-    h : float
-        Signed size of the accepted step.
-    K : ndarray of float64, shape (7, n)
-        Its stages, from :func:`dopri5_step`.
-    iasti, nonsti : int
-        Current run lengths of stiff and non-stiff steps.
-    stats : ndarray of int64, shape (N_STATS,)
-        Counters; ``STAT_STIFF_STEPS`` and ``STAT_STIFF`` are updated.
-
-    Returns
-    -------
-    iasti, nonsti : int
-        Updated run lengths.
-    """
-    n = K.shape[1]
-    num = 0.0
-    den = 0.0
-    for i in range(n):
-        d = K[6, i] - K[5, i]
-        num += d * d
-        dy = h * ((B1 - A61) * K[0, i] + (B2 - A62) * K[1, i]
-                  + (B3 - A63) * K[2, i] + (B4 - A64) * K[3, i]
-                  + (B5 - A65) * K[4, i] + B6 * K[5, i])
-        den += dy * dy
-    if den > 0.0:
-        return count_stiffness(abs(h) * math.sqrt(num / den), STIFF_THRESHOLD, iasti, nonsti,
-                               stats)
-    return iasti, nonsti
-
-
-@njit(**_JIT)
 def _work_arrays(y0):
     # The integrator's state and scratch, allocated once per run: y (a copy of y0), y_new,
     # y_err, ytmp and the stages K.
@@ -381,7 +342,8 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
                 return NONFINITE, nsteps, t
             continue
         stats[STAT_ACCEPTED] += 1
-        iasti, nonsti = detect_stiffness(h, K, iasti, nonsti, stats)
+        iasti, nonsti = count_stiffness(h, K, 6, STIFF_DY, STIFF_THRESHOLD, iasti, nonsti,
+                                           stats)
         T[nsteps + 1] = t_end if last else t + h
         dense_coefficients(y, y_new, h, K, Q[nsteps])
         nsteps += 1

@@ -98,15 +98,27 @@ def no_event(t, y, args):
 
 
 @njit(**_JIT_INLINE)
-def count_stiffness(hlamb, threshold, iasti, nonsti, stats):
-    """Count one accepted step of the stiffness test [HNW93, IV.2].
+def count_stiffness(h, K, k_new, dy_weights, threshold, iasti, nonsti, stats):
+    """Hairer's stiffness test after an accepted step [HNW93, IV.2], for an explicit RK pair.
+
+    Estimates ``|h lambda|`` as ``|h| ||f(t+h, y_new) - f(t+h, Y)|| / ||y_new - Y||``, where ``Y``
+    is the argument of the last stage evaluated at ``t + h`` (``K[k_new - 1] = f(t+h, Y)``,
+    ``K[k_new] = f(t+h, y_new)``). ``y_new - Y`` is formed from the stages,
+    ``h sum_j dy_weights[j] K[j]``, because the two states agree to a few digits. Against
+    ``threshold``, the pair's real stability boundary, the step is counted as stiff or not.
 
     Parameters
     ----------
-    hlamb : float
-        The step's estimate of ``|h lambda|`` (the integrator's).
+    h : float
+        Signed size of the accepted step.
+    K : ndarray of float64, shape (stages, n)
+        Its stages.
+    k_new : int
+        Row of ``f(t+h, y_new)`` in ``K``.
+    dy_weights : ndarray of float64
+        The pair's weights minus the last stage's coefficients (``b_j - a_{k_new-1, j}``).
     threshold : float
-        The integrator's real stability boundary: beyond it the step size is limited by stability.
+        The pair's real stability boundary: beyond it the step size is limited by stability.
     iasti, nonsti : int
         Current run lengths of stiff and non-stiff steps.
     stats : ndarray of int64, shape (N_STATS,)
@@ -116,9 +128,21 @@ def count_stiffness(hlamb, threshold, iasti, nonsti, stats):
     Returns
     -------
     iasti, nonsti : int
-        Updated run lengths.
+        Updated run lengths (unchanged where ``y_new - Y`` vanishes).
     """
-    if hlamb > threshold:
+    num = 0.0
+    den = 0.0
+    for i in range(K.shape[1]):
+        d = K[k_new, i] - K[k_new - 1, i]
+        num += d * d
+        acc = 0.0
+        for j in range(dy_weights.shape[0]):
+            acc += dy_weights[j] * K[j, i]
+        dy = h * acc
+        den += dy * dy
+    if not den > 0.0:
+        return iasti, nonsti
+    if abs(h) * math.sqrt(num / den) > threshold:
         stats[STAT_STIFF_STEPS] += 1
         nonsti = 0
         iasti += 1

@@ -82,7 +82,7 @@ def _atlas(args: argparse.Namespace) -> int:
     A = parse_range(args.A, "--A")
     N = parse_range(args.N, "--N")
     eta_range = parse_range(args.eta_range, "--eta-range")
-    workers = os.cpu_count() or 1 if args.workers is None else args.workers
+    workers = (os.cpu_count() or 1) if args.workers is None else args.workers
     if workers < 1:
         raise CliError(f"--workers must be a positive integer; got {workers}")
     try:

@@ -91,7 +91,7 @@ def main():
     from cosserat_channel import atlas as at
     from cosserat_channel import regimes
     from cosserat_channel.measure import machine
-    from cosserat_channel.solve import Workspace
+    from cosserat_channel.solver.point import Workspace
 
     if args.status_bisection:
         import functools
@@ -348,7 +348,8 @@ def learner(args, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref):
 def classify(args, atlas, A_rng, N_rng, rng, ws, summary):
     """5. classify against direct solves."""
     from cosserat_channel import atlas as at
-    from cosserat_channel import model, regimes
+    from cosserat_channel.physics import model
+    from cosserat_channel import regimes
     from cosserat_channel import status as st
 
     k = args.classify

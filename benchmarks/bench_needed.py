@@ -29,7 +29,7 @@ import numpy as np
 
 from cosserat_channel import regimes, run_sweep
 from cosserat_channel.measure.machine import cpu_model
-from cosserat_channel.solve import Workspace
+from cosserat_channel.solver.point import Workspace
 
 EDGE_CASES = ((1 / 3, 1.0), (0.0, 2.0), (-0.5, 1.0), (3.0, 0.5), (1.0, 1.0), (2.0, 3.0))
 

@@ -13,8 +13,8 @@ import time
 
 import numpy as np
 
-from cosserat_channel import solve, stages
-from cosserat_channel.reference import reference
+from cosserat_channel.solver import point as solve, stages
+from cosserat_channel.physics.reference import reference
 
 
 def timed(ws, eta, method, reps=20):

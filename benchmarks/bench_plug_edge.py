@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 
-from cosserat_channel import rk45, stages
+from cosserat_channel.integrate import rk45
+from cosserat_channel.solver import stages
 
 CASES = ((1 / 3, 1 / 3, 1.0), (0.01, 1 / 3, 1.0), (3.0, 2.0, 2.0))
 

@@ -23,7 +23,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from cosserat_channel import model, stages
+from cosserat_channel.physics import model
+from cosserat_channel.solver import stages
 from cosserat_channel.measure import machine, runners
 
 RTOL = 1e-8

@@ -64,7 +64,7 @@ def _sweep(name: str, **kw) -> str:
 
 
 def _points() -> str:
-    from cosserat_channel.solve import solve_point
+    from cosserat_channel.solver.point import solve_point
 
     values = []
     for p in POINTS:

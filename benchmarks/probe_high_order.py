@@ -17,7 +17,9 @@ import sys
 import numpy as np
 from numba import njit
 
-from cosserat_channel import dense, dop853, model, rk45, stages, stepping
+from cosserat_channel.integrate import dense, dop853, rk45, stepping
+from cosserat_channel.physics import model
+from cosserat_channel.solver import stages
 
 ATOL = 1e-12
 

@@ -35,7 +35,9 @@ import time
 import numpy as np
 from numba import njit
 
-from cosserat_channel import dense, model, panels, rk45, stages
+from cosserat_channel.integrate import dense, panels, rk45
+from cosserat_channel.physics import model
+from cosserat_channel.solver import stages
 from cosserat_channel import status as st
 
 RTOLS = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)

@@ -16,7 +16,7 @@ from cosserat_channel import regimes
 from cosserat_channel import status as st
 from cosserat_channel.cli import main
 from cosserat_channel.parameters import ParameterError
-from cosserat_channel.solve import Workspace
+from cosserat_channel.solver.point import Workspace
 
 # A < 1 and N < 1: feasible only between eta_min ~ 0.05 and eta_max ~ 2-4 (two transitions).
 BOX_A = (0.25, 0.5)
@@ -53,7 +53,7 @@ def test_threads_build_the_same_atlas():
 
 
 def _status(eta, A, N, ws):
-    from cosserat_channel import model
+    from cosserat_channel.physics import model
 
     code = model.classify(eta, A, N)
     if code == st.OK and A != -1.0:
@@ -210,7 +210,7 @@ def test_scalars_give_scalars(atlas):
 
 def test_classify_margins_is_classify_margin_on_arrays():
     """The array version gives the scalar one's code at every point, the boundaries included."""
-    from cosserat_channel import analytic
+    from cosserat_channel.physics import analytic
 
     rng = np.random.default_rng(5)
     A = np.r_[rng.uniform(-3, 3, 2000), -1.0, -1.0, 1 - 2 * 0.7**2, 0.5, 0.5, -2.0]

@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from cosserat_channel import cli
-from cosserat_channel.solve import solve_point
+from cosserat_channel.solver.point import solve_point
 
 # Paper figure 2: eps = 1/30, L = 10, K = 0.5, A = 1/3, N = 1. str() of a float round-trips, so
 # the command line sees exactly the floats the API call below gets.

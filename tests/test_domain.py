@@ -4,7 +4,7 @@ Domain: eps in [1e-7, 0.5], L in [0.5, 100], K in [0, 1e4], A in [-3, 5], N in [
 point must come back either within tolerance of an independent solver or with a status that says
 why not; never NaN/inf without a status, never integration_failed, and with bounded work.
 
-The independent solver is :func:`cosserat_channel.reference.reference` with scipy's Radau at
+The independent solver is :func:`cosserat_channel.physics.reference.reference` with scipy's Radau at
 rtol 1e-12 (Radau because the reference's printed form of D loses digits near the axis edge and
 an explicit reference would need O(1/(eps L)) steps at eps L = 5e-8).
 
@@ -28,10 +28,10 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as hst
 
-from cosserat_channel import asymptotics
+from cosserat_channel.physics import asymptotics
 from cosserat_channel import status as st
-from cosserat_channel.reference import reference
-from cosserat_channel.solve import solve_point
+from cosserat_channel.physics.reference import reference
+from cosserat_channel.solver.point import solve_point
 
 OUTPUTS = ("Delta", "m_wall", "sigma_yx_wall", "slip")
 SCALARS = ("Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall")

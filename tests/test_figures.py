@@ -14,7 +14,7 @@ from cosserat_channel.plot import lines as pl
 from cosserat_channel.plot import regimes as pr
 from cosserat_channel.plot import stability as ps
 from cosserat_channel.plot import workprecision as pw
-from cosserat_channel.solve import solve_point
+from cosserat_channel.solver.point import solve_point
 from cosserat_channel.measure.stability import Report
 from cosserat_channel.sweep import run_sweep
 from cosserat_channel.measure.report import Comparison, Curve

@@ -80,7 +80,7 @@ def test_report_rows_and_verdict(quick_report):
 
 def test_feasible_eta_max_brackets_the_edge():
     """The bisected edge is ok just below and not ok just above."""
-    from cosserat_channel import solve as sv
+    from cosserat_channel.solver import point as sv
 
     eta_max, beyond = stability.feasible_eta_max(1 / 3, 1.0)
     ws = sv.Workspace()

@@ -109,7 +109,7 @@ def _tolerance_points(corner: bool):
 
 def _status_changes(points):
     from cosserat_channel import solve_point
-    from cosserat_channel.solve import Workspace
+    from cosserat_channel.solver.point import Workspace
 
     ws = Workspace()
     changes = []

@@ -7,7 +7,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from cosserat_channel import plot
-from cosserat_channel.solve import solve_point
+from cosserat_channel.solver.point import solve_point
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

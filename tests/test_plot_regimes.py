@@ -8,7 +8,7 @@ from cosserat_channel import cli, regimes
 from cosserat_channel import status as st
 from cosserat_channel.plot import lines as pl
 from cosserat_channel.plot import regimes as pr
-from cosserat_channel.solve import solve_point
+from cosserat_channel.solver.point import solve_point
 from cosserat_channel.sweep import run_sweep
 
 

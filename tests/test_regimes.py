@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_channel import analytic, model, regimes
+from cosserat_channel.physics import analytic, model
+from cosserat_channel import regimes
 from cosserat_channel import status as st
 from cosserat_channel.parameters import ParameterError
-from cosserat_channel.solve import Workspace, solve_point
+from cosserat_channel.solver.point import Workspace, solve_point
 from cosserat_channel.sweep import run_sweep
 
 # (A, N) with a bounded edge, one per region of interest.
@@ -207,7 +208,7 @@ def _scipy_D_wall(eta, A, N):
     """D(1) of an independent stage 1: scipy's DOP853 at rtol 1e-13 from next to the axis."""
     from scipy.integrate import solve_ivp
 
-    from cosserat_channel import stages
+    from cosserat_channel.solver import stages
 
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
@@ -363,7 +364,7 @@ def _scipy_D_state_wall(eta, A, N, xi_switch=0.8):
     (delta, D) with D' = F - (D_delta/eta) sqrt(D) (node_edge_eta's algebra), to the wall."""
     from scipy.integrate import solve_ivp
 
-    from cosserat_channel import stages
+    from cosserat_channel.solver import stages
 
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)

@@ -8,7 +8,8 @@ import netCDF4
 import numpy as np
 import pytest
 
-from cosserat_channel import outputs, solve, stages
+from cosserat_channel import outputs
+from cosserat_channel.solver import point as solve, stages
 from cosserat_channel import status as st
 from cosserat_channel.sweep import run_sweep
 from cosserat_channel.sweep.plan import Plan, block_plan

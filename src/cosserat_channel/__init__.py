@@ -54,9 +54,9 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
 # The public API, imported on first use (PEP 562) so that ``import cosserat_channel`` stays light
 # and reading a result file never compiles a kernel. Each name is the real object of its home.
 _API = {
-    "solve_point": "solve",
-    "PointResult": "solve",
-    "Workspace": "solve",
+    "solve_point": "solver.point",
+    "PointResult": "solver.point",
+    "Workspace": "solver.point",
     "Status": "status",
     "ParameterError": "parameters",
     "check_point": "parameters",
@@ -65,7 +65,7 @@ _API = {
     "Output": "outputs",
     "load_sweep": "sweep.spec",
     "run_sweep": "sweep.engine",
-    "open_results": "query",
+    "open_results": "results.query",
     "trace_edge": "regimes",
     "trace_boundary": "regimes",
     "phase_plane": "regimes",

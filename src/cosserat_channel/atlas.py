@@ -15,7 +15,7 @@ estimate of the interpolant (:func:`_estimate`: the Chebyshev tail of each direc
 where the coefficients decay geometrically) decides: below ``tol`` the cell is a leaf; above it the
 degree is doubled along a direction whose coefficients still decay (the nodes are nested: every
 trace is kept), else the cell is split. A cell that the node/focus switch crosses
-(:func:`~cosserat_channel.analytic.node_focus_switch_N`, known in closed form) is split rather
+(:func:`~cosserat_channel.physics.analytic.node_focus_switch_N`, known in closed form) is split rather
 than raised in degree while it can be: the edge is not analytic across that curve, so a higher
 degree buys little there; and a refinement that does not cut the tail (the raw
 two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import analytic
+from .physics import analytic
 from . import regime_codes as rc
 from . import status as st
 from .parameters import ETA_MAX, ETA_MIN, ParameterError, check_values
@@ -523,7 +523,7 @@ def classify(eps, L, K, A, N, atlas):
     """The status of every point ``(eps, L, K, A, N)`` (broadcast) from the atlas, without solving.
 
     Appendix A's regimes (the wall line, ``A < -1``, ``A = -1``, the axis condition) are decided
-    exactly, by :mod:`cosserat_channel.analytic`. Every other point is decided from the atlas's
+    exactly, by :mod:`cosserat_channel.physics.analytic`. Every other point is decided from the atlas's
     transitions: ``ok`` or ``eps_too_large_path`` (the status of the solver beyond a traced edge).
     A point is :data:`UNDECIDED` (-1) when it lies within ``SAFETY * max(tol, error estimate,
     noise band)`` (relative) of an interpolated transition, in an unresolved leaf, outside the
@@ -692,7 +692,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     Atlas
     """
     from . import __version__, regimes
-    from .solve import Workspace
+    from .solver.point import Workspace
 
     A_range, N_range, tol, degree, max_depth, eta_range = check_build_arguments(
         A_range, N_range, tol, degree, max_depth, eta_range, max_degree)

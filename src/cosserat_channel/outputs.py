@@ -3,7 +3,7 @@
 The kernels return a few raw numbers per ``(eta, A, N)`` (the status, ``J(0)``, the wall values of
 stage 1, ``xi_stop``) and, per ``eps K``, the plug edge ``1 - xi_p``. Every output a user sees is
 derived from those here, by one broadcasting function, :func:`derive`, which serves one point
-(:func:`cosserat_channel.solve.solve_point`) and a whole grid (the sweep's Dataset) alike: the two
+(:func:`cosserat_channel.solver.point.solve_point`) and a whole grid (the sweep's Dataset) alike: the two
 agree to the last bit because they run the same operations. Adding an output is one
 :class:`Output` in :data:`OUTPUTS` (or :func:`register` at run time): the point API, sweep files,
 the Dataset, the command line and ``query`` pick it up from here.
@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import closure
+from .physics import closure
 from . import status as st
 
 __all__ = ["Output", "Inputs", "OUTPUTS", "COUNTERS", "PROFILES", "register", "registered",

@@ -1,6 +1,6 @@
 """Where the model has a solution: phase-plane data (figure 12) and the traced edge eta_max(A, N).
 
-Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (stresses over nu):
+Two questions, both in the scaled variables of :mod:`cosserat_channel.physics.model` (stresses over nu):
 
 * **Phase plane** (Appendix A, figure 12). The angular-momentum balance with either root of eq:56,
 
@@ -13,7 +13,7 @@ Two questions, both in the scaled variables of :mod:`cosserat_channel.model` (st
   ``sqrt(D) = |A+1| xi``: ``E- = 0`` for A > -1, ``E+ = 0`` for A < -1; it is the outer solution
   eq:15), the sign regions of ``E+-`` on a grid, and the four trajectories, integrated with
   :func:`scipy.integrate.solve_ivp` until ``D = 0`` or the wall. This is a plotting aid, not the
-  solver: :func:`cosserat_channel.solve.solve_point` decides whether a point has a solution.
+  solver: :func:`cosserat_channel.solver.point.solve_point` decides whether a point has a solution.
 
 * **Edge of solvability.** By the similarity of model.md, whether a point has a solution depends on
   ``(eta = eps L, A, N)`` only. :func:`trace_edge` finds ``eta_max(A, N)``, the largest ``eta`` in
@@ -46,13 +46,13 @@ from numba import njit
 
 from ._jit import JIT as _JIT
 
-from . import analytic
-from . import dense
-from . import model
-from . import rk45
-from . import stages
-from . import stepping
-from .analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
+from .physics import analytic
+from .integrate import dense
+from .physics import model
+from .integrate import rk45
+from .solver import stages
+from .integrate import stepping
+from .physics.analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
 from . import status as st
 from .parameters import PARAMETERS, ParameterError, check_point
 # The codes of the data this module produces live in regime_codes (the figures read them from
@@ -70,7 +70,7 @@ from .regime_codes import (  # noqa: F401
     REGION_EP_POS_EM_NEG,
     REGION_LABELS,
 )
-from .solve import Workspace
+from .solver.point import Workspace
 
 ETA_COARSE = 48  # log-spaced samples of the coarse pass
 ETA_XTOL = 1e-10  # relative width of the final bracket
@@ -337,7 +337,7 @@ def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
 
     Parameters
     ----------
-    workspace : cosserat_channel.solve.Workspace
+    workspace : cosserat_channel.solver.point.Workspace
         Its stage-1 arrays are used; a stand-in that counts solves (``atlas._Counting``) passes
         its ``ws`` and counts the solves itself.
     etas : array_like
@@ -515,7 +515,7 @@ def node_edge_eta(A, N):
         eta_node = 2 (A+1) sqrt(N^2 - (1-A)/2) / (1-A)
 
     and the node condition at the wall reads ``N^2 > (5 + 3A)/2``
-    (:func:`~cosserat_channel.analytic.node_focus_switch_N`).
+    (:func:`~cosserat_channel.physics.analytic.node_focus_switch_N`).
     Whether the path does reach the node is for the data to say (:func:`trace_edge` checks it); at
     a focus the path meets ``D = 0`` past the singular point, transversally, and
     ``eta_max > eta_node``.
@@ -724,7 +724,7 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
                tangential=True) -> Edge:
     """``eta_max(A, N)``: the largest ``eta = eps L`` in ``eta_range`` that has a solution.
 
-    Feasibility is status ok of :func:`cosserat_channel.solve.Workspace.status` (the status of
+    Feasibility is status ok of :func:`cosserat_channel.solver.point.Workspace.status` (the status of
     ``solve_point`` by the cheapest solve that decides it: stage 2 only next to the path edge);
     the regimes of Appendix A with no solution for any ``eta`` are decided by
     :func:`model.classify` alone.

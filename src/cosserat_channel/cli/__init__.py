@@ -320,7 +320,7 @@ def check_not_input(path: str, inputs, option: str) -> None:
 
 def open_results(path: str):
     """The result file at ``path``, opened lazily; a CliError (one line) when it cannot be."""
-    from .. import query
+    from ..results import query
 
     try:
         return query.open_results(path)
@@ -335,7 +335,7 @@ def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | N
     ``RuntimeError: NetCDF: HDF error``), so the file is read through once more to tell them
     apart: a damaged result file says so, whatever the output.
     """
-    from .. import query
+    from ..results import query
     from ..files import WriteError
 
     if isinstance(ds, query.LightFile):  # read through in chunks, with dask

@@ -53,7 +53,7 @@ def _point(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from .. import solve
+    from ..solver import point as solve
 
     profile = np.linspace(0.0, 1.0, 401) if args.plot is not None else None
     try:

@@ -168,7 +168,7 @@ def _query(args: argparse.Namespace) -> int:
     if args.output is not None:
         check_output_path(args.output, "-o")
         check_not_input(args.output, [args.results], "-o")
-    from .. import query
+    from ..results import query
 
     def select(ds):
         try:
@@ -224,7 +224,7 @@ def _info_arguments(p: argparse.ArgumentParser) -> None:
 @register("info", "describe a result file: dimensions, variables, status counts, provenance",
           _info_arguments)
 def _info(args: argparse.Namespace) -> int:
-    from .. import query
+    from ..results import query
     ds = open_results(args.results)
     try:
         try:

@@ -27,7 +27,9 @@ import time
 
 import numpy as np
 
-from .. import model, rk45, stages
+from ..physics import model
+from ..integrate import rk45
+from ..solver import stages
 from .. import status as st
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")

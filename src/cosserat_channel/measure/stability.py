@@ -9,7 +9,7 @@ right-hand-side evaluations, the kernel time per point (best of several repeats,
 and the relative error of ``Delta`` and
 ``m_wall`` against an independent reference:
 
-- scipy Radau at rtol 1e-12 (:func:`cosserat_channel.reference.reference`), ``ref = radau``;
+- scipy Radau at rtol 1e-12 (:func:`cosserat_channel.physics.reference.reference`), ``ref = radau``;
 - Appendix A's closed form for A = -1, ``ref = closed form``;
 - where Radau cannot start (it stops with "step size less than spacing between numbers" when
   ``beta = 2N/(eta c0)`` is ~1e8 and beyond), our own solver at rtol 1e-12, ``ref = ours 1e-12``
@@ -27,10 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import asymptotics, parameters, regimes
-from .. import solve as sv
+from ..physics import asymptotics
+from .. import parameters, regimes
+from ..solver import point as sv
 from .. import status as st
-from ..reference import reference
+from ..physics.reference import reference
 from .textfile import write_text
 
 L_REPORT = 10.0  # eps = eta / L; the outputs depend on eta only (model.md's similarity)

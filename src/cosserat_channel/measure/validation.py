@@ -26,7 +26,7 @@ integration, so nothing is lost). Candidates are screened with the exact algebra
 Where both exist the DOP853 value is the reference (its dense output, which feeds stage 2, is
 of order 7 against Radau's 3). The points and values are cached in ``reference_cache.npz`` under
 a key hashing the set definition, :data:`GENERATOR_VERSION` and the source of
-:mod:`cosserat_channel.reference`; a rerun with the same key reuses them.
+:mod:`cosserat_channel.physics.reference`; a rerun with the same key reuses them.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .. import reference as ref_mod
+from ..physics import reference as ref_mod
 from .. import regimes
 from ..files import atomic_output
 
@@ -141,7 +141,8 @@ def _L_for_eta(rng, eta, spec):
 
 def _stage1_reaches_wall(eta, A, N):
     """Our stage 1 (rtol 1e-11) reaches the wall at each ``eta`` (used only to find the edge)."""
-    from .. import rk45, stages
+    from ..integrate import rk45
+    from ..solver import stages
 
     n = eta.size
     mu = np.empty(n)

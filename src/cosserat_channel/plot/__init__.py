@@ -114,7 +114,7 @@ def point_profiles(result, path=None) -> Figure:
     Parameters
     ----------
     result : PointResult
-        From :func:`cosserat_channel.solve.solve_point` with ``profile=`` given and status ok.
+        From :func:`cosserat_channel.solver.point.solve_point` with ``profile=`` given and status ok.
     path : str or path-like, optional
         Where to save the figure (format from the suffix, PNG at 120 dpi by default).
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from matplotlib import colormaps
 
-from .. import asymptotics
+from ..physics import asymptotics
 from . import LABELS, new_figure, parameter_title, save_figure
 from .regimes import DIM_LABELS, DIMS, select_slice
 

@@ -15,7 +15,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from .. import analytic
+from ..physics import analytic
 from .. import regime_codes as rc
 from .. import status as st
 from ..parameters import DIMS
@@ -358,7 +358,7 @@ def solvable_region_figure(bds, path=None):
 
     Left, the largest ``eta = eps L`` with a solution (log colour scale; hatched where every
     searched ``eta`` is ok, so ``eta_max`` is beyond the range), with the node/focus switch
-    (:func:`cosserat_channel.analytic.node_focus_switch_N`) across which it is not analytic;
+    (:func:`cosserat_channel.physics.analytic.node_focus_switch_N`) across which it is not analytic;
     right, the smallest, where small ``eta`` fails too (hatched where the lowest searched ``eta``
     is ok). Both carry the analytic
     lines ``A = 1 - 2N^2`` and ``A = -1``, and ``A = 1``, above which the axis condition never

@@ -15,7 +15,7 @@ import xarray as xr
 
 from .. import __version__
 from .. import outputs as out_
-from .. import stages
+from ..solver import stages
 from .. import status as st
 from ..parameters import DIMS, PARAMETERS
 

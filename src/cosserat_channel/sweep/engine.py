@@ -31,9 +31,10 @@ import time
 
 import numpy as np
 
-from .. import __version__, rk45
+from .. import __version__
+from ..integrate import rk45
 from .. import outputs as out_
-from .. import stages
+from ..solver import stages
 from .. import status as st
 from ..files import space_problem
 from .dataset import build_dataset

@@ -40,7 +40,7 @@ from numba import njit
 
 from .._jit import JIT as _JIT
 
-from .. import model
+from ..physics import model
 from .. import status as st
 
 # Default plan: at least this many blocks, BLOCKS_PER_WORKER per worker on more than 8 workers

@@ -38,7 +38,7 @@ import netCDF4
 import numpy as np
 
 from .. import outputs as out_
-from .. import stages
+from ..solver import stages
 from ..files import write_failure
 from ..parameters import DIMS
 from .dataset import chunk_shape, coordinates, global_attrs, grid_values, variable_encoding

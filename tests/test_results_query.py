@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from cosserat_channel import cli, query
+from cosserat_channel import cli
+from cosserat_channel.results import query
 from cosserat_channel import status as st
 from cosserat_channel.outputs import OUTPUTS
 from cosserat_channel.parameters import ParameterError

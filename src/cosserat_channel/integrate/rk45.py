@@ -48,7 +48,7 @@ import math
 
 import numpy as np
 from numba import njit
-from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,

@@ -1,12 +1,12 @@
-"""Tests for the dense output and event location in ``cosserat_channel.dense``."""
+"""Tests for the dense output and event location in ``cosserat_channel.integrate.dense``."""
 
 import numpy as np
 import pytest
 from numba import njit
 from scipy.optimize import brentq
 
-from cosserat_channel import dense
-from cosserat_channel.dense import (
+from cosserat_channel.integrate import dense
+from cosserat_channel.integrate.dense import (
     Solution,
     component_minus_level,
     dense_coefficients,
@@ -17,7 +17,7 @@ from cosserat_channel.dense import (
     find_step,
     locate_event,
 )
-from cosserat_channel.rk45 import N_STATS, SUCCESS, dopri5_step, integrate
+from cosserat_channel.integrate.rk45 import N_STATS, SUCCESS, dopri5_step, integrate
 from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
 
 

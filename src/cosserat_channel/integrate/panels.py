@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 from numpy.polynomial import chebyshev as _cheb
 
-from ._jit import JIT as _JIT
+from .._jit import JIT as _JIT
 
 __all__ = ["DEGREE", "N_NODES", "N_COEF", "TOP", "N_ROWS", "X", "integrate_panel", "panel_value",
            "panel_value_d", "panel_value_d2", "panel_error_factor"]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from cosserat_channel import model
+from cosserat_channel.physics import model
 from cosserat_channel import status as st
 
 RNG = np.random.default_rng(20261121)

@@ -12,13 +12,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import dense
-from . import outputs as out_
-from . import panels
-from . import rk45
+from ..integrate import dense
+from .. import outputs as out_
+from ..integrate import panels
+from ..integrate import rk45
 from . import stages
-from . import status as st
-from .parameters import (
+from .. import status as st
+from ..parameters import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
     ParameterError,

@@ -1,4 +1,4 @@
-"""Tests of the closed-form and asymptotic solutions in ``cosserat_channel.asymptotics``.
+"""Tests of the closed-form and asymptotic solutions in ``cosserat_channel.physics.asymptotics``.
 
 The composite solution is checked against an independent scipy solution of the
 full two-stage problem of ``docs/model.md``, written here on purpose (the
@@ -13,7 +13,7 @@ from scipy.integrate import quad, solve_ivp
 from scipy.optimize import brentq
 from scipy.special import airy
 
-from cosserat_channel.asymptotics import (
+from cosserat_channel.physics.asymptotics import (
     Delta_asymptotic,
     a_minus_one,
     a_minus_one_outputs,

@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .roots import find_root
 from .stepping import EPS, STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from cosserat_channel import panels
+from cosserat_channel.integrate import panels
 
 
 def _panel(f, g, a, b, y_b=0.0, J_b=0.0):

@@ -1,4 +1,4 @@
-"""Tests for the Numba Dormand–Prince 5(4) integrator in ``cosserat_channel.rk45``."""
+"""Tests for the Numba Dormand–Prince 5(4) integrator in ``cosserat_channel.integrate.rk45``."""
 
 from fractions import Fraction as F
 import math
@@ -8,8 +8,8 @@ import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from cosserat_channel import dense, rk45
-from cosserat_channel.rk45 import (
+from cosserat_channel.integrate import dense, rk45
+from cosserat_channel.integrate.rk45 import (
     EVENT,
     MAX_STEPS,
     N_STATS,
@@ -276,7 +276,7 @@ def test_error_decreases_with_tolerance():
 
 
 # ---------------------------------------------------------------------------
-# 4.-5. Step clipping and events (the dense output itself: test_dense.py)
+# 4.-5. Step clipping and events (the dense output itself: test_integrate_dense.py)
 # ---------------------------------------------------------------------------
 def test_steps_land_on_t_end_and_respect_h_max():
     """The last step is clipped onto t_end exactly and no step exceeds h_max."""

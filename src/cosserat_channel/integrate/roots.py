@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
-from ._jit import JIT_INLINE as _JIT_INLINE
+from .._jit import JIT_INLINE as _JIT_INLINE
 
 __all__ = ["find_root", "newton_root", "newton_root_d2"]
 

@@ -1,6 +1,6 @@
 """The regimes of Appendix A that are decided without integrating: plain Python, no numba.
 
-:mod:`cosserat_channel.model` compiles these two functions with numba for the kernels; the
+:mod:`cosserat_channel.physics.model` compiles these two functions with numba for the kernels; the
 solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so that reading an atlas
 and classifying points never imports numba. They are the one home of the analytic regime logic.
 Both take scalars; :func:`axis_margin` also takes arrays, :func:`classify_margins` is
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import status as st
+from .. import status as st
 
 
 def axis_margin(eta, A, N):

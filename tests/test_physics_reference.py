@@ -2,7 +2,7 @@
 
 import warnings
 
-from cosserat_channel.reference import reference
+from cosserat_channel.physics.reference import reference
 
 
 def test_radau_reference_emits_no_runtime_warning():

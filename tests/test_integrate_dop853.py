@@ -1,4 +1,4 @@
-"""Tests for the Numba DOP853 integrator in ``cosserat_channel.dop853``.
+"""Tests for the Numba DOP853 integrator in ``cosserat_channel.integrate.dop853``.
 
 The independent references are scipy's own DOP853 (the same method and controller, written
 separately in numpy: same steps, same evaluations, same dense output to rounding) and closed forms.
@@ -11,8 +11,8 @@ import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
 
-from cosserat_channel import dense, dop853, rk45
-from cosserat_channel.stepping import (EVENT, N_STATS, NONFINITE, STAT_ACCEPTED, STAT_FEV,
+from cosserat_channel.integrate import dense, dop853, rk45
+from cosserat_channel.integrate.stepping import (EVENT, N_STATS, NONFINITE, STAT_ACCEPTED, STAT_FEV,
                                        STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS, SUCCESS,
                                        no_event)
 from problems import OSC_ARGS, gauss, gauss_exact, osc_exact, oscillator

@@ -5,13 +5,13 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_channel import asymptotics
+from cosserat_channel.physics import asymptotics
 from cosserat_channel import status as st
 from cosserat_channel.parameters import ParameterError
-from cosserat_channel.solve import solve_point
+from cosserat_channel.solver.point import solve_point
 
-from cosserat_channel.reference import profile as ref_profile
-from cosserat_channel.reference import reference
+from cosserat_channel.physics.reference import profile as ref_profile
+from cosserat_channel.physics.reference import reference
 
 FIG2 = dict(eps=1 / 30, L=10.0, K=0.5, A=1 / 3, N=1.0)  # paper figure 2 (L = 10 curve)
 OUTPUTS = ("Delta", "m_wall", "sigma_yx_wall", "slip")
@@ -346,7 +346,8 @@ def test_within_resolution_of_the_axis_edge():
 
 def test_batch_profiles_match_solve_point_including_A_minus_one():
     """solve_batch's per-triple profiles give solve_point's profiles, also for the A = -1 closed form."""
-    from cosserat_channel import rk45, stages
+    from cosserat_channel.integrate import rk45
+    from cosserat_channel.solver import stages
 
     xi = np.linspace(0.0, 1.0, 21)
     pts = [(1 / 30, 10.0, 0.5, 1 / 3, 1.0), (0.01, 2.0, 5.0, -1.0, 3.0)]

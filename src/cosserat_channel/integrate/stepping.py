@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
-from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 __all__ = [
     "SUCCESS",

@@ -1,4 +1,4 @@
-"""Tests for the root finders of ``cosserat_channel.roots``: safeguarded Illinois and Newton."""
+"""Tests for the root finders of ``cosserat_channel.integrate.roots``: safeguarded Illinois and Newton."""
 
 import math
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from numba import njit
 
-from cosserat_channel.dense import component_minus_level
-from cosserat_channel.rk45 import SUCCESS, integrate
-from cosserat_channel.roots import find_root, newton_root
+from cosserat_channel.integrate.dense import component_minus_level
+from cosserat_channel.integrate.rk45 import SUCCESS, integrate
+from cosserat_channel.integrate.roots import find_root, newton_root
 
 
 # ---------------------------------------------------------------------------

@@ -33,7 +33,7 @@ import math
 import sys
 
 from numba import njit
-from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from . import analytic
 
@@ -75,7 +75,7 @@ def classify(eta, A, N):
     """Status decided before any integration, for the regimes of Appendix A.
 
     Returns ``OK`` when stage 1 must be integrated (A > -1, axis series admissible) or when the
-    A = -1 closed form applies (:func:`cosserat_channel.analytic.classify_margin`).
+    A = -1 closed form applies (:func:`cosserat_channel.physics.analytic.classify_margin`).
     """
     return _classify_margin(axis_margin(eta, A, N), A, N)
 

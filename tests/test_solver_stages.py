@@ -5,14 +5,16 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_channel import rk45, solve_point, stages
+from cosserat_channel.integrate import rk45
+from cosserat_channel import solve_point
+from cosserat_channel.solver import stages
 from cosserat_channel import status as st
-from cosserat_channel.solve import Workspace
+from cosserat_channel.solver.point import Workspace
 from cosserat_channel.sweep.engine import solve_block
 from cosserat_channel.sweep.plan import Plan
 
 STAGE1_OUTPUTS = ["m_wall", "sigma_yx_wall", "xi_stop"]
-# The test points of tests/test_solve.py (bulk, stiff, near and past the path edge, every regime).
+# The test points of tests/test_solver_point.py (bulk, stiff, near and past the path edge, every regime).
 POINTS = [
     (1e-4, 1.0, 0.5, 1 / 3, 1.0), (1e-4, 3.0, 5.0, 2.0, 2.0), (1 / 600, 10.0, 0.5, 1 / 3, 1.0),
     (1 / 30, 10.0, 0.5, 1 / 3, 1.0), (0.05, 5.0, 1.0, -0.85, 3.0), (0.01, 1.0, 10.0, 2.9, 0.7),
@@ -102,7 +104,8 @@ def test_wall_form_of_D_matches_the_direct_formula_and_is_smooth():
     """stages._wall_form: D(1) + increment equals yield_D on the dense output to round-off of the
     O(1) terms, and next to the wall (where D(1) is tiny at the edge) it is smooth in xi where the
     direct formula is noise."""
-    from cosserat_channel import dense, model
+    from cosserat_channel.integrate import dense
+    from cosserat_channel.physics import model
 
     A, N = 0.0, 2.0
     eta = 3.7416566781580975 * (1 - 1e-6)  # 1e-6 inside the edge: D(1) ~ 2e-12
@@ -165,7 +168,8 @@ def test_series_plug_edge_root_converges_in_a_few_newton_steps():
     at eta = 3, A = 2, N = 2.)"""
     import math
 
-    from cosserat_channel import model, roots
+    from cosserat_channel.physics import model
+    from cosserat_channel.integrate import roots
 
     for eta, A, N in ((3.0, 2.0, 2.0), (1 / 3, 1 / 3, 1.0)):
         ws = Workspace()
@@ -198,8 +202,8 @@ def test_stage1_resolves_the_turn_at_xi_equal_N_at_loose_rtol():
     that survives turns there on a short scale. Without a step boundary at xi = N, rtol 1e-4 gave
     m_wall 1.3e-2 off (130 rtol) at this point of the work-precision set; scipy Radau at rtol 1e-12
     is the reference."""
-    from cosserat_channel import reference
-    from cosserat_channel.solve import solve_point
+    from cosserat_channel.physics import reference
+    from cosserat_channel.solver.point import solve_point
 
     eps, L, K, A, N = (1.3595178970681561e-05, 89.34741392658945, 0.2001043014110207,
                        3.754885663209172, 0.9928761610766683)
@@ -214,8 +218,8 @@ def test_dop853_steps_are_short_enough_for_stage_2_to_read():
     the series start to the wall in one step, good at its end but not inside, where stage 2 reads
     it: Delta was 6e-3 off at rtol 1e-4 at this near-edge point of the work-precision set. Against
     scipy DOP853 at rtol 1e-12 (``reference``, its own formulation)."""
-    from cosserat_channel import reference
-    from cosserat_channel.solve import solve_point
+    from cosserat_channel.physics import reference
+    from cosserat_channel.solver.point import solve_point
 
     eps, L, K, A, N = (0.30129683417074693, 11.55929836603691, 0.5185823201602671,
                        -0.09975520018273087, 2.2913017272900325)
@@ -231,8 +235,8 @@ def test_dop853_crosses_the_stretch_in_more_than_one_step(eta):
     the wall in one step, accepted on an error estimate that missed its error: at rtol 1e-6
     u(0) was 2.9e-4 off at eta = 0.0234 and Delta 9e-5. Against scipy DOP853 at rtol 1e-12
     (``reference``, its own formulation), at the rtols where DOP853 marches."""
-    from cosserat_channel import reference
-    from cosserat_channel.solve import solve_point
+    from cosserat_channel.physics import reference
+    from cosserat_channel.solver.point import solve_point
 
     L, K = 10.0, 0.5
     ref = reference.reference(eta / L, L, K, 1 / 3, 1.0)
@@ -300,7 +304,8 @@ def _plug_edge_by_brentq(eps_K, res, ax, T2, Q2):
     model.series_F."""
     from scipy.optimize import brentq
 
-    from cosserat_channel import model, panels
+    from cosserat_channel.physics import model
+    from cosserat_channel.integrate import panels
 
     J0 = res[stages.R_J_AXIS]
     target = model.plug_target(J0, eps_K)
@@ -372,7 +377,7 @@ def test_plug_edge_agrees_with_brentq_on_the_panel_series(order):
 
 
 def model_target_below(res, eps_K):
-    from cosserat_channel import model
+    from cosserat_channel.physics import model
 
     return model.plug_target(res[stages.R_J_AXIS], eps_K) > res[stages.R_J2]
 
@@ -381,7 +386,7 @@ def test_plug_edge_where_the_series_is_noisy():
     """At eta = 0.057, A = 1/3, N = 1 the closed form's F has a condition number ~4e5 at xi2: log F
     carries noise ~1e-11, which voids the Newton steps' curvature test; the root then shrinks its
     bracket to a sign change as brentq does, and both stay within the noise band (~1e-11 of 1 - xi_p)."""
-    from cosserat_channel import model
+    from cosserat_channel.physics import model
 
     ws = Workspace()
     assert ws.run(0.05696071736871604, 1 / 3, 1.0, 1e-8, 1e-12) == st.OK

@@ -35,7 +35,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .dense import event_after_step, hermite_rows
 from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
                        STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end,

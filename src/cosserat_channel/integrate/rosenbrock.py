@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
-from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,

@@ -49,8 +49,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .files import atomic_output, netcdf_output
-from .parameters import ParameterError
+from ..files import atomic_output, netcdf_output
+from ..parameters import ParameterError
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr

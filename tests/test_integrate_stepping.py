@@ -1,4 +1,4 @@
-"""Tests for the helpers the integrators share, in ``cosserat_channel.stepping``."""
+"""Tests for the helpers the integrators share, in ``cosserat_channel.integrate.stepping``."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 from numba import njit
 from scipy.integrate._ivp.common import select_initial_step
 
-from cosserat_channel.stepping import all_finite, error_norm, initial_step, rms_norm
+from cosserat_channel.integrate.stepping import all_finite, error_norm, initial_step, rms_norm
 
 
 @njit(cache=True)

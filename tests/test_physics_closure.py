@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from cosserat_channel import closure
+from cosserat_channel.physics import closure
 from cosserat_channel.parameters import check_material
 
 RNG = np.random.default_rng(35)

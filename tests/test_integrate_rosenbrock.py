@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from cosserat_channel import dense, rosenbrock, stepping
+from cosserat_channel.integrate import dense, rosenbrock, stepping
 
 
 @njit(cache=True)

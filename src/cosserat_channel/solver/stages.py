@@ -1,6 +1,6 @@
 """The Numba kernels of one solve: the only module that joins the physics and the integrator.
 
-Stage 1 marches the scaled couple stress ``delta`` (see :mod:`cosserat_channel.model`) from the
+Stage 1 marches the scaled couple stress ``delta`` (see :mod:`cosserat_channel.physics.model`) from the
 axis series to the wall with :func:`rk45.dopri5` (or RODAS4P2 where stiff), stopping at ``D = 0``
 if the stress path leaves the yield-admissible region. Stage 2 integrates ``(log omega_hat, J)``
 from the wall towards the axis on the dense output of stage 1, as the nested quadrature of
@@ -14,7 +14,7 @@ whole ``K`` axis.
 
 The kernels report through a small float vector per ``(eta, A, N)`` (the ``R_*`` slots) and dense
 outputs; :mod:`cosserat_channel.outputs` turns those into what users read, and
-:mod:`cosserat_channel.solve` is the Python API. This module is long because stage 1, stage 2,
+:mod:`cosserat_channel.solver.point` is the Python API. This module is long because stage 1, stage 2,
 the plug-edge root and the batch kernels share that slot layout and Numba inlines them into one
 another; each function is short.
 """
@@ -24,18 +24,18 @@ from __future__ import annotations
 import math
 import numpy as np
 from numba import njit
-from ._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
-from . import dense
-from . import dop853
-from . import model
-from . import panels
-from . import rk45
-from . import roots
-from . import rosenbrock
-from . import status as st
-from .model import AX_BETA, AX_C0, N_AX
-from .stepping import EPS as _EPS
+from ..integrate import dense
+from ..integrate import dop853
+from ..physics import model
+from ..integrate import panels
+from ..integrate import rk45
+from ..integrate import roots
+from ..integrate import rosenbrock
+from .. import status as st
+from ..physics.model import AX_BETA, AX_C0, N_AX
+from ..integrate.stepping import EPS as _EPS
 
 # The stage-2 rates and the lookups in stage 1's dense output are inlined into the stage-2 panels:
 # as separate functions, each call passing the dense-output arrays cost reference-count updates.

@@ -2,7 +2,7 @@
 
 For A = 1/3, N = 1, rtol = 1e-8 (the explicit pair is then DOP853): accepted stage-1 steps,
 microseconds for both stages (best of 5 x 20 runs) and the relative error of Delta against scipy
-Radau at rtol 1e-12, along one line in eta. ``stages.use_stiff_path``'s rule was calibrated on
+Radau at rtol 1e-12, along one line in eta. ``stage1.use_stiff_path``'s rule was calibrated on
 many more points and several N and rtol with ``benchmarks/probe_stiff_switch.py``; this is the
 quick look at one line.
 
@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from cosserat_channel.solver import point as solve, stages
+from cosserat_channel.solver import layout, plug_edge, point as solve
 from cosserat_channel.physics.reference import reference
 
 
@@ -37,12 +37,12 @@ def main():
         eps, L = eta / 10, 10.0
         ref = reference(eps, L, 0.5, 1 / 3, 1.0, method="Radau")
         cells = [f"{eta:g}"]
-        for method in (stages.METHOD_EXPLICIT, stages.METHOD_STIFF):
-            us = timed(ws, eta, method, reps=2 if (method == stages.METHOD_EXPLICIT and eta < 1e-3) else 20)
-            om = stages.one_minus_xi_p(eps * 0.5, ws.res, ws.ax, ws.T2, ws.Q2)
+        for method in (layout.METHOD_EXPLICIT, layout.METHOD_STIFF):
+            us = timed(ws, eta, method, reps=2 if (method == layout.METHOD_EXPLICIT and eta < 1e-3) else 20)
+            om = plug_edge.one_minus_xi_p(eps * 0.5, ws.res, ws.ax, ws.T2, ws.Q2)
             cells += [str(ws.stats1[0]), f"{us:.0f}", f"{abs(om / eps / ref['Delta'] - 1):.1e}"]
-        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_AUTO)
-        cells.append("RODAS4P2" if ws.res[stages.R_PATH] else "explicit")
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, layout.METHOD_AUTO)
+        cells.append("RODAS4P2" if ws.res[layout.R_PATH] else "explicit")
         print("| " + " | ".join(cells) + " |")
 
 

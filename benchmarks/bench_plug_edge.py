@@ -12,20 +12,20 @@ import time
 import numpy as np
 
 from cosserat_channel.integrate import rk45
-from cosserat_channel.solver import stages
+from cosserat_channel.solver import batch, layout, stage1, stage2
 
 CASES = ((1 / 3, 1 / 3, 1.0), (0.01, 1 / 3, 1.0), (3.0, 2.0, 2.0))
 
 
 def run(eta, A, N, eps_K, plug_edge):
-    res = np.empty((1, stages.N_R))
+    res = np.empty((1, layout.N_R))
     stats = np.zeros((1, 2, rk45.N_STATS), np.int64)
     one_minus = np.empty(eps_K.size)
     t0 = time.thread_time()
-    stages.solve_batch(np.array([eta]), np.array([A]), np.array([N]), eps_K,
-                       np.array([0, eps_K.size]), 1e-8, 1e-12, stages.MAX_STEPS_STAGE1,
-                       stages.MAX_STEPS_STAGE2, res, stats, one_minus, np.empty(0),
-                       np.empty((1, stages.N_PROF, 0)), True, plug_edge)
+    batch.solve_batch(np.array([eta]), np.array([A]), np.array([N]), eps_K,
+                       np.array([0, eps_K.size]), 1e-8, 1e-12, stage1.MAX_STEPS_STAGE1,
+                       stage2.MAX_STEPS_STAGE2, res, stats, one_minus, np.empty(0),
+                       np.empty((1, layout.N_PROF, 0)), True, plug_edge)
     return time.thread_time() - t0, one_minus
 
 

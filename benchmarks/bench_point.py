@@ -24,7 +24,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from cosserat_channel.physics import model
-from cosserat_channel.solver import stages
+from cosserat_channel.solver import stage1, stage2
 from cosserat_channel.measure import machine, runners
 
 RTOL = 1e-8
@@ -45,7 +45,7 @@ def _scipy_stage1_run(eps, L, A, N, method, dense):
         return None
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1, w0 = stages.ivp_start(ax)
+    xi1, w0 = stage1.ivp_start(ax)
 
     def f1(xi, w):
         return [model.dw_dxi(xi, w[0], eta, A, N, ax)]
@@ -89,7 +89,7 @@ def scipy_point(eps, L, K, A, N, method):
         return z[0] - math.log(1e-3 * RTOL)
 
     gone.terminal = True
-    s2 = solve_ivp(f2, [0.0, math.log(stages.XI_FLOOR)], [0.0, 0.0], method=method, rtol=RTOL,
+    s2 = solve_ivp(f2, [0.0, math.log(stage2.XI_FLOOR)], [0.0, 0.0], method=method, rtol=RTOL,
                    atol=[RTOL, ATOL], events=gone, dense_output=True)
     J0 = s2.y[1, -1]
     target = model.plug_target(J0, eps * K)

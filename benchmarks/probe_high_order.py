@@ -1,8 +1,8 @@
 """Does the 8th-order pair pay on stage 1? Dormand-Prince 5(4) against DOP853, on the same points.
 
-The measurement behind ``stages.DOP853_RTOL``: both of the package's explicit integrators
+The measurement behind ``stage1.DOP853_RTOL``: both of the package's explicit integrators
 (``rk45.dopri5``, ``dop853.dop853``) march stage 1 of the work-precision set's points where the
-solver takes the explicit path, from the same axis-series start (``stages.stage1_start``), with the
+solver takes the explicit path, from the same axis-series start (``stage1.stage1_start``), with the
 same right-hand side, the same split at xi = N (N < 1) and the same first step, no event (these
 points reach the wall) and no step cap. It prints the mean right-hand-side evaluations (DOP853's
 include the 3 of its dense output per step) and the median m_wall error against the set's
@@ -19,7 +19,7 @@ from numba import njit
 
 from cosserat_channel.integrate import dense, dop853, rk45, stepping
 from cosserat_channel.physics import model
-from cosserat_channel.solver import stages
+from cosserat_channel.solver import stage1
 
 ATOL = 1e-12
 
@@ -31,7 +31,7 @@ def march(use_dop853, xi1, w1, args, rtol, T, Q, stats, total):
     y0 = np.empty(1)
     y0[0] = w1
     atol = np.full(1, ATOL)
-    split = xi1 + stages.SPLIT_MARGIN < N < 1.0 - stages.SPLIT_MARGIN
+    split = xi1 + stage1.SPLIT_MARGIN < N < 1.0 - stage1.SPLIT_MARGIN
     legs = ((xi1, N, xi1), (N, 1.0, 0.0)) if split else ((xi1, 1.0, xi1), (1.0, 1.0, 0.0))
     total[0] = 0
     w = w1
@@ -40,10 +40,10 @@ def march(use_dop853, xi1, w1, args, rtol, T, Q, stats, total):
             continue
         y0[0] = w
         if use_dop853:
-            s, n, _ = dop853.dop853(stages._stage1_rhs, stepping.no_event, start, y0, end, args,
+            s, n, _ = dop853.dop853(stage1._stage1_rhs, stepping.no_event, start, y0, end, args,
                                     rtol, atol, h0, 0.0, T, Q, stats)
         else:
-            s, n, _ = rk45.dopri5(stages._stage1_rhs, stepping.no_event, start, y0, end, args,
+            s, n, _ = rk45.dopri5(stage1._stage1_rhs, stepping.no_event, start, y0, end, args,
                                   rtol, atol, h0, 0.0, T, Q, stats)
         total[0] += stats[stepping.STAT_FEV]
         if s != stepping.SUCCESS:
@@ -56,8 +56,8 @@ def main(path):
     d = np.load(path)
     eps, L, A, N, ref = (d[k] for k in ("eps", "L", "A", "N", "ref_m_wall"))
     eta = eps * L
-    T = np.empty(stages.MAX_STEPS_STAGE1 + 1)
-    Q = np.empty((stages.MAX_STEPS_STAGE1, dense.N_DENSE, 1))
+    T = np.empty(stage1.MAX_STEPS_STAGE1 + 1)
+    Q = np.empty((stage1.MAX_STEPS_STAGE1, dense.N_DENSE, 1))
     stats = np.zeros(stepping.N_STATS, np.int64)
     total = np.zeros(1, np.int64)
     ax = np.empty(model.N_AX)
@@ -67,8 +67,8 @@ def main(path):
             if model.classify(eta[i], A[i], N[i]) != 0 or A[i] == -1.0:
                 continue
             model.axis_constants(eta[i], A[i], N[i], ax)
-            xi1, w1 = stages.stage1_start(ax, rtol)
-            if stages.use_stiff_path(eta[i], A[i], N[i], ax, xi1, rtol):
+            xi1, w1 = stage1.stage1_start(ax, rtol)
+            if stage1.use_stiff_path(eta[i], A[i], N[i], ax, xi1, rtol):
                 continue
             args = (eta[i], A[i], N[i], ax)
             out = {}

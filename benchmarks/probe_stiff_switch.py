@@ -1,10 +1,10 @@
 """Where does the stiff path pay on stage 1? RODAS4P2 against the explicit path, on the same points.
 
-The measurement behind ``stages.use_stiff_path``. Each point is solved at each rtol with stage 1
-forced onto either path (``METHOD_EXPLICIT``: DOP853 at rtol <= ``stages.DOP853_RTOL``,
+The measurement behind ``stage1.use_stiff_path``. Each point is solved at each rtol with stage 1
+forced onto either path (``METHOD_EXPLICIT``: DOP853 at rtol <= ``stage1.DOP853_RTOL``,
 Dormand-Prince above; ``METHOD_STIFF``: RODAS4P2), as the solver runs it (the march from the axis
 series, the split at xi = N, the event and conditioning re-marches): both stages
-(``stages.solve_eta``) and stage 1 alone (``stages.solve_stage1``, what ``stage1_batch`` and
+(``batch.solve_eta``) and stage 1 alone (``stage1.solve_stage1``, what ``stage1_batch`` and
 stage-1-only sweeps run). The path matters for both: stage 2 integrates on stage 1's dense output,
 and takes more panels on RODAS4P2's (3rd order) than on DOP853's (7th order).
 
@@ -37,28 +37,28 @@ from numba import njit
 
 from cosserat_channel.integrate import dense, panels, rk45
 from cosserat_channel.physics import model
-from cosserat_channel.solver import stages
+from cosserat_channel.solver import batch, layout, stage1, stage2
 from cosserat_channel import status as st
 
 RTOLS = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
 ATOL = 1e-12
 REF_RTOL, REF_ATOL = 1e-13, 1e-16
 MIN_SECONDS = 2e-3
-METHODS = (stages.METHOD_EXPLICIT, stages.METHOD_STIFF)
+METHODS = (layout.METHOD_EXPLICIT, layout.METHOD_STIFF)
 SETS = ("grid", "random", "lines")
 
 
 @njit
 def _repeat(eta, A, N, rtol, atol, method, both, reps, ax, T1, Q1, T2, Q2, stats1, stats2, res):
     """``reps`` solves of one point (the timed loop, no Python between them): stage 1 alone
-    (``stages.solve_stage1``, what ``stage1_batch`` runs) or both stages (``stages.solve_eta``)."""
+    (``stage1.solve_stage1``, what ``stage1_batch`` runs) or both stages (``batch.solve_eta``)."""
     code = 0
     for _ in range(reps):
         if both:
-            code = stages.solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+            code = batch.solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
                                     method)
         else:
-            code = stages.solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)[0]
+            code = stage1.solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)[0]
     return code
 
 
@@ -67,13 +67,13 @@ class Solver:
 
     def __init__(self):
         self.ax = np.empty(model.N_AX)
-        self.T1 = np.empty(stages.MAX_STEPS_STAGE1 + 1)
-        self.Q1 = np.empty((stages.MAX_STEPS_STAGE1, dense.N_DENSE, 1))
-        self.T2 = np.empty(stages.MAX_STEPS_STAGE2 + 1)
-        self.Q2 = np.empty((stages.MAX_STEPS_STAGE2, panels.N_ROWS, 2))
+        self.T1 = np.empty(stage1.MAX_STEPS_STAGE1 + 1)
+        self.Q1 = np.empty((stage1.MAX_STEPS_STAGE1, dense.N_DENSE, 1))
+        self.T2 = np.empty(stage2.MAX_STEPS_STAGE2 + 1)
+        self.Q2 = np.empty((stage2.MAX_STEPS_STAGE2, panels.N_ROWS, 2))
         self.stats1 = np.zeros(rk45.N_STATS, np.int64)
         self.stats2 = np.zeros(rk45.N_STATS, np.int64)
-        self.res = np.empty(stages.N_R)
+        self.res = np.empty(layout.N_R)
 
     def run(self, point, rtol, atol, method, both, reps=1):
         return _repeat(*point, rtol, atol, method, both, reps, self.ax, self.T1, self.Q1, self.T2,
@@ -128,17 +128,17 @@ def measure(eta, A, N):
     res = solver.res
     for i in range(n):
         point = (eta[i], A[i], N[i])
-        code = solver.run(point, REF_RTOL, REF_ATOL, stages.METHOD_EXPLICIT, True)
-        if res[stages.R_PATH] == stages.PATH_NONE:
+        code = solver.run(point, REF_RTOL, REF_ATOL, layout.METHOD_EXPLICIT, True)
+        if res[layout.R_PATH] == layout.PATH_NONE:
             continue
         if code == st.OK:
-            out["ref_mu"][i], out["ref_J"][i] = res[stages.R_MU_WALL], res[stages.R_J_AXIS]
+            out["ref_mu"][i], out["ref_J"][i] = res[layout.R_MU_WALL], res[layout.R_J_AXIS]
         out["beta"][i] = solver.ax[model.AX_BETA]
         for j, rtol in enumerate(RTOLS):
-            solver.run(point, rtol, ATOL, stages.METHOD_AUTO, False)
-            out["auto"][i, j] = res[stages.R_PATH]
-            rtol1 = stages.stage1_rtol(rtol, A[i], N[i], solver.ax)
-            xi1 = stages.stage1_start(solver.ax, rtol1)[0]
+            solver.run(point, rtol, ATOL, layout.METHOD_AUTO, False)
+            out["auto"][i, j] = res[layout.R_PATH]
+            rtol1 = stage1.stage1_rtol(rtol, A[i], N[i], solver.ax)
+            xi1 = stage1.stage1_start(solver.ax, rtol1)[0]
             out["xi1"][i, j], out["rtol1"][i, j] = xi1, rtol1
             out["x"][i, j] = (1 - xi1) * max(2 / eta[i], out["beta"][i] / xi1)
             for k, method in enumerate(METHODS):
@@ -147,9 +147,9 @@ def measure(eta, A, N):
                 out["fev"][i, j, k] = solver.stats1[rk45.STAT_FEV]
                 out["steps"][i, j, k] = (solver.stats1[rk45.STAT_ACCEPTED]
                                          + solver.stats1[rk45.STAT_REJECTED])
-                out["mu"][i, j, k] = res[stages.R_MU_WALL]
-                out["J"][i, j, k] = res[stages.R_J_AXIS]
-                out["xi_stop"][i, j, k] = res[stages.R_XI_STOP]
+                out["mu"][i, j, k] = res[layout.R_MU_WALL]
+                out["J"][i, j, k] = res[layout.R_J_AXIS]
+                out["xi_stop"][i, j, k] = res[layout.R_XI_STOP]
                 out["sec"][i, j, k] = solver.seconds(point, rtol, method, True)
                 out["sec1"][i, j, k] = solver.seconds(point, rtol, method, False)
     return out
@@ -210,13 +210,13 @@ def report(d, which):
     for j, rtol in enumerate(RTOLS):
         cells = []
         for i in rows:
-            star = ("", "*") if d["auto"][i, j] == stages.PATH_STIFF else ("*", "")
+            star = ("", "*") if d["auto"][i, j] == layout.PATH_STIFF else ("*", "")
             cells.append(" / ".join(f"{sec[i, j, k] * 1e6:.0f}, {sec1[i, j, k] * 1e6:.0f}, "
                                     f"{d['fev'][i, j, k]:.0f}{star[k]}" for k in range(2)))
         print(f"| {rtol:g} | " + " | ".join(cells) + " |")
 
-    old = x > stages.STIFF_LAMBDA * np.sqrt(1e-6 / d["rtol1"])
-    rules = (("the rule in the code", d["auto"] == stages.PATH_STIFF),
+    old = x > stage1.STIFF_LAMBDA * np.sqrt(1e-6 / d["rtol1"])
+    rules = (("the rule in the code", d["auto"] == layout.PATH_STIFF),
              ("STIFF_LAMBDA sqrt(1e-6/rtol) at every rtol", old))
     for name, stiff in rules:
         print(f"\nTotal time of {name} / the better path's per point, both stages (stage 1 alone); "

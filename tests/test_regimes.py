@@ -208,11 +208,11 @@ def _scipy_D_wall(eta, A, N):
     """D(1) of an independent stage 1: scipy's DOP853 at rtol 1e-13 from next to the axis."""
     from scipy.integrate import solve_ivp
 
-    from cosserat_channel.solver import stages
+    from cosserat_channel.solver import stage1
 
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1, w1 = stages.ivp_start(ax)
+    xi1, w1 = stage1.ivp_start(ax)
     sol = solve_ivp(lambda x, w: [model.dw_dxi(x, w[0], eta, A, N, ax)], [xi1, 1.0], [w1],
                     method="DOP853", rtol=1e-13, atol=1e-16)
     return model.yield_D(1.0, sol.y[0, -1], A, N, ax)
@@ -360,15 +360,15 @@ def test_probe_edge_on_synthetic_wall_values(monkeypatch):
 
 def _scipy_D_state_wall(eta, A, N, xi_switch=0.8):
     """D(1) of an independent march that carries D as a state next to the wall: scipy's DOP853
-    at rtol 1e-13 from next to the axis (stages.ivp_start) in w to ``xi_switch``, then in
+    at rtol 1e-13 from next to the axis (stage1.ivp_start) in w to ``xi_switch``, then in
     (delta, D) with D' = F - (D_delta/eta) sqrt(D) (node_edge_eta's algebra), to the wall."""
     from scipy.integrate import solve_ivp
 
-    from cosserat_channel.solver import stages
+    from cosserat_channel.solver import stage1
 
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1, w1 = stages.ivp_start(ax)
+    xi1, w1 = stage1.ivp_start(ax)
     sol = solve_ivp(lambda x, w: [model.dw_dxi(x, w[0], eta, A, N, ax)], [xi1, xi_switch], [w1],
                     method="DOP853", rtol=1e-13, atol=1e-16)
     d0 = xi_switch**2 * sol.y[0, -1]

@@ -347,27 +347,27 @@ def test_within_resolution_of_the_axis_edge():
 def test_batch_profiles_match_solve_point_including_A_minus_one():
     """solve_batch's per-triple profiles give solve_point's profiles, also for the A = -1 closed form."""
     from cosserat_channel.integrate import rk45
-    from cosserat_channel.solver import stages
+    from cosserat_channel.solver import batch, layout, stage1, stage2
 
     xi = np.linspace(0.0, 1.0, 21)
     pts = [(1 / 30, 10.0, 0.5, 1 / 3, 1.0), (0.01, 2.0, 5.0, -1.0, 3.0)]
     n = len(pts)
     eta = np.array([p[0] * p[1] for p in pts])
-    res = np.empty((n, stages.N_R))
+    res = np.empty((n, layout.N_R))
     stats = np.zeros((n, 2, rk45.N_STATS), np.int64)
     one_minus = np.empty(n)
-    prof = np.empty((n, stages.N_PROF, xi.size))
-    stages.solve_batch(eta, np.array([p[3] for p in pts]), np.array([p[4] for p in pts]),
+    prof = np.empty((n, layout.N_PROF, xi.size))
+    batch.solve_batch(eta, np.array([p[3] for p in pts]), np.array([p[4] for p in pts]),
                       np.array([p[0] * p[2] for p in pts]), np.arange(n + 1), 1e-8, 1e-12,
-                      stages.MAX_STEPS_STAGE1, stages.MAX_STEPS_STAGE2, res, stats, one_minus, xi, prof)
+                      stage1.MAX_STEPS_STAGE1, stage2.MAX_STEPS_STAGE2, res, stats, one_minus, xi, prof)
     for i, (eps, L, K, A, N) in enumerate(pts):
         want = solve_point(eps, L, K, A, N, profile=xi).profile
-        J_axis = res[i, stages.R_J_AXIS]
-        u = (eps * K + prof[i, stages.P_J]) / (eps * K + J_axis)
+        J_axis = res[i, layout.R_J_AXIS]
+        u = (eps * K + prof[i, layout.P_J]) / (eps * K + J_axis)
         np.testing.assert_allclose(u, want["u_over_u0"], rtol=1e-12)
-        np.testing.assert_allclose(prof[i, stages.P_OMEGA_HAT], want["omega_hat"], rtol=1e-12)
-        np.testing.assert_allclose(L * (prof[i, stages.P_DELTA] - N), want["m"], rtol=1e-12)
-        np.testing.assert_allclose(prof[i, stages.P_SIGMA_YX], want["sigma_yx"], rtol=1e-12)
+        np.testing.assert_allclose(prof[i, layout.P_OMEGA_HAT], want["omega_hat"], rtol=1e-12)
+        np.testing.assert_allclose(L * (prof[i, layout.P_DELTA] - N), want["m"], rtol=1e-12)
+        np.testing.assert_allclose(prof[i, layout.P_SIGMA_YX], want["sigma_yx"], rtol=1e-12)
 
 
 @pytest.mark.parametrize("rtol", [1e-8, 1e-10, 1e-12])

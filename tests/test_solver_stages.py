@@ -7,7 +7,7 @@ import pytest
 
 from cosserat_channel.integrate import rk45
 from cosserat_channel import solve_point
-from cosserat_channel.solver import stages
+from cosserat_channel.solver import batch, layout, plug_edge, stage1, stage2, stress_path
 from cosserat_channel import status as st
 from cosserat_channel.solver.point import Workspace
 from cosserat_channel.sweep.engine import solve_block
@@ -56,7 +56,7 @@ def test_status_path_skips_stage2_away_from_the_edge():
     """In the bulk the status path runs no stage 2 at all; next to the edge it does."""
     ws = Workspace()
     assert ws.status(1 / 3, 1 / 3, 1.0, 1e-8, 1e-12) == st.OK
-    assert ws.stats2[rk45.STAT_ACCEPTED] == 0 and math.isnan(ws.res[stages.R_J_AXIS])
+    assert ws.stats2[rk45.STAT_ACCEPTED] == 0 and math.isnan(ws.res[layout.R_J_AXIS])
     ws.run(1 / 3, 1 / 3, 1.0, 1e-8, 1e-12)
     assert ws.stats2[rk45.STAT_ACCEPTED] > 0
 
@@ -92,16 +92,16 @@ def test_sweep_block_computes_only_what_is_asked():
     inp = plan.inputs(0)
     full = solve_block(inp, 1e-8, 1e-12)
     part = solve_block(inp, 1e-8, 1e-12, None, False, False)
-    assert np.array_equal(part["res"][:, stages.R_STATUS], full["res"][:, stages.R_STATUS])
-    ok = full["res"][:, stages.R_STATUS] == st.OK
-    for slot in (stages.R_MU_WALL, stages.R_SIGMA_YX_WALL):
+    assert np.array_equal(part["res"][:, layout.R_STATUS], full["res"][:, layout.R_STATUS])
+    ok = full["res"][:, layout.R_STATUS] == st.OK
+    for slot in (layout.R_MU_WALL, layout.R_SIGMA_YX_WALL):
         assert np.array_equal(part["res"][ok, slot], full["res"][ok, slot])
     assert np.isnan(part["one_minus"]).all()
     assert part["steps"][:, 1].sum() < full["steps"][:, 1].sum() / 4
 
 
 def test_wall_form_of_D_matches_the_direct_formula_and_is_smooth():
-    """stages._wall_form: D(1) + increment equals yield_D on the dense output to round-off of the
+    """stress_path._wall_form: D(1) + increment equals yield_D on the dense output to round-off of the
     O(1) terms, and next to the wall (where D(1) is tiny at the edge) it is smooth in xi where the
     direct formula is noise."""
     from cosserat_channel.integrate import dense
@@ -111,18 +111,18 @@ def test_wall_form_of_D_matches_the_direct_formula_and_is_smooth():
     eta = 3.7416566781580975 * (1 - 1e-6)  # 1e-6 inside the edge: D(1) ~ 2e-12
     ws = Workspace()
     assert ws.run(eta, A, N, 1e-10, 1e-14) == st.OK
-    n1 = int(ws.res[stages.R_N1])
+    n1 = int(ws.res[layout.R_N1])
     T1, Q1, ax = ws.T1, ws.Q1, ws.ax
     buf = np.empty(1)
-    delta1 = stages._delta_wall(T1, Q1, n1, buf)
+    delta1 = stress_path._delta_wall(T1, Q1, n1, buf)
     D1 = model.yield_D(1.0, delta1, A, N, ax)
     assert 0 < D1 < 1e-10
-    C = stages._wall_increments(T1, Q1, n1)
+    C = stress_path._wall_increments(T1, Q1, n1)
 
     def both(s):
         xi = 1.0 - s
         k = dense.find_step(T1, n1, xi)
-        d_w, D_w, noise = stages._wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
+        d_w, D_w, noise = stress_path._wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
         dense.dense_eval_step(T1, Q1, k, xi, buf)
         d = xi * xi * buf[0]
         return d_w, D_w, d, model.yield_D(xi, d, A, N, ax), noise
@@ -156,7 +156,7 @@ def test_stage2_next_to_the_edge_is_cheap():
     for f in (1e-5, 1e-6, 5e-7):
         eta = math.sqrt(14.0) * (1 - f)
         assert ws.run(eta, 0.0, 2.0, 1e-10, 1e-14) == st.OK
-        assert ws.res[stages.R_N2] < 1000
+        assert ws.res[layout.R_N2] < 1000
 
 
 def test_series_plug_edge_root_converges_in_a_few_newton_steps():
@@ -175,23 +175,23 @@ def test_series_plug_edge_root_converges_in_a_few_newton_steps():
         ws = Workspace()
         assert ws.run(eta, A, N, 1e-8, 1e-12) == st.OK
         res, ax = ws.res, ws.ax
-        J0 = res[stages.R_J_AXIS]
-        consts = stages._plug_constants(res, ax)
+        J0 = res[layout.R_J_AXIS]
+        consts = plug_edge._plug_constants(res, ax)
         t2, log_F2, slope, fa0, slope2, quiet = consts[:6]
         assert quiet
         counts = []
         for eps_K in np.geomspace(1e-4, 10.0, 400):
             target = model.plug_target(J0, eps_K)
-            if not target > res[stages.R_J2]:
+            if not target > res[layout.R_J2]:
                 continue
-            fb = res[stages.R_LOGI2] - math.log(J0 - target)
+            fb = res[layout.R_LOGI2] - math.log(J0 - target)
             c = fb - log_F2
-            a = math.log(stages.XI_FLOOR)
-            t0 = stages._series_start(math.log(J0 - target), consts)
-            t, n = roots.newton_root_d2(stages._series_plug_level, (c, t2, slope, ax), a, t2,
-                                        c + fa0, fb, t0, -1e-16 * t0, stages.ROOT_MAX_ITER)
-            assert stages._series_plug_level(t, (c, t2, slope, ax))[0] == pytest.approx(0.0, abs=1e-14)
-            assert t == stages._series_plug_edge(target, res, ax, consts)
+            a = math.log(stage2.XI_FLOOR)
+            t0 = plug_edge._series_start(math.log(J0 - target), consts)
+            t, n = roots.newton_root_d2(plug_edge._series_plug_level, (c, t2, slope, ax), a, t2,
+                                        c + fa0, fb, t0, -1e-16 * t0, plug_edge.ROOT_MAX_ITER)
+            assert plug_edge._series_plug_level(t, (c, t2, slope, ax))[0] == pytest.approx(0.0, abs=1e-14)
+            assert t == plug_edge._series_plug_edge(target, res, ax, consts)
             counts.append(n)
         assert len(counts) > 300
         assert max(counts) <= 6 and np.mean(counts) < 2.2, (eta, np.bincount(counts))
@@ -250,15 +250,15 @@ def test_dop853_crosses_the_stretch_in_more_than_one_step(eta):
 # than the other (CPU time of both stages): (eta, A, N, rtol, the cheaper path). The first two
 # were picked wrong by the earlier rule STIFF_LAMBDA sqrt(1e-6/rtol) (12x and 2.9x).
 SWITCH_POINTS = [
-    (2.81e-3, 3.335, 2.398, 1e-8, stages.PATH_STIFF),  # slow manifold to the wall (N > 1)
-    (7.47e-3, 2.380, 0.327, 1e-8, stages.PATH_EXPLICIT),  # N < 1: fast turn to D = 0 after xi = N
-    (1e-3, 1 / 3, 1.3, 1e-8, stages.PATH_STIFF),
-    (1e-3, 1 / 3, 1.1, 1e-7, stages.PATH_STIFF),
-    (1e-2, 1 / 3, 1.0, 1e-9, stages.PATH_EXPLICIT),  # N = 1: the manifold ends at the wall
-    (1e-3, 1 / 3, 0.9, 1e-10, stages.PATH_EXPLICIT),
-    (1e-4, 1 / 3, 1.0, 1e-6, stages.PATH_STIFF),
-    (0.2524, -0.76, 0.942, 1e-7, stages.PATH_STIFF),  # next to the axis edge: stiff at the axis
-    (1e-3, 1 / 3, 1.0, 1e-4, stages.PATH_STIFF),  # Dormand-Prince's side of the switch
+    (2.81e-3, 3.335, 2.398, 1e-8, layout.PATH_STIFF),  # slow manifold to the wall (N > 1)
+    (7.47e-3, 2.380, 0.327, 1e-8, layout.PATH_EXPLICIT),  # N < 1: fast turn to D = 0 after xi = N
+    (1e-3, 1 / 3, 1.3, 1e-8, layout.PATH_STIFF),
+    (1e-3, 1 / 3, 1.1, 1e-7, layout.PATH_STIFF),
+    (1e-2, 1 / 3, 1.0, 1e-9, layout.PATH_EXPLICIT),  # N = 1: the manifold ends at the wall
+    (1e-3, 1 / 3, 0.9, 1e-10, layout.PATH_EXPLICIT),
+    (1e-4, 1 / 3, 1.0, 1e-6, layout.PATH_STIFF),
+    (0.2524, -0.76, 0.942, 1e-7, layout.PATH_STIFF),  # next to the axis edge: stiff at the axis
+    (1e-3, 1 / 3, 1.0, 1e-4, layout.PATH_STIFF),  # Dormand-Prince's side of the switch
 ]
 
 
@@ -270,15 +270,15 @@ def test_stiff_switch_picks_the_path_with_less_work(eta, A, N, rtol, cheaper):
     D falls to zero nearly tangentially it moves by the square root of the error in D)."""
     ws = Workspace()
     work, out = {}, {}
-    for method in (stages.METHOD_EXPLICIT, stages.METHOD_STIFF):
+    for method in (layout.METHOD_EXPLICIT, layout.METHOD_STIFF):
         code = ws.run(eta, A, N, rtol, 1e-12, method)
-        path = ws.res[stages.R_PATH]
+        path = ws.res[layout.R_PATH]
         work[path] = ws.stats1[rk45.STAT_FEV] + ws.stats2[rk45.STAT_FEV]
-        out[path] = (code, ws.res[stages.R_MU_WALL], ws.res[stages.R_J_AXIS],
-                     ws.res[stages.R_XI_STOP])
+        out[path] = (code, ws.res[layout.R_MU_WALL], ws.res[layout.R_J_AXIS],
+                     ws.res[layout.R_XI_STOP])
     ws.run(eta, A, N, rtol, 1e-12)
-    assert ws.res[stages.R_PATH] == cheaper
-    other = stages.PATH_STIFF if cheaper == stages.PATH_EXPLICIT else stages.PATH_EXPLICIT
+    assert ws.res[layout.R_PATH] == cheaper
+    other = layout.PATH_STIFF if cheaper == layout.PATH_EXPLICIT else layout.PATH_EXPLICIT
     assert work[cheaper] < work[other]
     (c1, m1, j1, x1), (c2, m2, j2, x2) = out.values()
     assert c1 == c2
@@ -292,9 +292,9 @@ def test_stiffness_diagnostic_on_the_dop853_path():
     stiff, at eta = 0.3 it is not; RODAS4P2 never flags."""
     ws = Workspace()
     for eta, stiff in ((1e-4, 1), (0.3, 0)):
-        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_EXPLICIT)
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, layout.METHOD_EXPLICIT)
         assert ws.stats1[rk45.STAT_STIFF] == stiff, eta
-        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, stages.METHOD_STIFF)
+        ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, layout.METHOD_STIFF)
         assert ws.stats1[rk45.STAT_STIFF] == 0 and ws.stats1[rk45.STAT_STIFF_STEPS] == 0
 
 
@@ -307,24 +307,24 @@ def _plug_edge_by_brentq(eps_K, res, ax, T2, Q2):
     from cosserat_channel.physics import model
     from cosserat_channel.integrate import panels
 
-    J0 = res[stages.R_J_AXIS]
+    J0 = res[layout.R_J_AXIS]
     target = model.plug_target(J0, eps_K)
     if target <= 0.0:
         return 0.0
-    if target > res[stages.R_J2]:
-        xi2 = res[stages.R_XI2]
+    if target > res[layout.R_J2]:
+        xi2 = res[layout.R_XI2]
         t2 = math.log(xi2)
         level = math.log(J0 - target)
 
         def f(t):
-            return (res[stages.R_LOGI2] + (ax[model.AX_BETA] + 1.0) * (t - t2)
+            return (res[layout.R_LOGI2] + (ax[model.AX_BETA] + 1.0) * (t - t2)
                     + math.log(model.series_F(math.exp(t), ax) / model.series_F(xi2, ax)) - level)
 
-        a = math.log(stages.XI_FLOOR)
+        a = math.log(stage2.XI_FLOOR)
         if f(a) > 0.0:
             return -math.expm1(a)
         return -math.expm1(brentq(f, a, t2, xtol=1e-300, rtol=4 * np.finfo(float).eps, maxiter=500))
-    n2 = int(res[stages.R_N2])
+    n2 = int(res[layout.R_N2])
     tops = Q2[:n2, panels.TOP, 1]
     p = int(np.searchsorted(tops, target)) - 1  # tops[p] < target <= tops[p + 1]
     top = Q2[p, panels.TOP, 1]
@@ -351,12 +351,12 @@ def test_plug_edge_agrees_with_brentq_on_the_panel_series(order):
     eps_K = np.concatenate([np.geomspace(1e-7, 30.0, m) for _ in triples])
     if order == "shuffled":
         eps_K = np.concatenate([rng.permutation(eps_K[i * m:(i + 1) * m]) for i in range(len(triples))])
-    res = np.empty((eta.size, stages.N_R))
+    res = np.empty((eta.size, layout.N_R))
     stats = np.zeros((eta.size, 2, rk45.N_STATS), np.int64)
     one_minus = np.empty(eps_K.size)
-    stages.solve_batch(eta, A, N, eps_K, np.arange(eta.size + 1) * m, 1e-8, 1e-12,
-                       stages.MAX_STEPS_STAGE1, stages.MAX_STEPS_STAGE2, res, stats, one_minus,
-                       np.empty(0), np.empty((1, stages.N_PROF, 0)), True, True)
+    batch.solve_batch(eta, A, N, eps_K, np.arange(eta.size + 1) * m, 1e-8, 1e-12,
+                       stage1.MAX_STEPS_STAGE1, stage2.MAX_STEPS_STAGE2, res, stats, one_minus,
+                       np.empty(0), np.empty((1, layout.N_PROF, 0)), True, True)
     ws = Workspace()
     worst = 0.0
     checked = {"panels": 0, "series": 0}
@@ -365,7 +365,7 @@ def test_plug_edge_agrees_with_brentq_on_the_panel_series(order):
             continue
         for j in range(i * m, (i + 1) * m):
             got = one_minus[j]
-            assert got == stages.one_minus_xi_p(eps_K[j], ws.res, ws.ax, ws.T2, ws.Q2)
+            assert got == plug_edge.one_minus_xi_p(eps_K[j], ws.res, ws.ax, ws.T2, ws.Q2)
             ref = _plug_edge_by_brentq(eps_K[j], ws.res, ws.ax, ws.T2, ws.Q2)
             if ref == 0.0:
                 assert got == 0.0
@@ -379,7 +379,7 @@ def test_plug_edge_agrees_with_brentq_on_the_panel_series(order):
 def model_target_below(res, eps_K):
     from cosserat_channel.physics import model
 
-    return model.plug_target(res[stages.R_J_AXIS], eps_K) > res[stages.R_J2]
+    return model.plug_target(res[layout.R_J_AXIS], eps_K) > res[layout.R_J2]
 
 
 def test_plug_edge_where_the_series_is_noisy():
@@ -390,12 +390,12 @@ def test_plug_edge_where_the_series_is_noisy():
 
     ws = Workspace()
     assert ws.run(0.05696071736871604, 1 / 3, 1.0, 1e-8, 1e-12) == st.OK
-    assert not stages._plug_constants(ws.res, ws.ax)[5]
+    assert not plug_edge._plug_constants(ws.res, ws.ax)[5]
     n = 0
     for eps_K in np.geomspace(1e-4, 30.0, 300):
-        if not model.plug_target(ws.res[stages.R_J_AXIS], eps_K) > ws.res[stages.R_J2]:
+        if not model.plug_target(ws.res[layout.R_J_AXIS], eps_K) > ws.res[layout.R_J2]:
             continue
-        got = stages.one_minus_xi_p(eps_K, ws.res, ws.ax, ws.T2, ws.Q2)
+        got = plug_edge.one_minus_xi_p(eps_K, ws.res, ws.ax, ws.T2, ws.Q2)
         ref = _plug_edge_by_brentq(eps_K, ws.res, ws.ax, ws.T2, ws.Q2)
         assert abs(got - ref) <= 2e-11 * ref, eps_K
         n += 1

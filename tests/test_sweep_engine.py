@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from cosserat_channel import outputs
-from cosserat_channel.solver import point as solve, stages
+from cosserat_channel.solver import batch, point as solve
 from cosserat_channel import status as st
 from cosserat_channel.sweep import run_sweep
 from cosserat_channel.sweep.plan import Plan, block_plan
@@ -174,7 +174,7 @@ def test_output_path_from_spec(tmp_path):
 
 def test_kernel_exception_costs_one_triple(monkeypatch):
     """A kernel that raises on one triple loses that triple only, as integration_failed."""
-    real = stages.solve_batch
+    real = batch.solve_batch
     bad_eta = 0.5
 
     def flaky(eta, *args):
@@ -182,7 +182,7 @@ def test_kernel_exception_costs_one_triple(monkeypatch):
             raise ZeroDivisionError("division by zero")
         return real(eta, *args)
 
-    monkeypatch.setattr(stages, "solve_batch", flaky)
+    monkeypatch.setattr(batch, "solve_batch", flaky)
     grid = {"eps": [0.05], "L": [5.0, 10.0, 20.0], "K": [0.5, 1.0], "A": [1 / 3], "N": [1.0]}
     ds = run_sweep(sweep(grid), workers=1, block_size=3)
     status = ds.status.sel(eps=0.05, A=1 / 3, N=1.0).values

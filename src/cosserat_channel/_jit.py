@@ -4,7 +4,7 @@
 non-finite trial step, instead of a branch and a Python exception around every division.
 ``JIT_INLINE`` adds Numba-IR inlining: kernels that receive ``fun``/``jac``/``event`` stay
 cacheable that way (see :mod:`.rk45`), and small helpers that pass arrays avoid the
-reference-count updates of a call (see :mod:`.stages`). An inlined kernel is compiled with the
+reference-count updates of a call (see :mod:`cosserat_channel.solver.stress_path`). An inlined kernel is compiled with the
 error model of the caller it is inlined into.
 """
 

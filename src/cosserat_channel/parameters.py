@@ -150,9 +150,9 @@ MATERIAL_REQUIRED = ("d_p", "rho_p", "phi")
 # layer, ~(eps L)^(2/3) wide, and the jump to D = 0 after xi = N when N < 1, ~eps L wide) come
 # within a few thousand round-offs of xi, the march gives up or, further down, returns a plug
 # edge that double precision cannot place (eps L = 1e-50 gave Delta = 8e7 where the Airy
-# asymptote says 5e16), and at eps L ~ 1e-320 the kernels divide by an underflowed zero. Measured
-# with the stages.py change of issue 13 on 5000 random points (eta log-uniform in [1e-12, 1e-5],
-# rtol in [1e-13, 1e-3]): no integration_failed; between 1e-16 and 1e-12, 135 of 2000 failed.
+# asymptote says 5e16), and at eps L ~ 1e-320 the kernels divide by an underflowed zero. On 5000
+# random points with eta log-uniform in [1e-12, 1e-5] and rtol in [1e-13, 1e-3] none fails
+# (integration_failed); between 1e-16 and 1e-12, 135 of 2000 do.
 ETA_MIN = 1e-12
 # ... and the largest: far above it eta^2 overflows in the axis series (eps L ~ 1e150 and up gave
 # integration_failed and ZeroDivisionError); 9,000 random points in [1e2, 1e15] solved cleanly.

@@ -50,7 +50,7 @@ from .physics import analytic
 from .integrate import dense
 from .physics import model
 from .integrate import rk45
-from .solver import stages
+from .solver import layout, stage1, stress_path
 from .integrate import stepping
 from .physics.analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
 from . import status as st
@@ -314,18 +314,18 @@ def phase_plane(eps, L, A, N, *, n_xi=301, n_m=401, m_range=None) -> PhasePlane:
 # ---------------------------------------------------------------------------------------------
 @njit(**_JIT)
 def _wall_D_kernel(etas, A, N, rtol, atol, ax, T1, Q1, stats1, res, status, D1, delta1):
-    # Stage 1 exactly as the status solve runs it (stages.solve_stage1: same start, re-marches
+    # Stage 1 exactly as the status solve runs it (stage1.solve_stage1: same start, re-marches
     # and floor tolerance), then D(1) from the dense output's wall value, also where stage 1
     # reached the wall but called D(1) zero within its resolution (status eps_too_large_path with
     # xi_stop = 1). NaN where the path met D = 0 before the wall or stage 1 failed.
     buf = np.empty(1)
     for i in range(etas.size):
-        code, _ = stages.solve_stage1(etas[i], A, N, rtol, atol, ax, T1, Q1, stats1, res,
-                                      stages.METHOD_AUTO)
+        code, _ = stage1.solve_stage1(etas[i], A, N, rtol, atol, ax, T1, Q1, stats1, res,
+                                      layout.METHOD_AUTO)
         status[i] = code
-        n1 = int(res[stages.R_N1])
-        if n1 > 0 and (code == st.OK or res[stages.R_XI_STOP] == 1.0):
-            delta1[i] = stages._delta_wall(T1, Q1, n1, buf)
+        n1 = int(res[layout.R_N1])
+        if n1 > 0 and (code == st.OK or res[layout.R_XI_STOP] == 1.0):
+            delta1[i] = stress_path._delta_wall(T1, Q1, n1, buf)
             D1[i] = model.yield_D(1.0, delta1[i], A, N, ax)
         else:
             delta1[i] = math.nan
@@ -346,7 +346,7 @@ def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
         The point of the ``(A, N)`` plane (``A > -1``).
     rtol, atol : float
         Tolerances handed to stage 1, which tightens them near the edge (down to
-        ``stages.STAGE1_RTOL_FLOOR``), as in a status solve.
+        ``stage1.STAGE1_RTOL_FLOOR``), as in a status solve.
 
     Returns
     -------
@@ -408,7 +408,7 @@ def _delta_D_rhs(xi, y, args, out):
 @njit(**_JIT)
 def _smooth_wall_D_kernel(eta, A, N, rtol, ax, T, Qw, Q, stats):
     args = (eta, A, N, ax)
-    xi1, w1 = stages.stage1_start(ax, rtol)
+    xi1, w1 = stage1.stage1_start(ax, rtol)
     if xi1 < SMOOTH_XI_SWITCH:
         y1 = np.empty(1)
         y1[0] = w1
@@ -440,7 +440,7 @@ _SMOOTH_WORK = threading.local()  # work arrays per thread (the atlas traces in 
 def smooth_wall_D(eta, A, N, rtol=SMOOTH_RTOL):
     """``D(1)`` of the stage-1 path, marched so that it is a smooth function of ``eta``.
 
-    From the axis series (``stages.stage1_start``) the path is marched in ``w = delta/xi^2`` to
+    From the axis series (``stage1.stage1_start``) the path is marched in ``w = delta/xi^2`` to
     ``xi = SMOOTH_XI_SWITCH``, then in ``(delta, D)`` with ``D`` a state of its own
     (:func:`_delta_D_rhs`), to the wall, both by ``rk45.dopri5`` at ``rtol``. Stage 1 reads
     ``D(1)`` off ``delta(1)``, a difference of O(1) terms with a noise of ~1e-13 (its step
@@ -611,7 +611,7 @@ def probe_edge(workspace, t_ok, side, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
     ur = u3 if agree and abs(u3) <= 0.5 * u[0] else 0.0
     exponent = math.log(D1[-1] / D1[0]) / math.log((u[-1] - ur) / (u[0] - ur))
     sens = 4.0 * (A + 1.0) * np.abs(N - delta1) * np.abs(delta1)
-    noise = D_NOISE * stages.STAGE1_RTOL_FLOOR * float(np.max(sens))
+    noise = D_NOISE * stage1.STAGE1_RTOL_FLOOR * float(np.max(sens))
     dist0 = (u[0] - ur) * eps[-1]
     band = dist0 * (noise / D1[0]) ** (1.0 / exponent) if exponent > 0.0 else dist0
     to_eta = lambda v: t_ok * (1.0 + side * eps[-1] * v)  # noqa: E731

@@ -24,7 +24,7 @@ like ``r^(DEGREE+1)`` as panels shrink: order 9 with 9 evaluations per panel, ag
 piecewise-polynomial input): the caller cuts them there.
 
 The tables are computed once, at import, from :mod:`numpy.polynomial.chebyshev`; the kernels
-take plain arrays and floats (no physics here; :mod:`.stages` supplies ``f`` and ``g``).
+take plain arrays and floats (no physics here; :mod:`cosserat_channel.solver.stage2` supplies ``f`` and ``g``).
 """
 
 from __future__ import annotations

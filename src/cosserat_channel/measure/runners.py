@@ -1,10 +1,10 @@
 """The solvers of the work-precision report, each timed over a set of points at one rtol.
 
-- ours: :func:`stages.solve_batch` (both stages) and :func:`stages.stage1_batch` (stage 1), the
+- ours: :func:`batch.solve_batch` (both stages) and :func:`batch.stage1_batch` (stage 1), the
   whole set in one kernel call, on one thread, warmed up, best of ``repeat`` calls;
 - scipy ``solve_ivp`` (RK45, DOP853, LSODA, Radau): stage 1 alone, point by point in a Python
   loop, in the formulation of ``benchmarks/bench_point.py``'s ``scipy_stage1`` (state
-  ``w = delta / xi^2`` from the axis series of :func:`stages.ivp_start`, the ``D = 0``
+  ``w = delta / xi^2`` from the axis series of :func:`stage1.ivp_start`, the ``D = 0``
   event); Radau and LSODA get the exact Jacobian. One pass (a loop over many points averages
   the noise). A point that needs more than ``max_nfev`` right-hand-side evaluations is abandoned
   (explicit methods need O(1/eta) steps on the stiff points) and counted as failed; the time
@@ -29,7 +29,7 @@ import numpy as np
 
 from ..physics import model
 from ..integrate import rk45
-from ..solver import stages
+from ..solver import batch, layout, stage1, stage2
 from .. import status as st
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
@@ -57,22 +57,22 @@ def ours_both(eps, L, K, A, N, rtol, atol=ATOL, repeat=5):
     N = np.ascontiguousarray(N, dtype=float)
     eps_K = np.ascontiguousarray(eps * K)
     offsets = np.arange(n + 1)
-    res = np.empty((n, stages.N_R))
+    res = np.empty((n, layout.N_R))
     stats = np.zeros((n, 2, rk45.N_STATS), np.int64)
     one_minus = np.empty(n)
     no_xi = np.empty(0)
-    no_prof = np.empty((n, stages.N_PROF, 0))
+    no_prof = np.empty((n, layout.N_PROF, 0))
 
     def call():
-        stages.solve_batch(eta, A, N, eps_K, offsets, rtol, atol, stages.MAX_STEPS_STAGE1,
-                          stages.MAX_STEPS_STAGE2, res, stats, one_minus, no_xi, no_prof)
+        batch.solve_batch(eta, A, N, eps_K, offsets, rtol, atol, stage1.MAX_STEPS_STAGE1,
+                          stage2.MAX_STEPS_STAGE2, res, stats, one_minus, no_xi, no_prof)
 
     seconds = _best_of(call, repeat)
-    ok = res[:, stages.R_STATUS] == st.OK
-    J = res[:, stages.R_J_AXIS]
+    ok = res[:, layout.R_STATUS] == st.OK
+    J = res[:, layout.R_J_AXIS]
     out = {
         "Delta": np.where(ok, one_minus / eps, np.nan),
-        "m_wall": np.where(ok, L * res[:, stages.R_MU_WALL], np.nan),
+        "m_wall": np.where(ok, L * res[:, layout.R_MU_WALL], np.nan),
         "slip": np.where(ok, eps_K / (eps_K + J), np.nan),
     }
     return seconds / n, out
@@ -88,7 +88,7 @@ def ours_stage1(eps, L, A, N, rtol, atol=ATOL, repeat=5):
     stats = np.zeros((n, rk45.N_STATS), np.int64)
 
     def call():
-        stages.stage1_batch(eta, A, N, rtol, atol, stages.METHOD_AUTO, stages.MAX_STEPS_STAGE1, mu,
+        batch.stage1_batch(eta, A, N, rtol, atol, layout.METHOD_AUTO, stage1.MAX_STEPS_STAGE1, mu,
                            stats)
 
     seconds = _best_of(call, repeat)
@@ -118,7 +118,7 @@ def scipy_stage1(eps, L, A, N, method, rtol, atol=ATOL, max_nfev=60_000):
         return math.nan
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
-    xi1, w0 = stages.ivp_start(ax)
+    xi1, w0 = stage1.ivp_start(ax)
     calls = [0]
 
     def f1(xi, w):
@@ -198,7 +198,7 @@ def _numbalsoda_kernels(nbs):
 
     axis_constants = model.axis_constants
     classify = model.classify
-    stage1_start = stages.ivp_start
+    stage1_start = stage1.ivp_start
     OK = st.OK
 
     @njit

@@ -154,7 +154,7 @@ def stage2_series(eta, A, N, ax):
         log omega_hat(xi) = const + beta ln(xi) + G(x),            G = sum_k p_k x^k / (2k),
         int_0^xi h omega_hat dxi' = c xi^(beta+1) F(x),           F = sum_k H_k x^k / (beta+1+2k),
 
-    with ``H = h exp(G)`` and ``c`` fixed by omega_hat at one point (``stages._series_log_I``).
+    with ``H = h exp(G)`` and ``c`` fixed by omega_hat at one point (``stage2._series_log_I``).
     Each series costs one Cauchy product; ``exp(G)`` follows from ``x E' = x G' E``. Needs
     :func:`axis_series` and :func:`series_reach` (``AX_NW``); sets ``AX_N2``.
     """

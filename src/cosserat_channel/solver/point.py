@@ -1,7 +1,7 @@
 """One point from Python: :func:`solve_point` and its :class:`PointResult`.
 
-The kernels live in :mod:`.stages`, the outputs' definitions in :mod:`.outputs`, the parameters'
-ranges in :mod:`.parameters`; this module checks the input, runs the kernels for one point and
+The kernels live in :mod:`.batch` and the stage modules beside it, the outputs' definitions in
+:mod:`cosserat_channel.outputs`, the parameters' ranges in :mod:`cosserat_channel.parameters`; this module checks the input, runs the kernels for one point and
 hands the raw values to :func:`outputs.derive`, the same function a sweep's Dataset is built with.
 """
 
@@ -12,12 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..integrate import dense
 from .. import outputs as out_
-from ..integrate import panels
-from ..integrate import rk45
-from . import stages
 from .. import status as st
+from ..integrate import dense, panels, rk45
+from ..physics import model
+from . import batch, layout, plug_edge, stage1, stage2
 from ..parameters import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
@@ -115,24 +114,24 @@ class PointResult:
 
 
 class Workspace:
-    """Preallocated work arrays for :func:`stages.solve_eta` (reuse one across many points)."""
+    """Preallocated work arrays for :func:`batch.solve_eta` (reuse one across many points)."""
 
-    def __init__(self, max_steps_stage1=stages.MAX_STEPS_STAGE1, max_steps_stage2=stages.MAX_STEPS_STAGE2):
-        self.ax = np.empty(stages.N_AX)
+    def __init__(self, max_steps_stage1=stage1.MAX_STEPS_STAGE1, max_steps_stage2=stage2.MAX_STEPS_STAGE2):
+        self.ax = np.empty(model.N_AX)
         self.T1 = np.empty(max_steps_stage1 + 1)
         self.Q1 = np.empty((max_steps_stage1, dense.N_DENSE, 1))
         self.T2 = np.empty(max_steps_stage2 + 1)
         self.Q2 = np.empty((max_steps_stage2, panels.N_ROWS, 2))
         self.stats1 = np.zeros(rk45.N_STATS, dtype=np.int64)
         self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
-        self.res = np.empty(stages.N_R)
+        self.res = np.empty(layout.N_R)
 
-    def run(self, eta, A, N, rtol, atol, method=stages.METHOD_AUTO, stage2=True):
+    def run(self, eta, A, N, rtol, atol, method=layout.METHOD_AUTO, stage2=True):
         """Both stages for one ``(eta, A, N)``; returns the status code, fills ``self.res``.
 
-        ``stage2=False``: stage 2 only where it decides the status (:func:`stages.solve_eta`).
+        ``stage2=False``: stage 2 only where it decides the status (:func:`batch.solve_eta`).
         """
-        return stages.solve_eta(
+        return batch.solve_eta(
             eta, A, N, rtol, atol, self.ax, self.T1, self.Q1, self.T2, self.Q2,
             self.stats1, self.stats2, self.res, method, stage2,
         )
@@ -141,7 +140,7 @@ class Workspace:
         """The status code of ``(eta, A, N)`` by the cheapest solve that decides it as the full
         solve does: stage 1 to the wall with the same event and edge handling, and stage 2 only
         next to the path edge. For edge tracing, regime maps and the atlas."""
-        return self.run(eta, A, N, rtol, atol, stages.METHOD_AUTO, False)
+        return self.run(eta, A, N, rtol, atol, layout.METHOD_AUTO, False)
 
 
 def _check_profile(profile) -> np.ndarray:
@@ -220,18 +219,18 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     mat = check_material(material)
     xi_prof = None if profile is None else _check_profile(profile)
     names = _check_outputs(outputs, mat)
-    plug_edge = out_.needs_plug_edge(names)
+    wants_plug_edge = out_.needs_plug_edge(names)
     ws = workspace or Workspace()
     eta = eps * L
-    code = ws.run(eta, A, N, rtol, atol, stages.METHOD_AUTO,
+    code = ws.run(eta, A, N, rtol, atol, layout.METHOD_AUTO,
                   xi_prof is not None or out_.needs_stage2(names))
     res = ws.res
     one_minus = math.nan
-    if code == st.OK and plug_edge:
-        one_minus = float(stages.one_minus_xi_p(eps * K, res, ws.ax, ws.T2, ws.Q2))
+    if code == st.OK and wants_plug_edge:
+        one_minus = float(plug_edge.one_minus_xi_p(eps * K, res, ws.ax, ws.T2, ws.Q2))
     inputs = out_.Inputs(
-        code, eps, L, K, N, J_axis=res[stages.R_J_AXIS], mu_wall=res[stages.R_MU_WALL],
-        sigma_yx_wall=res[stages.R_SIGMA_YX_WALL], xi_stop=res[stages.R_XI_STOP],
+        code, eps, L, K, N, J_axis=res[layout.R_J_AXIS], mu_wall=res[layout.R_MU_WALL],
+        sigma_yx_wall=res[layout.R_SIGMA_YX_WALL], xi_stop=res[layout.R_XI_STOP],
         one_minus=one_minus, material=mat,
     )
     values = {k: float(v) for k, v in out_.derive(names, inputs).items()}
@@ -249,7 +248,7 @@ def _counters(ws: Workspace) -> dict:
         "stage1_rejected": int(s1[rk45.STAT_REJECTED]),
         "stage1_fev": int(s1[rk45.STAT_FEV]),
         "stage1_stiff": bool(s1[rk45.STAT_STIFF]),
-        "stage1_path": stages.PATH_NAMES.get(float(ws.res[stages.R_PATH]), "none"),
+        "stage1_path": layout.PATH_NAMES.get(float(ws.res[layout.R_PATH]), "none"),
         "stage2_accepted": int(s2[rk45.STAT_ACCEPTED]),
         "stage2_rejected": int(s2[rk45.STAT_REJECTED]),
         "stage2_fev": int(s2[rk45.STAT_FEV]),
@@ -259,14 +258,14 @@ def _counters(ws: Workspace) -> dict:
 def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
     eta = eps * L
     eps_K = eps * K
-    prof = np.empty((stages.N_PROF, xi.size))
-    stages.profile_kernel(xi, eta, A, N, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, prof)
-    J_axis = ws.res[stages.R_J_AXIS]
+    prof = np.empty((layout.N_PROF, xi.size))
+    batch.profile_kernel(xi, eta, A, N, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, prof)
+    J_axis = ws.res[layout.R_J_AXIS]
     return {
         "xi": xi.copy(),
-        "u_over_u0": (eps_K + prof[stages.P_J]) / (eps_K + J_axis),
-        "omega_hat": prof[stages.P_OMEGA_HAT],
-        "m": L * (prof[stages.P_DELTA] - N),
+        "u_over_u0": (eps_K + prof[layout.P_J]) / (eps_K + J_axis),
+        "omega_hat": prof[layout.P_OMEGA_HAT],
+        "m": L * (prof[layout.P_DELTA] - N),
         "sigma_xy": -xi,
-        "sigma_yx": prof[stages.P_SIGMA_YX],
+        "sigma_yx": prof[layout.P_SIGMA_YX],
     }

@@ -15,7 +15,7 @@ import xarray as xr
 
 from .. import __version__
 from .. import outputs as out_
-from ..solver import stages
+from ..solver import layout
 from .. import status as st
 from ..parameters import DIMS, PARAMETERS
 
@@ -64,15 +64,15 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
     # Per-triple values enter without their K axis (to_grid's spread=False): an output that needs
     # no eps K (m_wall, the stresses, ...) is computed once per (eps, L, A, N), and derive's final
     # broadcast spreads it. Elementwise either way: the same bits.
-    status = grid.to_grid(res[:, stages.R_STATUS].astype(np.int8), spread=False)
+    status = grid.to_grid(res[:, layout.R_STATUS].astype(np.int8), spread=False)
     inputs = out_.Inputs(
         status,
         grid.eps.reshape(-1, 1, 1, 1, 1), grid.L.reshape(1, -1, 1, 1, 1),
         grid.K.reshape(1, 1, -1, 1, 1), grid.N.reshape(1, 1, 1, 1, -1),
-        J_axis=grid.to_grid(res[:, stages.R_J_AXIS], spread=False),
-        mu_wall=grid.to_grid(res[:, stages.R_MU_WALL], spread=False),
-        sigma_yx_wall=grid.to_grid(res[:, stages.R_SIGMA_YX_WALL], spread=False),
-        xi_stop=grid.to_grid(res[:, stages.R_XI_STOP], spread=False),
+        J_axis=grid.to_grid(res[:, layout.R_J_AXIS], spread=False),
+        mu_wall=grid.to_grid(res[:, layout.R_MU_WALL], spread=False),
+        sigma_yx_wall=grid.to_grid(res[:, layout.R_SIGMA_YX_WALL], spread=False),
+        xi_stop=grid.to_grid(res[:, layout.R_XI_STOP], spread=False),
         one_minus=one_minus, material=spec.material,
     )
     status = np.broadcast_to(status, inputs.shape).copy()
@@ -112,13 +112,13 @@ def _profiles(grid, res, profiles) -> dict:
     eps_K = (grid.eps.reshape(-1, 1, 1, 1, 1) * grid.K.reshape(1, 1, -1, 1, 1))[..., None]
     L = grid.L.reshape(1, -1, 1, 1, 1, 1)
     N = grid.N.reshape(1, 1, 1, 1, -1, 1)
-    J = grid.to_grid(profiles[:, stages.P_J])
-    J_axis = grid.to_grid(res[:, stages.R_J_AXIS])[..., None]
+    J = grid.to_grid(profiles[:, layout.P_J])
+    J_axis = grid.to_grid(res[:, layout.R_J_AXIS])[..., None]
     out = {
         "u_over_u0": (eps_K + J) / (eps_K + J_axis),
-        "omega_hat": grid.to_grid(profiles[:, stages.P_OMEGA_HAT]),
-        "m": L * (grid.to_grid(profiles[:, stages.P_DELTA]) - N),
-        "sigma_yx": grid.to_grid(profiles[:, stages.P_SIGMA_YX]),
+        "omega_hat": grid.to_grid(profiles[:, layout.P_OMEGA_HAT]),
+        "m": L * (grid.to_grid(profiles[:, layout.P_DELTA]) - N),
+        "sigma_yx": grid.to_grid(profiles[:, layout.P_SIGMA_YX]),
     }
     return {k: (dims, v, dict(zip(("units", "long_name"), out_.PROFILES[k]))) for k, v in out.items()}
 

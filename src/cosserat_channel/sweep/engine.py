@@ -2,7 +2,7 @@
 
 :func:`run_sweep` is the whole pipeline; ``cosserat-channel run`` is a thin wrapper around it.
 
-Parallelism: each block is one :func:`stages.solve_batch` call, which holds no GIL, so dask's
+Parallelism: each block is one :func:`batch.solve_batch` call, which holds no GIL, so dask's
 threaded scheduler keeps every core busy without pickling anything; ``scheduler=ADDRESS`` sends
 the same blocks to a ``dask.distributed`` cluster instead, and the results come back to this
 process, which alone writes the store and the file (workers need no shared file system). Every
@@ -34,7 +34,7 @@ import numpy as np
 from .. import __version__
 from ..integrate import rk45
 from .. import outputs as out_
-from ..solver import stages
+from ..solver import batch, layout, stage1, stage2
 from .. import status as st
 from ..files import space_problem
 from .dataset import build_dataset
@@ -226,7 +226,7 @@ def disk_needed(spec: SweepSpec, plan: Plan, xi, output: str) -> int:
     plug_edge = out_.needs_plug_edge(spec.variables)
     per_point = 1 + sum(8 if v in out_.OUTPUTS else 4 for v in spec.variables)  # + status
     result = plan.size * (per_point + 4 * 8 * n_xi)
-    store = plan.n_triples * (8 * stages.N_R + 16 + 8 + 8 * stages.N_PROF * n_xi)
+    store = plan.n_triples * (8 * layout.N_R + 16 + 8 + 8 * layout.N_PROF * n_xi)
     if plug_edge:
         store += plan.size * (8 + BUCKET.itemsize)
     have = 0
@@ -257,18 +257,18 @@ def _profile_xi(spec):
 # ---------------------------------------------------------------------------------------------
 def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None, stage2=True,
                 plug_edge=True) -> dict:
-    """Run :func:`stages.solve_batch` on one block; returns the arrays the store keeps.
+    """Run :func:`batch.solve_batch` on one block; returns the arrays the store keeps.
 
     ``stage2`` / ``plug_edge``: whether the sweep's variables need the velocity stage and the
     eq:13 root (:func:`outputs.needs_stage2`); what is not needed is not computed.
     """
     need = (stage2, plug_edge)
     n = inp.eta.size
-    res = np.empty((n, stages.N_R))
+    res = np.empty((n, layout.N_R))
     stats = np.zeros((n, 2, rk45.N_STATS), dtype=np.int64)
     one_minus = np.empty(inp.eps_K.size)
     xi_k = np.empty(0) if xi is None else xi
-    prof = np.empty((n, stages.N_PROF, xi_k.size))
+    prof = np.empty((n, layout.N_PROF, xi_k.size))
     try:
         _batch(inp, slice(0, n), rtol, atol, xi_k, res, stats, one_minus, prof, need)
     except ArithmeticError:
@@ -283,7 +283,7 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None, stage2=True
                             "integration_failed", type(exc).__name__, float(inp.eta[i]),
                             float(inp.A[i]), float(inp.N[i]))
                 res[i] = np.nan
-                res[i, stages.R_STATUS] = st.INTEGRATION_FAILED
+                res[i, layout.R_STATUS] = st.INTEGRATION_FAILED
                 stats[i] = 0
                 one_minus[inp.offsets[i]:inp.offsets[i + 1]] = np.nan
                 prof[i] = np.nan
@@ -302,8 +302,8 @@ def _batch(inp: BlockInputs, sl: slice, rtol, atol, xi_k, res, stats, one_minus,
     """solve_batch on triples ``sl`` of the block (views: results land in the block's arrays)."""
     lo, hi = inp.offsets[sl.start], inp.offsets[sl.stop]
     offsets = inp.offsets[sl.start:sl.stop + 1] - lo
-    stages.solve_batch(inp.eta[sl], inp.A[sl], inp.N[sl], inp.eps_K[lo:hi], offsets, rtol, atol,
-                      stages.MAX_STEPS_STAGE1, stages.MAX_STEPS_STAGE2, res[sl], stats[sl],
+    batch.solve_batch(inp.eta[sl], inp.A[sl], inp.N[sl], inp.eps_K[lo:hi], offsets, rtol, atol,
+                      stage1.MAX_STEPS_STAGE1, stage2.MAX_STEPS_STAGE2, res[sl], stats[sl],
                       one_minus[lo:hi], xi_k, prof[sl], need[0], need[1])
 
 
@@ -467,8 +467,8 @@ def assemble(spec: SweepSpec, plan: Plan, store: WorkStore, xi=None, recompute=N
         store.publish(output, publish)
         return None
     n = plan.n_triples
-    per_triple = {"res": np.empty((n, stages.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
-    profiles = np.empty((n, stages.N_PROF, xi.size)) if xi is not None else None
+    per_triple = {"res": np.empty((n, layout.N_R)), "steps": np.empty((n, 2), dtype=np.int64)}
+    profiles = np.empty((n, layout.N_PROF, xi.size)) if xi is not None else None
     one_minus = np.empty(plan.size) if out_.needs_plug_edge(spec.variables) else None
     for k, triples in enumerate(plan.blocks):
         try:

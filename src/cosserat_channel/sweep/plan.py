@@ -3,7 +3,7 @@
 model.md's similarity: both stages depend on ``(eta = eps L, A, N)`` only, and ``eps``, ``K``
 enter afterwards. A grid over ``(eps, L, K, A, N)`` therefore needs one integration per distinct
 *triple* ``(eta, A, N)``; that triple's run of ``eps K`` values (one per grid point it serves)
-goes into :func:`stages.solve_batch`'s ``offsets``. Without the reduction every grid point is its
+goes into :func:`batch.solve_batch`'s ``offsets``. Without the reduction every grid point is its
 own triple with one ``eps K``. Both use the same ``eta = eps * L`` product, so the integrations,
 and with them every value, are bit-identical.
 
@@ -70,7 +70,7 @@ def _classify_many(eta, A, N, out):
 
 @dataclass(frozen=True, eq=False)
 class BlockInputs:
-    """Arguments of one :func:`stages.solve_batch` call and where its ``eps K`` entries land.
+    """Arguments of one :func:`batch.solve_batch` call and where its ``eps K`` entries land.
 
     ``flat[j]`` is the C-order grid index of entry ``j``; ``owner[j]`` the position (within the
     block) of the triple that entry belongs to.

@@ -38,7 +38,7 @@ import netCDF4
 import numpy as np
 
 from .. import outputs as out_
-from ..solver import stages
+from ..solver import layout
 from ..files import write_failure
 from ..parameters import DIMS
 from .dataset import chunk_shape, coordinates, global_attrs, grid_values, variable_encoding
@@ -221,9 +221,9 @@ class StreamWriter:
         n = plan.n_triples
         # Zeros, not empty: a tile's derivation casts the whole status column, rows of blocks
         # not yet finished included (they are never used, but garbage would warn on the cast).
-        self.per_triple = {"res": np.zeros((n, stages.N_R)),
+        self.per_triple = {"res": np.zeros((n, layout.N_R)),
                            "steps": np.empty((n, 2), dtype=np.int64)}
-        self.profiles = None if xi is None else np.empty((n, stages.N_PROF, xi.size))
+        self.profiles = None if xi is None else np.empty((n, layout.N_PROF, xi.size))
         self.need_one_minus = out_.needs_plug_edge(spec.variables)
         self._left = np.bincount(plan.block_group, minlength=len(plan.groups))
         order = np.argsort(plan.block_group, kind="stable")

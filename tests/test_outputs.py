@@ -78,6 +78,8 @@ def test_derive_masks_values_of_points_without_solution():
 
 def test_reading_results_does_not_import_numba():
     """Parsing sweeps and querying results stay numba-free (a fresh interpreter proves it)."""
-    code = ("import cosserat_channel.results.query, cosserat_channel.sweep.spec, cosserat_channel.outputs, "
+    code = ("import cosserat_channel.results.selection, cosserat_channel.results.render, "
+            "cosserat_channel.results.describe, cosserat_channel.results.light, "
+            "cosserat_channel.sweep.spec, cosserat_channel.outputs, "
             "cosserat_channel.parameters, sys; assert 'numba' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)

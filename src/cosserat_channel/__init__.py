@@ -65,7 +65,7 @@ _API = {
     "Output": "outputs",
     "load_sweep": "sweep.spec",
     "run_sweep": "sweep.engine",
-    "open_results": "results.query",
+    "open_results": "results.selection",
     "trace_edge": "regimes",
     "trace_boundary": "regimes",
     "phase_plane": "regimes",

@@ -320,10 +320,10 @@ def check_not_input(path: str, inputs, option: str) -> None:
 
 def open_results(path: str):
     """The result file at ``path``, opened lazily; a CliError (one line) when it cannot be."""
-    from ..results import query
+    from ..results import selection
 
     try:
-        return query.open_results(path)
+        return selection.open_results(path)
     except ParameterError as exc:
         raise CliError(str(exc)) from None
 
@@ -335,14 +335,14 @@ def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | N
     ``RuntimeError: NetCDF: HDF error``), so the file is read through once more to tell them
     apart: a damaged result file says so, whatever the output.
     """
-    from ..results import query
+    from ..results import light, selection
     from ..files import WriteError
 
-    if isinstance(ds, query.LightFile):  # read through in chunks, with dask
+    if isinstance(ds, light.LightFile):  # read through in chunks, with dask
         with open_results(results) as chunked:
-            problem = query.read_problem(chunked)
+            problem = selection.read_problem(chunked)
     else:
-        problem = query.read_problem(ds)
+        problem = selection.read_problem(ds)
     if problem:
         return CliError(f"{results}: {problem}", EXIT_FAILURE)
     if isinstance(exc, WriteError):

@@ -240,7 +240,7 @@ def _resolve_at(ds, args, at: dict) -> dict:
     """``--at`` values replaced by the grid values they match (exactly, or with --nearest the
     nearest, noted on stderr); CliError naming the dimensions still to fix, with an example."""
     from ..parameters import DIMS as dims
-    from ..results.query import QueryError, match_coordinate
+    from ..results.selection import QueryError, match_coordinate
 
     out = {}
     for name, value in at.items():

@@ -135,7 +135,7 @@ def _finished_result_kept(output: str, spec) -> bool:
 
 
 # ---------------------------------------------------------------------------------------------
-# query, info (result files; the parsing and formatting live in query.py)
+# query, info (result files; the parsing, rendering and describing live in results/)
 # ---------------------------------------------------------------------------------------------
 _QUERY_FORMATS = ("table", "csv", "json", "netcdf")
 
@@ -168,17 +168,17 @@ def _query(args: argparse.Namespace) -> int:
     if args.output is not None:
         check_output_path(args.output, "-o")
         check_not_input(args.output, [args.results], "-o")
-    from ..results import query
+    from ..results import light, render, selection
 
     def select(ds):
         try:
-            sel = [query.parse_sel(t, ds) for t in args.sel]
-            ranges = [query.parse_range(t, ds) for t in args.range]
-            where = [query.parse_where(t, ds) for t in args.where]
-            variables = query.parse_vars(args.vars, ds)
+            sel = [selection.parse_sel(t, ds) for t in args.sel]
+            ranges = [selection.parse_range(t, ds) for t in args.range]
+            where = [selection.parse_where(t, ds) for t in args.where]
+            variables = selection.parse_vars(args.vars, ds)
             clauses = [f"--sel {t}" for t in args.sel] + [f"--range {t}" for t in args.range]
             clauses += [f"--where '{c.text}'" for c in where]
-            return query.select(ds, sel, ranges, where, variables, " ".join(clauses),
+            return selection.select(ds, sel, ranges, where, variables, " ".join(clauses),
                                 nearest=args.nearest)
         except ParameterError as exc:
             ds.close()
@@ -187,29 +187,29 @@ def _query(args: argparse.Namespace) -> int:
     # A slice or a curve of a result file is read with netCDF4 alone (importing xarray and dask
     # takes longer than such a query); a larger box, a NetCDF subset or a file that needs
     # xarray's decoding is read through xarray and dask, in chunks.
-    ds = query.open_light(args.results) if args.format != "netcdf" else None
-    selection = None if ds is None else select(ds)
-    if selection is None or math.prod(selection.ds.sizes.values()) > query.ROW_BLOCK:
+    ds = light.open_light(args.results) if args.format != "netcdf" else None
+    picked = None if ds is None else select(ds)
+    if picked is None or math.prod(picked.ds.sizes.values()) > selection.ROW_BLOCK:
         if ds is not None:
             ds.close()
         ds = open_results(args.results)
-        selection = select(ds)
+        picked = select(ds)
     try:
-        for name, asked, taken in selection.snapped:
+        for name, asked, taken in picked.snapped:
             _note(f"--nearest: --sel {name}={asked:.10g} is not a grid value; took the nearest, "
                   f"{name}={taken:.10g}")
         try:
-            if selection.count() == 0:  # reads the file: inside the read-failure handling
+            if picked.count() == 0:  # reads the file: inside the read-failure handling
                 _note("the selection is empty: no point matches")
             if args.format == "netcdf":
-                query.write_netcdf(selection, args.output)
+                render.write_netcdf(picked, args.output)
             elif args.output is not None:
-                writer = {"table": lambda f: f.write(query.format_table(selection)),
-                          "csv": lambda f: query.write_csv(selection, f),
-                          "json": lambda f: query.write_json(selection, f)}[args.format]
-                query.write_text(args.output, writer)
+                writer = {"table": lambda f: f.write(render.format_table(picked)),
+                          "csv": lambda f: render.write_csv(picked, f),
+                          "json": lambda f: render.write_json(picked, f)}[args.format]
+                render.write_text(args.output, writer)
             else:
-                sys.stdout.write(query.render(selection, args.format))
+                sys.stdout.write(render.render(picked, args.format))
         except (OSError, RuntimeError) as exc:
             raise _read_or_write_failure(exc, args.results, ds, args.output) from None
     finally:
@@ -224,11 +224,11 @@ def _info_arguments(p: argparse.ArgumentParser) -> None:
 @register("info", "describe a result file: dimensions, variables, status counts, provenance",
           _info_arguments)
 def _info(args: argparse.Namespace) -> int:
-    from ..results import query
+    from ..results import describe
     ds = open_results(args.results)
     try:
         try:
-            text = query.describe(ds, args.results)
+            text = describe.describe(ds, args.results)
         except (OSError, RuntimeError) as exc:
             raise _read_or_write_failure(exc, args.results, ds, None) from None
         sys.stdout.write(text)

@@ -12,11 +12,11 @@ Users: event location on a dense output (:func:`.dense.locate_event`).
 :func:`newton_root` is the same kind of bracketed search for a function whose derivative comes
 almost free with its value: Newton's step, replaced by bisection whenever it would leave the
 bracket or not halve it (``rtsafe`` of [NR07]). :func:`newton_root_d2` also takes the second
-derivative and stops as soon as the curvature predicts the step's error below the tolerance,
-which saves the evaluation that would only confirm convergence. It finds the plug edge of
-:mod:`cosserat_channel.solver.plug_edge`: on a stage-2 panel's Chebyshev series, from the inverse Hermite cubic through the
-panel's ends, and where stage 2 is closed form, from a quintic Hermite of the root over the
-levels eq:13 can ask for: 1-2 evaluations either way.
+derivative and stops as soon as the curvature predicts the step's error below the tolerance, which
+saves the evaluation that would only confirm convergence. It finds the plug edge of
+:mod:`cosserat_channel.solver.plug_edge`: on a stage-2 panel's Chebyshev series, from the inverse
+Hermite cubic through the panel's ends, and where stage 2 is closed form, from a quintic Hermite of
+the root over the levels eq:13 can ask for: 1-2 evaluations either way.
 
 The kernel receives ``f`` as an argument and is therefore ``inline="always"``: a jitted caller
 that passes a global ``@njit`` function then calls it directly and stays cacheable (see

@@ -1,8 +1,9 @@
 """Reading result files: selection, filtering and description of a sweep's NetCDF output.
 
 Layer: beside the solver, not above it: reading a result never imports numba or compiles a
-kernel. :mod:`.query` parses selections, reads through netCDF4 directly where it can and
-renders tables.
+kernel. :mod:`.selection` parses the clauses of a query and selects the points;
+:mod:`.render` writes them as a table, CSV, JSON or a NetCDF subset; :mod:`.describe` is what
+``info`` says of a file; :mod:`.light` reads a small query through netCDF4 alone.
 
 May import: numpy, xarray, netCDF4, dask, :mod:`cosserat_channel.files` and the vocabulary
 modules (parameters, status, outputs). Never the solver or the integrators.

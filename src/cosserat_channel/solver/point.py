@@ -1,8 +1,9 @@
 """One point from Python: :func:`solve_point` and its :class:`PointResult`.
 
 The kernels live in :mod:`.batch` and the stage modules beside it, the outputs' definitions in
-:mod:`cosserat_channel.outputs`, the parameters' ranges in :mod:`cosserat_channel.parameters`; this module checks the input, runs the kernels for one point and
-hands the raw values to :func:`outputs.derive`, the same function a sweep's Dataset is built with.
+:mod:`cosserat_channel.outputs`, the parameters' ranges in :mod:`cosserat_channel.parameters`; this
+module checks the input, runs the kernels for one point and hands the raw values to
+:func:`outputs.derive`, the same function a sweep's Dataset is built with.
 """
 
 from __future__ import annotations

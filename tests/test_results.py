@@ -12,7 +12,7 @@ import pytest
 import xarray as xr
 
 from cosserat_channel import cli
-from cosserat_channel.results import query
+from cosserat_channel.results import light, render, selection
 from cosserat_channel import status as st
 from cosserat_channel.outputs import OUTPUTS
 from cosserat_channel.parameters import ParameterError
@@ -98,11 +98,11 @@ def csv_rows(text):
 # ---------------------------------------------------------------------------------------------
 def test_open_results_is_lazy(results):
     """open_results gives a dask-backed Dataset with the flag attributes intact."""
-    ds = query.open_results(results)
+    ds = selection.open_results(results)
     try:
         assert ds["Delta"].chunks is not None
         assert ds["status"].dtype == np.int8
-        assert query.flag_names(ds["status"])["eps_too_large_path"] == st.EPS_TOO_LARGE_PATH
+        assert selection.flag_names(ds["status"])["eps_too_large_path"] == st.EPS_TOO_LARGE_PATH
     finally:
         ds.close()
 
@@ -116,7 +116,7 @@ def test_open_results_rejects(tmp_path):
     for path, fragment in [(tmp_path / "none.nc", "no such file"), (text, "cannot open"),
                            (foreign, "not a cosserat-channel result file")]:
         with pytest.raises(ParameterError, match=fragment) as info:
-            query.open_results(path)
+            selection.open_results(path)
         assert "\n" not in str(info.value)
 
 
@@ -146,11 +146,11 @@ def test_sel_matches_within_round_off(capsys, results):
 def test_match_coordinate_zero_on_a_linspace_through_zero():
     """A = 0 matches the ~1e-16 a linspace gives there; A = 0.01 between grid values does not."""
     grid = np.linspace(-3, 5, 161)
-    i, exact = query.match_coordinate(grid, 0.0, "A")
+    i, exact = selection.match_coordinate(grid, 0.0, "A")
     assert exact and abs(grid[i]) < 1e-12
-    with pytest.raises(query.QueryError, match="nearest grid values: 0, 0.05"):
-        query.match_coordinate(grid, 0.01, "A")
-    assert query.match_coordinate(grid, 0.01, "A", nearest=True) == (i, False)
+    with pytest.raises(selection.QueryError, match="nearest grid values: 0, 0.05"):
+        selection.match_coordinate(grid, 0.01, "A")
+    assert selection.match_coordinate(grid, 0.01, "A", nearest=True) == (i, False)
 
 
 def test_sel_nearest_opts_in_and_says_what_it_took(capsys, results):
@@ -241,7 +241,7 @@ def test_profile_variables_add_xi_rows(capsys, results):
 
 def test_table_is_capped(capsys, results, monkeypatch):
     """The table shows at most TABLE_ROWS rows and counts the rest."""
-    monkeypatch.setattr(query, "TABLE_ROWS", 5)
+    monkeypatch.setattr(render, "TABLE_ROWS", 5)
     code, out, _ = run(capsys, "query", results)
     lines = out.splitlines()
     assert code == 0 and len(lines) == 1 + 5 + 1
@@ -278,7 +278,7 @@ def test_netcdf_subset(capsys, results, tmp_path):
         assert "_FillValue" not in status.ncattrs()
         assert status.getncattr("flag_meanings") == st.cf_flag_attrs()["flag_meanings"]
         assert nc.getncattr("sweep_sha256") == "0" * 64
-    ds = query.open_results(target)
+    ds = selection.open_results(target)
     try:
         assert ds["status"].dims == DIMS
         assert dict(ds.sizes) == {"eps": 2, "L": 2, "K": 3, "A": 1, "N": 1}
@@ -418,7 +418,7 @@ def test_small_query_without_xarray_gives_the_same_answer(capsys, monkeypatch, r
     the same rows, values, flag names, notes and exit code."""
     from cosserat_channel.cli import _sweeps
 
-    assert query.open_light(results) is None  # no 'source': read through xarray
+    assert light.open_light(results) is None  # no 'source': read through xarray
     want = run(capsys, "query", results, *argv)
     monkeypatch.setattr(_sweeps, "open_results", lambda path: pytest.fail("read with xarray"))
     got = run(capsys, "query", run_results, *argv)
@@ -435,10 +435,10 @@ def test_large_boxes_and_netcdf_subsets_go_through_dask(capsys, monkeypatch, run
     monkeypatch.setattr(_sweeps, "open_results", lambda path: opened.append(path) or real(path))
     assert run(capsys, "query", run_results, "--sel", "L=10")[0] == 0
     assert opened == []
-    monkeypatch.setattr(query, "ROW_BLOCK", 10)
+    monkeypatch.setattr(selection, "ROW_BLOCK", 10)
     code, out, _ = run(capsys, "query", run_results, "--sel", "L=10", "--format", "csv")
     assert code == 0 and len(csv_rows(out)) == 18 and opened == [run_results]
-    monkeypatch.setattr(query, "ROW_BLOCK", 1_000_000)
+    monkeypatch.setattr(selection, "ROW_BLOCK", 1_000_000)
     sub = str(tmp_path / "s.nc")
     assert run(capsys, "query", run_results, "--sel", "L=10", "--format", "netcdf", "-o", sub)[0] == 0
     assert opened == [run_results, run_results]
@@ -469,9 +469,9 @@ def test_files_that_need_decoding_are_read_through_xarray(tmp_path):
         ds = base.copy()
         ds.attrs.update(attrs)
         ds.to_netcdf(path, encoding={"status": {"_FillValue": None}, **encoding})
-        assert query.open_light(path) is None, name
+        assert light.open_light(path) is None, name
     plain = tmp_path / "plain.nc"
     base.to_netcdf(plain, encoding={"status": {"_FillValue": None}})
-    light = query.open_light(plain)
-    assert light is not None
-    light.close()
+    lf = light.open_light(plain)
+    assert lf is not None
+    lf.close()

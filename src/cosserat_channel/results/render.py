@@ -1,0 +1,216 @@
+"""What a selection looks like to its reader: a table, CSV, JSON or a NetCDF subset.
+
+Every format reads the same rows of :class:`~cosserat_channel.results.selection.Selection` (in
+blocks of ``ROW_BLOCK`` points), so every output of a query holds exactly the same points.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..files import atomic_output, netcdf_output
+
+if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
+    import xarray as xr
+from .selection import ROW_BLOCK, Selection, _is_flag, flag_names
+
+TABLE_ROWS = 200
+
+# ---------------------------------------------------------------------------------------------
+# Rows
+# ---------------------------------------------------------------------------------------------
+def header(selection: Selection) -> list[str]:
+    return [*selection.row_dims, *selection.columns]
+
+
+def iter_rows(selection: Selection, limit: int | None = None):
+    """Yield rows (lists of Python values: floats, ints, flag names) in C order of ``row_dims``."""
+    if getattr(selection.ds, "light_box", False):
+        yield from selection.ds.rows(selection, limit)
+        return
+    import xarray as xr
+
+    mask = selection.mask()
+    shape = selection.shape
+    total = selection.count()
+    n = total if limit is None else min(limit, total)
+    if n == 0:
+        return
+    flat = np.flatnonzero(mask)[:n] if mask is not None else None
+    sub = selection.ds[list(selection.columns)]
+    if math.prod(shape) <= ROW_BLOCK:
+        sub = _load_box(selection, list(selection.columns))
+    flags = {v: {c: k for k, c in flag_names(sub[v]).items()}
+             for v in selection.columns if _is_flag(sub[v])}
+    for start in range(0, n, ROW_BLOCK):
+        stop = min(n, start + ROW_BLOCK)
+        block = flat[start:stop] if flat is not None else np.arange(start, stop)
+        idx = np.unravel_index(block, shape)
+        indexers = {d: xr.DataArray(i, dims="row") for d, i in zip(selection.row_dims, idx)}
+        pts = sub.isel(indexers).compute()
+        cols = [np.asarray(pts[d].values) for d in selection.row_dims]
+        for v in selection.columns:
+            values = pts[v].values
+            if v in flags:
+                values = np.array([flags[v].get(int(c), str(int(c))) for c in values], dtype=object)
+            cols.append(values)
+        for k in range(stop - start):
+            yield [_python(c[k]) for c in cols]
+
+
+def _load_box(selection: Selection, names: list[str]) -> xr.Dataset:
+    """The selected box of ``names``, in memory: read straight from the file when it is at hand.
+
+    For a box this small (a slice, a curve) dask's task graph costs more than the read itself
+    (~1 s against ~0.1 s for 10^4 points of a 10^8-point file); the file is read only where the
+    box lies either way.
+    """
+    import xarray as xr
+
+    source = selection.ds.encoding.get("source")
+    if source and os.path.isfile(source):
+        with xr.open_dataset(source) as f:
+            return f[names].isel(selection.index).load()
+    return selection.ds[names].compute()
+
+
+def _python(x):
+    if isinstance(x, (np.floating, float)):
+        return float(x)
+    if isinstance(x, (np.integer, int)):
+        return int(x)
+    return x
+
+
+def _text(x) -> str:
+    return f"{x:.10g}" if isinstance(x, float) else str(x)
+
+
+def format_table(selection: Selection, max_rows: int | None = None) -> str:
+    """Aligned columns, at most ``max_rows`` rows (default ``TABLE_ROWS``), then a count."""
+    max_rows = TABLE_ROWS if max_rows is None else max_rows
+    head = header(selection)
+    rows = [[_text(x) for x in r] for r in iter_rows(selection, limit=max_rows)]
+    widths = [max([len(h), *(len(r[i]) for r in rows)]) for i, h in enumerate(head)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(head, widths))]
+    lines += ["  ".join(x.rjust(w) for x, w in zip(r, widths)) for r in rows]
+    rest = selection.count() - len(rows)
+    if rest > 0:
+        lines.append(f"… {rest} more rows (use --format csv -o FILE)")
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(selection: Selection, f) -> None:
+    """CSV with a header row; floats in full precision (``repr``), NaN as ``nan``."""
+    w = csv.writer(f, lineterminator="\n")
+    w.writerow(header(selection))
+    for r in iter_rows(selection):
+        w.writerow([repr(x) if isinstance(x, float) else x for x in r])
+
+
+def write_json(selection: Selection, f) -> None:
+    """A JSON array of objects, one per row; NaN as null (strict JSON)."""
+    head = header(selection)
+    f.write("[")
+    first = True
+    for r in iter_rows(selection):
+        obj = {k: (None if isinstance(x, float) and not math.isfinite(x) else x)
+               for k, x in zip(head, r)}
+        f.write(("\n" if first else ",\n") + json.dumps(obj, allow_nan=False))
+        first = False
+    f.write("\n]\n" if not first else "]\n")
+
+
+# ---------------------------------------------------------------------------------------------
+# NetCDF subset
+# ---------------------------------------------------------------------------------------------
+def subset_dataset(selection: Selection) -> xr.Dataset:
+    """The selection as a result Dataset of the same layout (see the module docstring)."""
+    import xarray as xr
+
+    keep = list(selection.columns)
+    ds = selection.ds[keep]
+    mask = selection.mask()
+    if mask is not None:
+        # Smallest sub-grid holding every match.
+        index = {}
+        for k, d in enumerate(selection.row_dims):
+            other = tuple(j for j in range(mask.ndim) if j != k)
+            index[d] = np.flatnonzero(mask.any(axis=other))
+        ds = ds.isel(index)
+        mask = mask[np.ix_(*index.values())]
+        if not mask.all():
+            m = xr.DataArray(mask, dims=selection.row_dims)
+            for v in ds.data_vars:
+                if ds[v].dtype.kind == "f":
+                    extra = [d for d in m.dims if d not in ds[v].dims]
+                    mv = m.any(dim=extra) if extra else m
+                    ds[v] = ds[v].where(mv)
+            ds["selected"] = m.astype(np.int8).assign_attrs(
+                flag_values=np.array([0, 1], dtype=np.int8),
+                flag_meanings="no yes",
+                long_name="point matches the query's --where clauses",
+            )
+    ds.attrs = dict(selection.ds.attrs)
+    if selection.description:
+        ds.attrs["query"] = selection.description
+    return ds
+
+
+def _encoding(ds: xr.Dataset) -> dict:
+    enc = {}
+    for name, v in ds.variables.items():
+        if v.dtype.kind == "f":
+            e = {"_FillValue": np.nan} if name in ds.data_vars else {"_FillValue": None}
+        else:
+            e = {"_FillValue": None}  # status and counters: every value is a real code/count
+        if name in ds.data_vars and v.ndim > 0:
+            e.update(zlib=True, complevel=1)
+        if v.ndim > 0 and v.dtype.kind in "fiub":
+            e["fletcher32"] = True  # as sweep.dataset.encoding: damage fails to read
+        enc[name] = e
+    return enc
+
+
+def write_netcdf(selection: Selection, path: str) -> None:
+    """Write :func:`subset_dataset` atomically (temporary file + ``os.replace``)."""
+    ds = subset_dataset(selection)
+    for v in ds.variables.values():
+        v.encoding = {}
+    import dask
+
+    # One thread: with dask's threaded scheduler a failed read (a damaged chunk) raises while
+    # other threads still write, and xarray's file manager reopens the temporary file after
+    # atomic_output has removed it, leaving it behind.
+    with dask.config.set(scheduler="synchronous"):
+        netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
+
+
+def write_text(path: str, writer) -> None:
+    """Run ``writer(file)`` into a temporary file next to ``path``, then rename it over ``path``."""
+
+    def run(tmp):
+        with open(tmp, "w", encoding="utf-8", newline="") as f:
+            writer(f)
+
+    atomic_output(path, run)
+
+
+
+
+def render(selection: Selection, fmt: str) -> str:
+    """table/csv/json as one string (for stdout)."""
+    if fmt == "table":
+        return format_table(selection)
+    buf = io.StringIO()
+    (write_csv if fmt == "csv" else write_json)(selection, buf)
+    return buf.getvalue()
+
+

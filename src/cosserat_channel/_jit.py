@@ -6,7 +6,11 @@ non-finite trial step, instead of a branch and a Python exception around every d
 cacheable that way (see :mod:`.rk45`), and small helpers that pass arrays avoid the
 reference-count updates of a call (see :mod:`.stages`). An inlined kernel is compiled with the
 error model of the caller it is inlined into.
+``cache`` is off only where no directory keyed on the sources is writable (see
+:func:`cosserat_channel._numba_cache_enabled`).
 """
 
-JIT = dict(nogil=True, cache=True, error_model="numpy")
+from . import _numba_cache_enabled
+
+JIT = dict(nogil=True, cache=_numba_cache_enabled(), error_model="numpy")
 JIT_INLINE = dict(JIT, inline="always")

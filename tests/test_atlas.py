@@ -155,7 +155,11 @@ def test_file_round_trip_and_reading_without_numba(atlas, atlas_file, tmp_path):
 
 @pytest.mark.parametrize("kwargs, match", [
     (dict(tol=1e-9), "tol"), (dict(degree=3), "degree"), (dict(max_depth=9), "max_depth"),
-    (dict(A_range=(1, 0)), "A range"), (dict(N_range=(0, 1)), "N range"),
+    (dict(A_range=(1, 0)), "A range"), (dict(N_range=(1, 0.5)), "N range"),
+    # The ranges of parameters.py, as for a point: beyond them the kernels overflow.
+    (dict(N_range=(0, 1)), r"N = 0\S* is outside the allowed range \(0, 1e\+06\]"),
+    (dict(A_range=(0, 5000)), r"A = 5000\S* is outside the allowed range \[-1000, 1000\]"),
+    (dict(N_range=(0.5, 1e300)), r"N = 1e\+300 is outside"),
     (dict(max_degree=4), "max_degree"), (dict(max_degree=128), "max_degree"),
 ])
 def test_build_rejects_bad_arguments(kwargs, match):

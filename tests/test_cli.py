@@ -136,6 +136,33 @@ def test_bad_input_is_one_line_exit_2(capsys, args, named):
     assert named in lines[0]
 
 
+@pytest.mark.parametrize("args, name", [
+    (["boundary", "--A", "5000", "--N", "1"], "A"),
+    (["boundary", "--A=-5000", "--N", "1"], "A"),
+    (["boundary", "--A", "0", "--N", "1e300"], "N"),
+    (["boundary", "--A", "0", "--N", "0"], "N"),
+    (["boundary", "--A", "0:5000:3", "--N", "1"], "A"),
+    (["phase-plane", "--eps", "0.03", "--L", "10", "--A", "5000", "--N", "1"], "A"),
+    (["phase-plane", "--eps", "0.03", "--L", "10", "--A", "0.3", "--N", "1e300"], "N"),
+    (["atlas", "--A", "0:5000"], "A"),
+    (["atlas", "--N", "0.5:1e300"], "N"),
+])
+def test_every_command_refuses_what_point_refuses(capsys, tmp_path, monkeypatch, args, name):
+    """boundary, phase-plane and atlas check A and N against the ranges of parameters.py, as
+    'point' does, before any solve and without writing anything."""
+    from cosserat_channel.parameters import PARAMETERS
+
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(args + ["-o", str(tmp_path / ("x.png" if args[0] == "phase-plane" else
+                                                   "x.nc"))])
+    out, err = capsys.readouterr()
+    assert (code, out) == (2, "")
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cosserat-channel: error: "), err
+    assert f"{name} = " in lines[0] and PARAMETERS[name].interval in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_help_returns_zero(capsys):
     """--help prints the subcommand's usage and returns 0 instead of raising SystemExit."""
     code = cli.main(["point", "--help"])

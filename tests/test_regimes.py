@@ -8,7 +8,7 @@ import pytest
 from cosserat_channel.physics import analytic, model
 from cosserat_channel import regimes
 from cosserat_channel import status as st
-from cosserat_channel.parameters import ParameterError
+from cosserat_channel.parameters import PARAMETERS, ParameterError
 from cosserat_channel.solver.point import Workspace, solve_point
 from cosserat_channel.sweep import run_sweep
 
@@ -125,12 +125,41 @@ def test_trace_boundary_dataset():
     assert ds["axis_edge_eta"].sel(A=0.0, N=1.0) == pytest.approx(2.0)
 
 
-def test_trace_rejects_bad_input():
-    """Bad A, N or range raise ParameterError."""
-    with pytest.raises(ParameterError):
-        regimes.trace_edge(0.0, -1.0)
-    with pytest.raises(ParameterError):
-        regimes.trace_edge(0.0, 1.0, eta_range=(1.0, 0.5))
+@pytest.mark.parametrize("call, named", [
+    (lambda: regimes.trace_edge(0.0, -1.0), "N"),
+    (lambda: regimes.trace_edge(5000.0, 1.0), "A"),
+    (lambda: regimes.trace_edge(-1e3 * (1 + 1e-15), 1.0), "A"),
+    (lambda: regimes.trace_edge(0.0, 1e300), "N"),
+    (lambda: regimes.trace_edge(math.nan, 1.0), "A"),
+    (lambda: regimes.trace_boundary([0.0, 5000.0], [1.0]), "A"),
+    (lambda: regimes.trace_boundary([0.0], [1.0, 1e300]), "N"),
+    (lambda: regimes.phase_plane(0.03, 10.0, 5000.0, 1.0), "A"),
+    (lambda: regimes.phase_plane(0.03, 10.0, 0.3, 1e300), "N"),
+])
+def test_entry_points_refuse_parameters_outside_their_range(call, named):
+    """Every entry point checks through parameters.py, before any solve: the message names the
+    parameter and the interval defined there."""
+    with pytest.raises(ParameterError) as info:
+        call()
+    message = str(info.value)
+    assert message.startswith(f"{named} = ") and PARAMETERS[named].interval in message
+
+
+@pytest.mark.parametrize("eta_range", [(1.0, 0.5), (1e-20, 1.0), (1.0, 1e300), (0.0, 1.0),
+                                       (math.nan, 1.0), ("a", 1.0)])
+def test_trace_refuses_an_eta_range_the_solver_does_not_resolve(eta_range):
+    with pytest.raises(ParameterError, match="eta_range"):
+        regimes.trace_edge(0.0, 1.0, eta_range=eta_range)
+    with pytest.raises(ParameterError, match="eta_range"):
+        regimes.trace_boundary([0.0], [1.0], eta_range=eta_range)
+
+
+def test_trace_accepts_the_ends_of_the_ranges():
+    """The ends of A's and N's intervals are inside (closed): they trace without overflow."""
+    for A, N in ((PARAMETERS["A"].lo, 1.0), (PARAMETERS["A"].hi, 1.0),
+                 (0.0, PARAMETERS["N"].hi)):
+        e = regimes.trace_edge(A, N, n_coarse=4)
+        assert e.kind in (regimes.EDGE_BOUNDED, regimes.EDGE_UNBOUNDED, regimes.EDGE_NONE)
 
 
 @pytest.fixture(scope="module")

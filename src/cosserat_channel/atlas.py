@@ -67,7 +67,7 @@ import numpy as np
 from .physics import analytic
 from . import regime_codes as rc
 from . import status as st
-from .parameters import ETA_MAX, ETA_MIN, ParameterError, check_values
+from .parameters import ETA_MAX, ETA_MIN, PARAMETERS, ParameterError, check_values
 
 UNDECIDED = -1  # classify's code for a point the atlas cannot decide: a solve decides it
 TOL_MIN = 1e-8  # how well the edge itself is known (regimes.EDGE_RTOL), relative in eta
@@ -352,7 +352,6 @@ class Atlas:
         import xarray as xr
 
         from . import __version__
-        from .parameters import PARAMETERS
 
         A = np.atleast_1d(np.asarray(A, dtype=float))
         N = np.atleast_1d(np.asarray(N, dtype=float))
@@ -619,12 +618,13 @@ class _Counting:
 def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
                           max_degree=MAX_DEGREE):
     """Validate :func:`build_atlas`'s arguments; ParameterError naming the one that is wrong."""
-    a0, a1 = (float(v) for v in A_range)
-    n0, n1 = (float(v) for v in N_range)
-    if not (math.isfinite(a0) and math.isfinite(a1) and -1e3 <= a0 < a1 <= 1e3):
-        raise ParameterError(f"A range must be a < b inside [-1000, 1000]; got {a0:g}:{a1:g}")
-    if not (math.isfinite(n0) and math.isfinite(n1) and 0.0 < n0 < n1 <= 1e6):
-        raise ParameterError(f"N range must be 0 < c < d <= 1e6; got {n0:g}:{n1:g}")
+    # Both ends inside a parameter's interval put the whole range inside it.
+    a0, a1 = (PARAMETERS["A"].check(v, "A") for v in A_range)
+    n0, n1 = (PARAMETERS["N"].check(v, "N") for v in N_range)
+    if not a0 < a1:
+        raise ParameterError(f"A range must be lo < hi; got {a0:g}:{a1:g}")
+    if not n0 < n1:
+        raise ParameterError(f"N range must be lo < hi; got {n0:g}:{n1:g}")
     if not TOL_MIN <= tol <= TOL_MAX:
         raise ParameterError(f"tol = {tol!r} is outside [{TOL_MIN:g}, {TOL_MAX:g}] (the edge "
                              "itself is known to ~1e-8 relative)")

@@ -30,6 +30,7 @@ __all__ = [
     "ETA_MAX",
     "check_point",
     "check_eta",
+    "check_eta_range",
     "check_values",
     "check_tolerances",
     "check_material",
@@ -195,6 +196,19 @@ def check_eta(eps, L, label: str = "eps L") -> float:
             f"{ETA_MAX:g}], the eps L the solver resolves"
         )
     return eta
+
+
+def check_eta_range(eta_range, label: str = "eta_range") -> tuple[float, float]:
+    """``(lo, hi)`` as floats, or :class:`ParameterError` unless ``lo < hi`` inside
+    ``[ETA_MIN, ETA_MAX]`` (a range of ``eps L`` searched for edges of solvability)."""
+    try:
+        lo, hi = (float(v) for v in eta_range)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{label} must be two numbers lo, hi; got {eta_range!r}") from None
+    if not ETA_MIN <= lo < hi <= ETA_MAX:
+        raise ParameterError(f"{label} = {lo:g}:{hi:g} must be lo < hi inside [{ETA_MIN:g}, "
+                             f"{ETA_MAX:g}], the eps L the solver resolves")
+    return lo, hi
 
 
 def check_values(name: str, values, label: str | None = None) -> np.ndarray:

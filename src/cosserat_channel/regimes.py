@@ -54,7 +54,13 @@ from .solver import layout, stage1, stress_path
 from .integrate import stepping
 from .physics.analytic import axis_edge_eta  # noqa: F401 (its home is analytic.py; callers import it here)
 from . import status as st
-from .parameters import PARAMETERS, ParameterError, check_point
+from .parameters import (
+    PARAMETERS,
+    ParameterError,
+    check_eta_range,
+    check_point,
+    check_values,
+)
 # The codes of the data this module produces live in regime_codes (the figures read them from
 # there without importing the solver); imported here under their old names, for callers.
 from .regime_codes import (  # noqa: F401
@@ -788,13 +794,9 @@ def trace_edge(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse=ETA
     close to the transition the statuses stop being reliable;
     :func:`cosserat_channel.atlas.classify` leaves points that close undecided.
     """
-    A = float(A)
-    N = float(N)
-    if not (math.isfinite(A) and math.isfinite(N) and N > 0.0):
-        raise ParameterError(f"A must be finite and N > 0; got A = {A!r}, N = {N!r}")
-    lo_e, hi_e = (float(v) for v in eta_range)
-    if not (0.0 < lo_e < hi_e < math.inf):
-        raise ParameterError(f"eta_range must be 0 < lo < hi < inf; got {eta_range!r}")
+    A = PARAMETERS["A"].check(A)
+    N = PARAMETERS["N"].check(N)
+    lo_e, hi_e = check_eta_range(eta_range)
     if n_coarse < 2:
         raise ParameterError(f"n_coarse must be >= 2; got {n_coarse!r}")
     ws = workspace or Workspace(max_steps_stage1=EDGE_MAX_STEPS)
@@ -905,6 +907,9 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
     N = np.atleast_1d(np.asarray(N, dtype=float))
     if A.ndim != 1 or N.ndim != 1 or A.size == 0 or N.size == 0:
         raise ParameterError("A and N must be non-empty 1-D sequences")
+    check_values("A", A)
+    check_values("N", N)
+    check_eta_range(eta_range)
     shape = (A.size, N.size)
     eta_max = np.full(shape, np.nan)
     eta_min = np.full(shape, np.nan)

@@ -82,12 +82,10 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
 @register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
           _boundary_arguments)
 def _boundary(args: argparse.Namespace) -> int:
-    from ..parameters import ETA_MAX, ETA_MIN
+    from ..parameters import check_eta_range, check_values
 
     A = parse_values(args.A, "--A")
     N = parse_values(args.N, "--N")
-    if any(n <= 0.0 for n in N):
-        raise CliError(f"--N: values must be > 0; got {args.N!r}")
     if len(A) * len(N) > MAX_BOUNDARY_PAIRS:
         raise CliError(f"--A, --N: {len(A) * len(N):,} (A, N) pairs is more than "
                        f"{MAX_BOUNDARY_PAIRS:,}; split the run")
@@ -95,11 +93,13 @@ def _boundary(args: argparse.Namespace) -> int:
         lo, hi = (float(v) for v in args.eta_range.split(":"))
     except ValueError:
         raise CliError(f"--eta-range: expected LO:HI; got {args.eta_range!r}") from None
-    if not (0.0 < lo < hi < math.inf):
-        raise CliError(f"--eta-range: need 0 < LO < HI < inf; got {args.eta_range!r}")
-    if lo < ETA_MIN or hi > ETA_MAX:
-        raise CliError(f"--eta-range: {args.eta_range!r} is not inside [{ETA_MIN:g}, "
-                       f"{ETA_MAX:g}], the eps L the solver resolves")
+    try:
+        # The ranges of parameters.py, as for 'point': outside them the kernels overflow.
+        check_values("A", A, "--A")
+        check_values("N", N, "--N")
+        check_eta_range((lo, hi), "--eta-range")
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
     if not 2 <= args.coarse <= MAX_COARSE:
         raise CliError(f"--coarse must be in [2, {MAX_COARSE}]; got {args.coarse}")
     check_output_path(args.output, "-o")

@@ -26,7 +26,7 @@ from .physics import closure
 from . import status as st
 
 __all__ = ["Output", "Inputs", "OUTPUTS", "COUNTERS", "PROFILES", "register", "registered",
-           "derive", "material_outputs", "needs_plug_edge", "needs_stage2"]
+           "derive", "derive_profiles", "material_outputs", "needs_plug_edge", "needs_stage2"]
 
 STAGE_NONE = 0  # needs no integration (material only)
 STAGE_STRESS = 1  # stage 1: stresses, axis -> wall
@@ -191,6 +191,21 @@ PROFILES = {
     "m": ("1", "couple-stress profile m(xi)/nu (rho_p g W d_p units)"),
     "sigma_yx": ("1", "shear-stress profile sigma_yx(xi)/nu (rho_p g W units)"),
 }
+
+
+def derive_profiles(J, omega_hat, delta, sigma_yx, J_axis, eps_K, L, N) -> dict:
+    """The profiles of :data:`PROFILES` from the kernel's rows, broadcast like :func:`derive`.
+
+    ``J``, ``omega_hat``, ``delta`` and ``sigma_yx`` are the kernel's profile rows over ``xi``
+    (``J = u/omega_w - eps K``, ``delta = (m/nu + N L)/L``); ``J_axis`` is ``J(0)``. One point and
+    a whole grid run the same operations, so they agree to the last bit.
+    """
+    return {
+        "u_over_u0": (eps_K + J) / (eps_K + J_axis),
+        "omega_hat": omega_hat,
+        "m": L * (delta - N),
+        "sigma_yx": sigma_yx,
+    }
 
 
 def register(output: Output) -> None:

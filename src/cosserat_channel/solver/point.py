@@ -261,12 +261,6 @@ def _profile(xi, eps, L, K, A, N, ws: Workspace) -> dict:
     eps_K = eps * K
     prof = np.empty((layout.N_PROF, xi.size))
     batch.profile_kernel(xi, eta, A, N, ws.ax, ws.res, ws.T1, ws.Q1, ws.T2, ws.Q2, prof)
-    J_axis = ws.res[layout.R_J_AXIS]
-    return {
-        "xi": xi.copy(),
-        "u_over_u0": (eps_K + prof[layout.P_J]) / (eps_K + J_axis),
-        "omega_hat": prof[layout.P_OMEGA_HAT],
-        "m": L * (prof[layout.P_DELTA] - N),
-        "sigma_xy": -xi,
-        "sigma_yx": prof[layout.P_SIGMA_YX],
-    }
+    derived = out_.derive_profiles(prof[layout.P_J], prof[layout.P_OMEGA_HAT], prof[layout.P_DELTA],
+                                   prof[layout.P_SIGMA_YX], ws.res[layout.R_J_AXIS], eps_K, L, N)
+    return {"xi": xi.copy(), **derived, "sigma_xy": -xi}

@@ -107,19 +107,16 @@ def coordinates(spec, xi=None) -> dict:
 
 
 def _profiles(grid, res, profiles) -> dict:
-    """Profiles on (eps, L, K, A, N, xi), as solve._profile computes them for one point."""
+    """Profiles on (eps, L, K, A, N, xi): :func:`outputs.derive_profiles` on the grid."""
     dims = DIMS + ("xi",)
     eps_K = (grid.eps.reshape(-1, 1, 1, 1, 1) * grid.K.reshape(1, 1, -1, 1, 1))[..., None]
     L = grid.L.reshape(1, -1, 1, 1, 1, 1)
     N = grid.N.reshape(1, 1, 1, 1, -1, 1)
-    J = grid.to_grid(profiles[:, layout.P_J])
-    J_axis = grid.to_grid(res[:, layout.R_J_AXIS])[..., None]
-    out = {
-        "u_over_u0": (eps_K + J) / (eps_K + J_axis),
-        "omega_hat": grid.to_grid(profiles[:, layout.P_OMEGA_HAT]),
-        "m": L * (grid.to_grid(profiles[:, layout.P_DELTA]) - N),
-        "sigma_yx": grid.to_grid(profiles[:, layout.P_SIGMA_YX]),
-    }
+    row = {name: grid.to_grid(profiles[:, slot]) for name, slot in
+           (("J", layout.P_J), ("omega_hat", layout.P_OMEGA_HAT), ("delta", layout.P_DELTA),
+            ("sigma_yx", layout.P_SIGMA_YX))}
+    out = out_.derive_profiles(**row, J_axis=grid.to_grid(res[:, layout.R_J_AXIS])[..., None],
+                               eps_K=eps_K, L=L, N=N)
     return {k: (dims, v, dict(zip(("units", "long_name"), out_.PROFILES[k]))) for k, v in out.items()}
 
 

@@ -21,8 +21,8 @@ from ..physics.model import AX_BETA, N_AX
 from .layout import (METHOD_AUTO, N_R, P_DELTA, P_J, P_OMEGA_HAT, P_SIGMA_YX, R_J_AXIS, R_LOGW2,
                      R_MU_WALL, R_N1, R_N2, R_STATUS, R_T_TAIL, R_XI1, R_XI2, R_XI_STOP)
 from .plug_edge import _one_minus_xi_p, _plug_constants
-from .stage1 import solve_stage1
-from .stage2 import _march_stage2, _series_I
+from .stage1 import solve_stage1, stage1_arrays
+from .stage2 import _march_stage2, _series_I, stage2_arrays
 from .stress_path import _delta_at, _stage1_work
 
 @njit(**_JIT)
@@ -60,15 +60,12 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     return code
 
 
-
-
 @njit(**_JIT)
 def stage1_batch(eta, A, N, rtol, atol, method, max_steps, mu_wall, stats):
     """Stage 1 alone for many triples (benchmarks), exactly as :func:`solve_eta` runs it:
     ``m(1)/(nu L)`` into ``mu_wall`` (NaN without a solution) and the counters into ``stats[i]``."""
     ax = np.empty(N_AX)
-    T1 = np.empty(max_steps + 1)
-    Q1 = np.empty((max_steps, dense.N_DENSE, 1))
+    T1, Q1 = stage1_arrays(max_steps)
     res = np.empty(N_R)
     for i in range(eta.size):
         solve_stage1(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, stats[i], res, method)
@@ -93,10 +90,8 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
     Profiles need both.
     """
     ax = np.empty(N_AX)
-    T1 = np.empty(max_steps_stage1 + 1)
-    Q1 = np.empty((max_steps_stage1, dense.N_DENSE, 1))
-    T2 = np.empty(max_steps_stage2 + 1)
-    Q2 = np.empty((max_steps_stage2, panels.N_ROWS, 2))
+    T1, Q1 = stage1_arrays(max_steps_stage1)
+    T2, Q2 = stage2_arrays(max_steps_stage2)
     for i in range(eta.size):
         code = solve_eta(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, T2, Q2, stats[i, 0],
                          stats[i, 1], res[i], METHOD_AUTO, stage2 or plug_edge or xi_profile.size > 0)
@@ -113,7 +108,6 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
                                profiles[i])
             else:
                 profiles[i, :, :] = math.nan
-
 
 
 @njit(**_JIT)

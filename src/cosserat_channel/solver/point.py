@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import outputs as out_
 from .. import status as st
-from ..integrate import dense, panels, rk45
+from ..integrate import rk45
 from ..physics import model
 from . import batch, layout, plug_edge, stage1, stage2
 from ..parameters import (
@@ -119,10 +119,8 @@ class Workspace:
 
     def __init__(self, max_steps_stage1=stage1.MAX_STEPS_STAGE1, max_steps_stage2=stage2.MAX_STEPS_STAGE2):
         self.ax = np.empty(model.N_AX)
-        self.T1 = np.empty(max_steps_stage1 + 1)
-        self.Q1 = np.empty((max_steps_stage1, dense.N_DENSE, 1))
-        self.T2 = np.empty(max_steps_stage2 + 1)
-        self.Q2 = np.empty((max_steps_stage2, panels.N_ROWS, 2))
+        self.T1, self.Q1 = stage1.stage1_arrays(max_steps_stage1)
+        self.T2, self.Q2 = stage2.stage2_arrays(max_steps_stage2)
         self.stats1 = np.zeros(rk45.N_STATS, dtype=np.int64)
         self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
         self.res = np.empty(layout.N_R)

@@ -15,7 +15,7 @@ from numba import njit
 
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .. import status as st
-from ..integrate import dop853, rk45, rosenbrock
+from ..integrate import dense, dop853, rk45, rosenbrock
 from ..physics import model
 from ..physics.model import AX_BETA, AX_C0
 from .layout import (METHOD_AUTO, METHOD_STIFF, PATH_EXPLICIT, PATH_NONE,
@@ -66,6 +66,12 @@ STIFF_LAMBDA_DOP853 = 4.0
 STIFF_N_MARGIN = 5e-3
 
 
+
+
+@njit(**_JIT)
+def stage1_arrays(max_steps):
+    """``(T1, Q1)``: room for stage 1's dense output of at most ``max_steps`` steps."""
+    return np.empty(max_steps + 1), np.empty((max_steps, dense.N_DENSE, 1))
 
 # ---------------------------------------------------------------------------------------------
 # Right-hand sides and events in the integrator's calling convention

@@ -42,6 +42,12 @@ XI_FLOOR = 1e-14
 
 
 @njit(**_JIT)
+def stage2_arrays(max_steps):
+    """``(T2, Q2)``: room for stage 2's panels, at most ``max_steps`` of them."""
+    return np.empty(max_steps + 1), np.empty((max_steps, panels.N_ROWS, 2))
+
+
+@njit(**_JIT)
 def _h_axis(A, ax):
     # h at the axis, where sqrt(D) -> c0 xi (A = -1: h = 2 everywhere).
     if A == -1.0:

@@ -7,6 +7,7 @@ import pytest
 from numba import njit
 from scipy.integrate._ivp.common import select_initial_step
 
+from cosserat_channel.integrate import stepping
 from cosserat_channel.integrate.stepping import all_finite, error_norm, initial_step, rms_norm
 
 
@@ -63,3 +64,14 @@ def test_initial_step_agrees_with_scipy(direction, rtol):
     ref = select_initial_step(fun, 0.0, y0, 3.0 * direction, 0.7, f0, direction, 4, rtol, atol)
     assert h == pytest.approx(ref, rel=1e-14)
     assert 0.0 < h <= 0.7
+
+
+def test_every_outcome_code_has_one_name_and_its_own_message():
+    """The five outcome codes are distinct, and each has a message that no other code shares."""
+    codes = [stepping.SUCCESS, stepping.EVENT, stepping.MAX_STEPS, stepping.STEP_TOO_SMALL,
+             stepping.NONFINITE]
+    assert len(set(codes)) == len(codes) == len(stepping.MESSAGES)
+    texts = [stepping.message(c) for c in codes]
+    assert all(texts) and len(set(texts)) == len(texts)
+    assert stepping.message(np.int64(stepping.EVENT)) == stepping.MESSAGES[stepping.EVENT]
+    assert stepping.message(7) == "unknown outcome code 7"

@@ -52,17 +52,12 @@ from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
 from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
-                       STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
-                       STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end, count_stiffness,
-                       error_norm, first_step, no_event, step_limit)
+                       STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS,
+                       all_finite, clip_to_end, count_stiffness, error_norm, first_step, no_event,
+                       step_limit)
 
-# The status codes, counter slots and no_event are part of dopri5's calling convention, so they
-# are re-exported here from their home, stepping.
-__all__ = [
-    "SUCCESS", "EVENT", "MAX_STEPS", "STEP_TOO_SMALL", "NONFINITE",
-    "STAT_ACCEPTED", "STAT_REJECTED", "STAT_FEV", "STAT_STIFF_STEPS", "STAT_STIFF", "N_STATS",
-    "no_event", "dopri5", "dopri5_step", "control", "integrate",
-]
+# The outcome codes, counter slots and no_event of dopri5's calling convention are stepping's.
+__all__ = ["dopri5", "dopri5_step", "control", "integrate"]
 
 # ---------------------------------------------------------------------------------------------
 # Dormand–Prince 5(4) tableau [DP80], as printed in [HNW93, Table II.5.2]; exact fractions.
@@ -265,8 +260,8 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     event : numba-compiled callable
         ``event(t, y, args) -> float``. The integration stops at the first zero along the
         solution after `t0` (sign change across an accepted step in either direction, or an
-        exact zero at a step end). An exact zero at `t0` is ignored. Use :func:`no_event` for
-        none.
+        exact zero at a step end). An exact zero at `t0` is ignored. Use
+        :func:`.stepping.no_event` for none.
     t0, t_end : float
         Start and end times; ``t_end < t0`` integrates backwards.
     y0 : ndarray of float64, shape (n,)

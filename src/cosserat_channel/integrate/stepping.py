@@ -1,6 +1,7 @@
 """What the adaptive integrators of the package share, in the role of scipy's
-``integrate/_ivp/common.py``: status codes, counter slots, the event function that never fires,
-weighted RMS norms, a finiteness test and Hairer's initial-step heuristic ``HINIT``.
+``integrate/_ivp/common.py``: outcome codes and their messages, counter slots, the event function
+that never fires, weighted RMS norms, a finiteness test and Hairer's initial-step heuristic
+``HINIT``.
 
 :mod:`.rk45` (explicit, any ``n``) and :mod:`.rosenbrock` (stiff, scalar) return the same status
 codes, fill the same counters and write the same dense output (:mod:`.dense`), so that
@@ -29,6 +30,8 @@ __all__ = [
     "MAX_STEPS",
     "STEP_TOO_SMALL",
     "NONFINITE",
+    "MESSAGES",
+    "message",
     "STAT_ACCEPTED",
     "STAT_REJECTED",
     "STAT_FEV",
@@ -50,12 +53,21 @@ __all__ = [
     "initial_step",
 ]
 
-# Status codes returned by the integrators.
+# Outcome codes, the first value every integrator returns; MESSAGES says what each means.
 SUCCESS = 0
 EVENT = 1
 MAX_STEPS = -1
 STEP_TOO_SMALL = -2
 NONFINITE = -3
+
+MESSAGES = {
+    SUCCESS: "reached the end of the interval",
+    EVENT: "stopped where the event function reached zero",
+    MAX_STEPS: "spent the budget of accepted steps before the end of the interval",
+    STEP_TOO_SMALL: "the step size fell below the resolution of t (10 machine epsilons of |t|)",
+    NONFINITE: "the right-hand side gave NaN or inf at the start, or on every trial step of a "
+               "shrinking run",
+}
 
 # Slots of the counter array ``stats`` (int64, length N_STATS).
 STAT_ACCEPTED = 0
@@ -74,6 +86,23 @@ NONSTIFF_RESET = 6
 EPS = 2.220446049250313e-16
 # Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
 NONFINITE_SHRINK = 0.25
+
+
+def message(code):
+    """What the outcome code `code` of an integrator means, in a phrase.
+
+    Parameters
+    ----------
+    code : int
+        A status returned by :func:`.rk45.dopri5`, :func:`.dop853.dop853` or
+        :func:`.rosenbrock.rodas4`.
+
+    Returns
+    -------
+    str
+        The phrase of :data:`MESSAGES`, or ``"unknown outcome code <code>"``.
+    """
+    return MESSAGES.get(int(code), f"unknown outcome code {code}")
 
 
 @njit(**_JIT)

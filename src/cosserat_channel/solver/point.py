@@ -15,7 +15,7 @@ import numpy as np
 from ..integrate import dense
 from .. import outputs as out_
 from ..integrate import panels
-from ..integrate import rk45
+from ..integrate import stepping
 from . import stages
 from .. import status as st
 from ..parameters import (
@@ -123,8 +123,8 @@ class Workspace:
         self.Q1 = np.empty((max_steps_stage1, dense.N_DENSE, 1))
         self.T2 = np.empty(max_steps_stage2 + 1)
         self.Q2 = np.empty((max_steps_stage2, panels.N_ROWS, 2))
-        self.stats1 = np.zeros(rk45.N_STATS, dtype=np.int64)
-        self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
+        self.stats1 = np.zeros(stepping.N_STATS, dtype=np.int64)
+        self.stats2 = np.zeros(stepping.N_STATS, dtype=np.int64)
         self.res = np.empty(stages.N_R)
 
     def run(self, eta, A, N, rtol, atol, method=stages.METHOD_AUTO, stage2=True):
@@ -245,14 +245,14 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
 def _counters(ws: Workspace) -> dict:
     s1, s2 = ws.stats1, ws.stats2
     return {
-        "stage1_accepted": int(s1[rk45.STAT_ACCEPTED]),
-        "stage1_rejected": int(s1[rk45.STAT_REJECTED]),
-        "stage1_fev": int(s1[rk45.STAT_FEV]),
-        "stage1_stiff": bool(s1[rk45.STAT_STIFF]),
+        "stage1_accepted": int(s1[stepping.STAT_ACCEPTED]),
+        "stage1_rejected": int(s1[stepping.STAT_REJECTED]),
+        "stage1_fev": int(s1[stepping.STAT_FEV]),
+        "stage1_stiff": bool(s1[stepping.STAT_STIFF]),
         "stage1_path": stages.PATH_NAMES.get(float(ws.res[stages.R_PATH]), "none"),
-        "stage2_accepted": int(s2[rk45.STAT_ACCEPTED]),
-        "stage2_rejected": int(s2[rk45.STAT_REJECTED]),
-        "stage2_fev": int(s2[rk45.STAT_FEV]),
+        "stage2_accepted": int(s2[stepping.STAT_ACCEPTED]),
+        "stage2_rejected": int(s2[stepping.STAT_REJECTED]),
+        "stage2_fev": int(s2[stepping.STAT_FEV]),
     }
 
 

@@ -22,7 +22,8 @@ from cosserat_channel.integrate.stepping import (
     SUCCESS,
     no_event,
 )
-from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
+from problems import (OSC_ARGS, const_one, gauss, gauss_exact, nan_after_t0, osc_exact, oscillator,
+                      stiff)
 
 
 # ---------------------------------------------------------------------------
@@ -36,17 +37,6 @@ def decay(t, y, args, out):
 @njit(cache=True)
 def blowup(t, y, args, out):
     out[0] = y[0] * y[0]
-
-
-@njit(cache=True)
-def stiff(t, y, args, out):
-    out[0] = -1000.0 * (y[0] - math.cos(t))
-
-
-@njit(cache=True)
-def nan_after_t0(t, y, args, out):
-    # Finite only at t = 0, so every trial step sees NaN.
-    out[0] = -y[0] if t == 0.0 else np.nan
 
 
 @njit(cache=True)

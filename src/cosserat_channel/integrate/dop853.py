@@ -37,9 +37,9 @@ from numba import njit
 
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .dense import event_after_step, hermite_rows
-from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
-                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end,
-                       count_stiffness, first_step, step_limit)
+from .stepping import (EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_FEV, STEP_TOO_SMALL,
+                       SUCCESS, all_finite, begin_run, clip_to_end, count_stiffness, count_trial,
+                       first_step, step_too_small)
 
 __all__ = ["dop853", "dop853_step", "ERROR_ORDER"]
 
@@ -256,7 +256,6 @@ STIFF_DY = np.ascontiguousarray(B - A[N_STAGES - 1, :N_STAGES])
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
-NONFINITE_MAX_TRIES = 20
 
 
 @njit(**_JIT_INLINE)
@@ -354,13 +353,9 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     for order 8; stiffness detection by :func:`.stepping.count_stiffness`). Evaluations:
     ``1 + [h0 <= 0] + 15 * accepted + 12 * rejected``.
     """
-    stats[:] = 0
-    T[0] = t0
-    if t_end == t0:
+    direction, span, hmax = begin_run(t0, t_end, h_max, T, stats)
+    if span == 0.0:
         return SUCCESS, 0, t0
-    direction = 1.0 if t_end > t0 else -1.0
-    span = abs(t_end - t0)
-    hmax = step_limit(h_max, span)
     y, y_new, ys, ytmp, K = _work_arrays(y0)
     fun(t0, y, args, K[0])
     stats[STAT_FEV] = 1
@@ -374,7 +369,7 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     while True:
         if nsteps >= Q.shape[0]:
             return MAX_STEPS, nsteps, t
-        if habs <= 10.0 * EPS * abs(t):
+        if step_too_small(habs, t):
             return STEP_TOO_SMALL, nsteps, t
         h, last = clip_to_end(t, habs, t_end, direction)
         dop853_step(fun, t, y, h, args, K, y_new, ys)
@@ -384,13 +379,11 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
             err = math.nan
         accept, habs = _control(err, abs(h), hmax, reject)
         reject = not accept
-        n_nonfinite = 0 if math.isfinite(err) else n_nonfinite + 1
+        n_nonfinite, give_up = count_trial(accept, err, n_nonfinite, stats)
+        if give_up:
+            return NONFINITE, nsteps, t
         if not accept:
-            stats[STAT_REJECTED] += 1
-            if n_nonfinite >= NONFINITE_MAX_TRIES:
-                return NONFINITE, nsteps, t
             continue
-        stats[STAT_ACCEPTED] += 1
         iasti, nonsti = count_stiffness(h, K, N_STAGES, STIFF_DY, STIFF_THRESHOLD, iasti,
                                            nonsti, stats)
         dense_coefficients(fun, t, y, y_new, h, args, K, ys, Q[nsteps])

@@ -51,10 +51,10 @@ from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
-from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
-                       STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS,
-                       all_finite, clip_to_end, count_stiffness, error_norm, first_step, no_event,
-                       step_limit)
+from .stepping import (EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK, STAT_FEV,
+                       STEP_TOO_SMALL, SUCCESS, all_finite, begin_run, clip_to_end,
+                       count_stiffness, count_trial, error_norm, first_step, no_event,
+                       step_too_small)
 
 # The outcome codes, counter slots and no_event of dopri5's calling convention are stepping's.
 __all__ = ["dopri5", "dopri5_step", "control", "integrate"]
@@ -115,9 +115,6 @@ MAX_FACTOR = 10.0
 BETA = 0.04
 ALPHA = 0.2 - 0.75 * BETA
 FACOLD_MIN = 1e-4
-
-# How many non-finite trial steps in a row we tolerate before giving up.
-NONFINITE_MAX_TRIES = 20
 
 # Stiffness detection [HNW93, IV.2]: h*rho beyond the real stability boundary of DOPRI5 (about
 # 3.3) means the step size is limited by stability (the run lengths STIFF_DECLARE and
@@ -299,13 +296,9 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     f(t0, y0), one for the HINIT probe, and six per trial step thanks to FSAL. Trial steps that
     produce non-finite values count as rejected.
     """
-    stats[:] = 0
-    T[0] = t0
-    if t_end == t0:
+    direction, span, hmax = begin_run(t0, t_end, h_max, T, stats)
+    if span == 0.0:
         return SUCCESS, 0, t0
-    direction = 1.0 if t_end > t0 else -1.0
-    span = abs(t_end - t0)
-    hmax = step_limit(h_max, span)
     y, y_new, y_err, ytmp, K = _work_arrays(y0)
     fun(t0, y, args, K[0])
     stats[STAT_FEV] = 1
@@ -320,7 +313,7 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     while True:
         if nsteps >= Q.shape[0]:
             return MAX_STEPS, nsteps, t
-        if habs <= 10.0 * EPS * abs(t):
+        if step_too_small(habs, t):
             return STEP_TOO_SMALL, nsteps, t
         h, last = clip_to_end(t, habs, t_end, direction)
         dopri5_step(fun, t, y, h, args, K[0], y_new, y_err, K)
@@ -330,13 +323,11 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
             err = math.nan
         accept, habs, facold = control(err, abs(h), hmax, facold, reject)
         reject = not accept
-        n_nonfinite = 0 if math.isfinite(err) else n_nonfinite + 1
+        n_nonfinite, give_up = count_trial(accept, err, n_nonfinite, stats)
+        if give_up:
+            return NONFINITE, nsteps, t
         if not accept:
-            stats[STAT_REJECTED] += 1
-            if n_nonfinite >= NONFINITE_MAX_TRIES:
-                return NONFINITE, nsteps, t
             continue
-        stats[STAT_ACCEPTED] += 1
         iasti, nonsti = count_stiffness(h, K, 6, STIFF_DY, STIFF_THRESHOLD, iasti, nonsti,
                                            stats)
         T[nsteps + 1] = t_end if last else t + h

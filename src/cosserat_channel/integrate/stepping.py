@@ -46,6 +46,11 @@ __all__ = [
     "clip_to_end",
     "first_step",
     "NONFINITE_SHRINK",
+    "NONFINITE_MAX_TRIES",
+    "begin_run",
+    "step_too_small",
+    "count_trial",
+    "initial_guess",
     "no_event",
     "rms_norm",
     "error_norm",
@@ -86,6 +91,9 @@ NONSTIFF_RESET = 6
 EPS = 2.220446049250313e-16
 # Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
 NONFINITE_SHRINK = 0.25
+# A run gives up (NONFINITE) at this many non-finite trial steps in a row: the last of them is
+# 0.25**19 ~ 4e-12 of the first, far below any step that could be taken on purpose.
+NONFINITE_MAX_TRIES = 20
 
 
 def message(code):
@@ -257,6 +265,54 @@ def all_finite(v):
 
 
 @njit(**_JIT_INLINE)
+def begin_run(t0, t_end, h_max, T, stats):
+    """What every driver does first: zero ``stats``, set ``T[0] = t0``, and return
+    ``(direction, span, hmax)``: the sign of ``t_end - t0``, ``|t_end - t0|`` and
+    :func:`step_limit`'s largest step magnitude (the caller returns at once when ``span == 0``)."""
+    stats[:] = 0
+    T[0] = t0
+    span = abs(t_end - t0)
+    return (1.0 if t_end > t0 else -1.0), span, step_limit(h_max, span)
+
+
+@njit(**_JIT_INLINE)
+def step_too_small(habs, t):
+    """Whether a step of magnitude `habs` from `t` is below the resolution of `t`: Hairer's test
+    ``0.1 |h| <= uround |t|`` [HNW93, II.4]; a run then stops with ``STEP_TOO_SMALL``."""
+    return habs <= 10.0 * EPS * abs(t)
+
+
+@njit(**_JIT_INLINE)
+def count_trial(accept, err, n_nonfinite, stats):
+    """Count a trial step in ``stats`` and keep the run of non-finite ones.
+
+    Parameters
+    ----------
+    accept : bool
+        The controller's verdict (never True for a non-finite `err`).
+    err : float
+        The trial step's error norm; NaN or inf when it produced non-finite values.
+    n_nonfinite : int
+        Non-finite trial steps in a row before this one.
+    stats : ndarray of int64, shape (N_STATS,)
+        Counters: ``STAT_ACCEPTED`` or ``STAT_REJECTED`` grows by one.
+
+    Returns
+    -------
+    n_nonfinite : int
+        Non-finite trial steps in a row, this one included.
+    give_up : bool
+        Whether they reached ``NONFINITE_MAX_TRIES``: the run returns ``NONFINITE``.
+    """
+    if accept:
+        stats[STAT_ACCEPTED] += 1
+        return 0, False
+    stats[STAT_REJECTED] += 1
+    n_nonfinite = 0 if math.isfinite(err) else n_nonfinite + 1
+    return n_nonfinite, n_nonfinite >= NONFINITE_MAX_TRIES
+
+
+@njit(**_JIT_INLINE)
 def step_limit(h_max, span):
     """The largest step magnitude of a run over ``span``: `h_max` when it lies in ``(0, span]``,
     else ``span`` (``h_max <= 0``, inf or NaN mean no limit but the interval)."""
@@ -288,11 +344,41 @@ def first_step(fun, t0, y0, f0, args, direction, rtol, atol, h0, h_max, span, or
     return initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, order, y1, f1)
 
 
+@njit(**_JIT)
+def initial_guess(y0, f0, atol, rtol):
+    """The first estimate of ``HINIT`` [HNW93, II.4]: ``0.01 ||y0|| / ||f0||`` in :func:`rms_norm`.
+
+    Parameters
+    ----------
+    y0, f0 : ndarray of float64, shape (n,)
+        Initial state and ``f(t0, y0)``.
+    atol : ndarray of float64, shape (n,)
+        Absolute tolerance.
+    rtol : float
+        Relative tolerance.
+
+    Returns
+    -------
+    h0 : float
+        The estimate; ``1e-6`` where either norm is below ``1e-5`` or NaN.
+    d1 : float
+        ``||f0||``.
+    """
+    d0 = rms_norm(y0, y0, atol, rtol)
+    d1 = rms_norm(f0, y0, atol, rtol)
+    # Written as `not (...)` so that NaN norms fall into the cautious branch.
+    if not (d0 >= 1e-5 and d1 >= 1e-5):
+        return 1e-6, d1
+    return 0.01 * d0 / d1, d1
+
+
 @njit(**_JIT_INLINE)
 def initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, order, y1, f1):
     """Hairer's ``HINIT`` [HNW93, II.4], in the form of scipy's ``select_initial_step``.
 
-    Costs one evaluation of `fun` (an explicit Euler probe).
+    From :func:`initial_guess`, an explicit Euler probe (one evaluation of `fun`) estimates the
+    second derivative, and the step is sized so that the local error of order `order` meets
+    the tolerance.
 
     Parameters
     ----------
@@ -323,13 +409,7 @@ def initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, orde
         The (positive) initial step size.
     """
     n = y0.shape[0]
-    d0 = rms_norm(y0, y0, atol, rtol)
-    d1 = rms_norm(f0, y0, atol, rtol)
-    # Written as `not (...)` so that NaN norms fall into the cautious branch.
-    if not (d0 >= 1e-5 and d1 >= 1e-5):
-        h0 = 1e-6
-    else:
-        h0 = 0.01 * d0 / d1
+    h0, d1 = initial_guess(y0, f0, atol, rtol)
     h0 = min(h0, span)
     for i in range(n):
         y1[i] = y0[i] + direction * h0 * f0[i]

@@ -6,10 +6,10 @@ output ``CONTD5``, initial step ``HINIT``, stiffness detection) into ``@njit`` k
 allocate their work arrays once per call, so that it can be called millions of times in
 parameter sweeps on small (n = 1 or 2) systems. It is split the way scipy splits a solver
 (``integrate/_ivp/rk.py`` + ``common.py``): the tableau as module constants, one step
-(:func:`dopri5_step`), the controller (:func:`control`) and a short driver (:func:`dopri5`)
-here; the error norm, ``HINIT``, the stiffness test, status codes and counters in
-:mod:`.stepping`; the dense output and event location in
-:mod:`.dense`.
+(:func:`dopri5_step`) and the controller (:func:`control`) here, which :func:`dopri5` hands to
+the driver loop it shares with DOP853 (:func:`.explicit.explicit_rk`); the error norm,
+``HINIT``, the stiffness test, outcome codes and counters in :mod:`.stepping`; the dense output
+and event location in :mod:`.dense`.
 
 All kernels are compiled with ``error_model="numpy"`` so that a division by zero yields inf/NaN
 (which the integrator then handles as a non-finite trial step) instead of raising a Python
@@ -17,8 +17,8 @@ exception from inside a kernel. An ``inline="always"`` kernel (below) is compile
 model of the jitted caller it is inlined into, so the divisions that can meet a zero scale for
 legitimate input (the error norms, the controller) are kept in kernels that are not inlined.
 
-The kernels that receive the right-hand side (``dopri5``, ``dopri5_step``, and the helpers in
-:mod:`.stepping`, :mod:`.dense` and :mod:`.roots` that receive ``fun`` or ``event``) are
+The kernels that receive the right-hand side (``dopri5``, ``dopri5_step``, the driver, and the
+helpers in :mod:`.stepping`, :mod:`.dense` and :mod:`.roots` that receive ``fun`` or ``event``) are
 additionally ``inline="always"`` (Numba-IR inlining into jitted callers). A jitted caller that
 passes a global ``@njit`` function into a non-inlined kernel has to materialise the dispatcher
 object's address in its machine code, which Numba refuses to cache ("uses dynamic globals").
@@ -50,11 +50,9 @@ import numpy as np
 from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
-from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
-from .stepping import (EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK, STAT_FEV,
-                       STEP_TOO_SMALL, SUCCESS, all_finite, begin_run, clip_to_end,
-                       count_stiffness, count_trial, error_norm, first_step, no_event,
-                       step_too_small)
+from .dense import N_DENSE, Solution, dense_coefficients
+from .explicit import explicit_rk
+from .stepping import N_STATS, NONFINITE_SHRINK, error_norm, no_event
 
 # The outcome codes, counter slots and no_event of dopri5's calling convention are stepping's.
 __all__ = ["dopri5", "dopri5_step", "control", "integrate"]
@@ -231,14 +229,17 @@ def control(err, h_abs, h_max, facold, reject):
     return True, h_next, max(err, FACOLD_MIN)
 
 
-@njit(**_JIT)
-def _work_arrays(y0):
-    # The integrator's state and scratch, allocated once per run: y (a copy of y0), y_new,
-    # y_err, ytmp and the stages K.
-    n = y0.shape[0]
-    y = np.empty(n)
-    y[:] = y0
-    return y, np.empty(n), np.empty(n), np.empty(n), np.empty((7, n))
+@njit(**_JIT_INLINE)
+def _trial(fun, t, y, h, args, K, y_new, y_err, atol, rtol):
+    # explicit_rk's trial step: the stages, y_new, and the error norm of the estimate y_err.
+    dopri5_step(fun, t, y, h, args, K[0], y_new, y_err, K)
+    return error_norm(y_err, y, y_new, atol, rtol)
+
+
+@njit(**_JIT_INLINE)
+def _dense(fun, t, y, y_new, h, args, K, y_err, q):
+    # explicit_rk's dense output: CONTD5 needs no further stage.
+    dense_coefficients(y, y_new, h, K, q)
 
 
 @njit(**_JIT_INLINE)
@@ -276,7 +277,8 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     T : ndarray of float64, shape (>= M + 1,)
         Output: ``T[0] = t0``, ``T[k+1]`` = end of accepted step `k`.
     Q : ndarray of float64, shape (M, N_DENSE, n)
-        Output: dense-output coefficients of each accepted step (:mod:`.dense`'s layout). ``M`` is the step budget.
+        Output: dense-output coefficients of each accepted step (:mod:`.dense`'s layout).
+        ``M`` is the step budget.
     stats : ndarray of int64, shape (N_STATS,)
         Output counters, see the ``STAT_*`` constants.
 
@@ -296,51 +298,9 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     f(t0, y0), one for the HINIT probe, and six per trial step thanks to FSAL. Trial steps that
     produce non-finite values count as rejected.
     """
-    direction, span, hmax = begin_run(t0, t_end, h_max, T, stats)
-    if span == 0.0:
-        return SUCCESS, 0, t0
-    y, y_new, y_err, ytmp, K = _work_arrays(y0)
-    fun(t0, y, args, K[0])
-    stats[STAT_FEV] = 1
-    if not (all_finite(K[0]) and all_finite(y)):
-        return NONFINITE, 0, t0
-    # ytmp and y_err are free here and serve as HINIT's scratch.
-    habs = first_step(fun, t0, y, K[0], args, direction, rtol, atol, h0, hmax, span, ERROR_ORDER,
-                      ytmp, y_err, stats)
-    g_old = event(t0, y, args)
-    t, facold, reject = t0, FACOLD_MIN, False
-    nsteps = n_nonfinite = iasti = nonsti = 0
-    while True:
-        if nsteps >= Q.shape[0]:
-            return MAX_STEPS, nsteps, t
-        if step_too_small(habs, t):
-            return STEP_TOO_SMALL, nsteps, t
-        h, last = clip_to_end(t, habs, t_end, direction)
-        dopri5_step(fun, t, y, h, args, K[0], y_new, y_err, K)
-        stats[STAT_FEV] += 6
-        err = error_norm(y_err, y, y_new, atol, rtol)
-        if not (all_finite(y_new) and all_finite(K[6])):
-            err = math.nan
-        accept, habs, facold = control(err, abs(h), hmax, facold, reject)
-        reject = not accept
-        n_nonfinite, give_up = count_trial(accept, err, n_nonfinite, stats)
-        if give_up:
-            return NONFINITE, nsteps, t
-        if not accept:
-            continue
-        iasti, nonsti = count_stiffness(h, K, 6, STIFF_DY, STIFF_THRESHOLD, iasti, nonsti,
-                                           stats)
-        T[nsteps + 1] = t_end if last else t + h
-        dense_coefficients(y, y_new, h, K, Q[nsteps])
-        nsteps += 1
-        fired, t_event, g_old = event_after_step(event, args, T, Q, nsteps, g_old, y_new, ytmp)
-        if fired:
-            return EVENT, nsteps, t_event
-        if last:
-            return SUCCESS, nsteps, t_end
-        y[:] = y_new
-        K[0, :] = K[6]
-        t = T[nsteps]
+    return explicit_rk(_trial, control, _dense, 7, 6, ERROR_ORDER, FACOLD_MIN, STIFF_DY,
+                       STIFF_THRESHOLD, fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T,
+                       Q, stats)
 
 
 def integrate(fun, t0, y0, t_end, args=(), rtol=1e-6, atol=1e-9, event=None,

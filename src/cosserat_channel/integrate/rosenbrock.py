@@ -302,7 +302,7 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
     stats[STAT_FEV] += 1
     h = min(h0, hmax) if h0 > 0.0 else initial_step(y0, ytmp, atol, rtol, hmax, span)
     g_prev = event(t, y0, args)
-    h_old, err_old, rejected = 0.0, 1.0, False
+    h_old, err_old, accept = 0.0, 1.0, True
     n_nonfinite = nsteps = 0
     while True:
         if nsteps >= Q.shape[0]:
@@ -322,8 +322,7 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
         err = error_norm(e, y, y_new, atol[0], rtol)
         if not math.isfinite(y_new):
             err = math.nan
-        accept, h, h_old, err_old = control(err, h, hmax, h_old, err_old, rejected)
-        rejected = not accept
+        accept, h, h_old, err_old = control(err, h, hmax, h_old, err_old, not accept)
         n_nonfinite, give_up = count_trial(accept, err, n_nonfinite, stats)
         if give_up:
             return NONFINITE, nsteps, t

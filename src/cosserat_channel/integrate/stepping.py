@@ -1,12 +1,15 @@
 """What the adaptive integrators of the package share, in the role of scipy's
 ``integrate/_ivp/common.py``: outcome codes and their messages, counter slots, the event function
-that never fires, weighted RMS norms, a finiteness test and Hairer's initial-step heuristic
-``HINIT``.
+that never fires, weighted RMS norms, a finiteness test, Hairer's initial-step heuristic
+``HINIT``, his stiffness test, and the driver policy: how a run starts (:func:`begin_run`), when
+a step is too small (:func:`step_too_small`), how trial steps are counted and when a run of
+non-finite ones ends it (:func:`count_trial`, ``NONFINITE_MAX_TRIES``).
 
-:mod:`.rk45` (explicit, any ``n``) and :mod:`.rosenbrock` (stiff, scalar) return the same status
-codes, fill the same counters and write the same dense output (:mod:`.dense`), so that
-:mod:`.solve` can run either one for stage 1. What differs between them (step-size controller,
-step clipping, initial step of RODAS) stays in their modules.
+The explicit pairs (:mod:`.rk45`, :mod:`.dop853`, any ``n``, one driver loop in
+:mod:`.explicit`) and RODAS (:mod:`.rosenbrock`, stiff, scalar) return the same outcome codes,
+fill the same counters and write the same dense output (:mod:`.dense`), so that the solver can
+run any of them for stage 1. What differs between them (step, error norm, step-size controller,
+step clipping, the initial step of RODAS) stays in their modules.
 
 Kernels that receive the right-hand side are ``inline="always"``; see :mod:`.rk45` for why, and
 for why the norms are not.

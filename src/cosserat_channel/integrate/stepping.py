@@ -197,27 +197,9 @@ def count_stiffness(h, K, k_new, dy_weights, threshold, iasti, nonsti, stats):
 
 @njit(**_JIT)
 def rms_norm(v, y, atol, rtol):
-    """``sqrt(mean((v_i / (atol_i + rtol*|y_i|))**2))``.
-
-    Scaled with ``|y|`` only: the initial-step heuristic has no ``y_new`` yet.
-
-    Parameters
-    ----------
-    v, y, atol : ndarray of float64, shape (n,)
-        Vector to measure, state for the relative scale, componentwise absolute tolerance.
-    rtol : float
-        Relative tolerance.
-
-    Returns
-    -------
-    float
-    """
-    n = v.shape[0]
-    s = 0.0
-    for i in range(n):
-        r = v[i] / (atol[i] + rtol * abs(y[i]))
-        s += r * r
-    return math.sqrt(s / n)
+    """``sqrt(mean((v_i / (atol_i + rtol*|y_i|))**2))``: :func:`error_norm` of `v` with the
+    scale of `y` alone (``y_new = y``), for ``HINIT``, which has no ``y_new`` yet."""
+    return error_norm(v, y, y, atol, rtol)
 
 
 @njit(**_JIT)

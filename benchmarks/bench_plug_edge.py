@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from cosserat_channel.integrate import rk45
+from cosserat_channel.integrate import stepping
 from cosserat_channel.solver import batch, layout, stage1, stage2
 
 CASES = ((1 / 3, 1 / 3, 1.0), (0.01, 1 / 3, 1.0), (3.0, 2.0, 2.0))
@@ -19,7 +19,7 @@ CASES = ((1 / 3, 1 / 3, 1.0), (0.01, 1 / 3, 1.0), (3.0, 2.0, 2.0))
 
 def run(eta, A, N, eps_K, plug_edge):
     res = np.empty((1, layout.N_R))
-    stats = np.zeros((1, 2, rk45.N_STATS), np.int64)
+    stats = np.zeros((1, 2, stepping.N_STATS), np.int64)
     one_minus = np.empty(eps_K.size)
     t0 = time.thread_time()
     batch.solve_batch(np.array([eta]), np.array([A]), np.array([N]), eps_K,

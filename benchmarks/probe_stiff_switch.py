@@ -35,7 +35,7 @@ import time
 import numpy as np
 from numba import njit
 
-from cosserat_channel.integrate import dense, panels, rk45
+from cosserat_channel.integrate import dense, panels, stepping
 from cosserat_channel.physics import model
 from cosserat_channel.solver import batch, layout, stage1, stage2
 from cosserat_channel import status as st
@@ -71,8 +71,8 @@ class Solver:
         self.Q1 = np.empty((stage1.MAX_STEPS_STAGE1, dense.N_DENSE, 1))
         self.T2 = np.empty(stage2.MAX_STEPS_STAGE2 + 1)
         self.Q2 = np.empty((stage2.MAX_STEPS_STAGE2, panels.N_ROWS, 2))
-        self.stats1 = np.zeros(rk45.N_STATS, np.int64)
-        self.stats2 = np.zeros(rk45.N_STATS, np.int64)
+        self.stats1 = np.zeros(stepping.N_STATS, np.int64)
+        self.stats2 = np.zeros(stepping.N_STATS, np.int64)
         self.res = np.empty(layout.N_R)
 
     def run(self, point, rtol, atol, method, both, reps=1):
@@ -144,9 +144,9 @@ def measure(eta, A, N):
             for k, method in enumerate(METHODS):
                 code = solver.run(point, rtol, ATOL, method, True)
                 out["status"][i, j, k] = code
-                out["fev"][i, j, k] = solver.stats1[rk45.STAT_FEV]
-                out["steps"][i, j, k] = (solver.stats1[rk45.STAT_ACCEPTED]
-                                         + solver.stats1[rk45.STAT_REJECTED])
+                out["fev"][i, j, k] = solver.stats1[stepping.STAT_FEV]
+                out["steps"][i, j, k] = (solver.stats1[stepping.STAT_ACCEPTED]
+                                         + solver.stats1[stepping.STAT_REJECTED])
                 out["mu"][i, j, k] = res[layout.R_MU_WALL]
                 out["J"][i, j, k] = res[layout.R_J_AXIS]
                 out["xi_stop"][i, j, k] = res[layout.R_XI_STOP]

@@ -3,6 +3,8 @@
 Module level so that Numba can cache the right-hand sides.
 """
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -24,6 +26,18 @@ def oscillator(t, y, args, out):
 @njit(cache=True)
 def const_one(t, y, args, out):
     out[0] = 1.0
+
+
+@njit(cache=True)
+def stiff(t, y, args, out):
+    # Jacobian -1000: |h lambda| = 1000 |h| exactly; quasi-steady solution cos t + 1e-3 sin t.
+    out[0] = -1000.0 * (y[0] - math.cos(t))
+
+
+@njit(cache=True)
+def nan_after_t0(t, y, args, out):
+    # Finite only at t = 0, so every trial step sees NaN.
+    out[0] = -y[0] if t == 0.0 else np.nan
 
 
 def gauss_exact(t, t0=0.0, y0=1.0):

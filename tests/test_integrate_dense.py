@@ -17,7 +17,8 @@ from cosserat_channel.integrate.dense import (
     find_step,
     locate_event,
 )
-from cosserat_channel.integrate.rk45 import N_STATS, SUCCESS, dopri5_step, integrate
+from cosserat_channel.integrate.rk45 import dopri5_step, integrate
+from cosserat_channel.integrate.stepping import N_STATS, SUCCESS
 from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
 
 

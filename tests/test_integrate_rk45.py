@@ -9,7 +9,8 @@ from numba import njit
 from scipy.integrate import solve_ivp
 
 from cosserat_channel.integrate import dense, rk45
-from cosserat_channel.integrate.rk45 import (
+from cosserat_channel.integrate.rk45 import control, dopri5, dopri5_step, integrate
+from cosserat_channel.integrate.stepping import (
     EVENT,
     MAX_STEPS,
     N_STATS,
@@ -19,13 +20,10 @@ from cosserat_channel.integrate.rk45 import (
     STAT_REJECTED,
     STEP_TOO_SMALL,
     SUCCESS,
-    control,
-    dopri5,
-    dopri5_step,
-    integrate,
     no_event,
 )
-from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
+from problems import (OSC_ARGS, const_one, gauss, gauss_exact, nan_after_t0, osc_exact, oscillator,
+                      stiff)
 
 
 # ---------------------------------------------------------------------------
@@ -39,17 +37,6 @@ def decay(t, y, args, out):
 @njit(cache=True)
 def blowup(t, y, args, out):
     out[0] = y[0] * y[0]
-
-
-@njit(cache=True)
-def stiff(t, y, args, out):
-    out[0] = -1000.0 * (y[0] - math.cos(t))
-
-
-@njit(cache=True)
-def nan_after_t0(t, y, args, out):
-    # Finite only at t = 0, so every trial step sees NaN.
-    out[0] = -y[0] if t == 0.0 else np.nan
 
 
 @njit(cache=True)
@@ -358,7 +345,7 @@ def test_fev_identity_given_h0():
 def test_max_steps_status():
     """A tiny step budget yields MAX_STEPS with the budget's worth of stored steps."""
     s = integrate(decay, 0.0, [1.0], 100.0, rtol=1e-10, max_steps=5)
-    assert s.status == MAX_STEPS
+    assert s.status == MAX_STEPS and "budget" in s.message
     assert s.nsteps == 5 and s.T.shape == (6,) and s.Q.shape == (5, dense.N_DENSE, 1)
     assert s.t_stop == s.T[-1] < 100.0
 

@@ -7,7 +7,8 @@ import pytest
 from numba import njit
 
 from cosserat_channel.integrate.dense import component_minus_level
-from cosserat_channel.integrate.rk45 import SUCCESS, integrate
+from cosserat_channel.integrate.rk45 import integrate
+from cosserat_channel.integrate.stepping import SUCCESS
 from cosserat_channel.integrate.roots import find_root, newton_root
 
 

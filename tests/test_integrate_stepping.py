@@ -7,7 +7,10 @@ import pytest
 from numba import njit
 from scipy.integrate._ivp.common import select_initial_step
 
-from cosserat_channel.integrate.stepping import all_finite, error_norm, initial_step, rms_norm
+from cosserat_channel.integrate import dense, dop853, rk45, rosenbrock, stepping
+from cosserat_channel.integrate.stepping import (all_finite, count_trial, error_norm, initial_guess,
+                                                 initial_step, rms_norm, step_too_small)
+from problems import nan_after_t0
 
 
 @njit(cache=True)
@@ -63,3 +66,83 @@ def test_initial_step_agrees_with_scipy(direction, rtol):
     ref = select_initial_step(fun, 0.0, y0, 3.0 * direction, 0.7, f0, direction, 4, rtol, atol)
     assert h == pytest.approx(ref, rel=1e-14)
     assert 0.0 < h <= 0.7
+
+
+def test_every_outcome_code_has_one_name_and_its_own_message():
+    """The five outcome codes are distinct, and each has a message that no other code shares."""
+    codes = [stepping.SUCCESS, stepping.EVENT, stepping.MAX_STEPS, stepping.STEP_TOO_SMALL,
+             stepping.NONFINITE]
+    assert len(set(codes)) == len(codes) == len(stepping.MESSAGES)
+    texts = [stepping.message(c) for c in codes]
+    assert all(texts) and len(set(texts)) == len(texts)
+    assert stepping.message(np.int64(stepping.EVENT)) == stepping.MESSAGES[stepping.EVENT]
+    assert stepping.message(7) == "unknown outcome code 7"
+
+
+@njit(cache=True)
+def _unit_jac(t, y, args):
+    return -1.0, 0.0
+
+
+@njit(cache=True)
+def _nan_runs(h0, T, Q, stats):
+    # The three drivers on a right-hand side that is NaN at every trial step.
+    y0 = np.ones(1)
+    atol = np.full(1, 1e-9)
+    a = rk45.dopri5(nan_after_t0, stepping.no_event, 0.0, y0, 1.0, (), 1e-6, atol, h0, 0.0, T, Q,
+                    stats[0])
+    b = dop853.dop853(nan_after_t0, stepping.no_event, 0.0, y0, 1.0, (), 1e-6, atol, h0, 0.0, T, Q,
+                      stats[1])
+    c = rosenbrock.rodas4(nan_after_t0, _unit_jac, stepping.no_event, 0.0, y0, 1.0, (), 1e-6, atol,
+                          h0, 0.0, T, Q, stats[2])
+    return a, b, c
+
+
+@pytest.mark.parametrize("h0", [0.0, 0.1])
+def test_every_driver_gives_up_after_the_same_run_of_nonfinite_trial_steps(h0):
+    """dopri5, dop853 and rodas4 stop with NONFINITE at the NONFINITE_MAX_TRIES-th non-finite
+    trial step in a row, having stored no step."""
+    T, Q = np.empty(11), np.empty((10, dense.N_DENSE, 1))
+    stats = np.zeros((3, stepping.N_STATS), np.int64)
+    for status, n, t_stop in _nan_runs(h0, T, Q, stats):
+        assert (status, n, t_stop) == (stepping.NONFINITE, 0, 0.0)
+    assert np.all(stats[:, stepping.STAT_REJECTED] == stepping.NONFINITE_MAX_TRIES)
+    assert np.all(stats[:, stepping.STAT_ACCEPTED] == 0)
+
+
+def test_count_trial_gives_up_only_on_a_run_of_nonfinite_steps():
+    """A finite rejection or an acceptance ends the run; the give-up comes at its
+    NONFINITE_MAX_TRIES-th step, and every trial is counted once."""
+    stats = np.zeros(stepping.N_STATS, np.int64)
+    n = 0
+    for _ in range(stepping.NONFINITE_MAX_TRIES - 1):
+        n, give_up = count_trial(False, math.nan, n, stats)
+        assert not give_up
+    assert n == stepping.NONFINITE_MAX_TRIES - 1
+    assert count_trial(True, 0.5, n, stats) == (0, False)
+    n, give_up = count_trial(False, 2.0, n, stats)
+    assert (n, give_up) == (0, False)
+    for _ in range(stepping.NONFINITE_MAX_TRIES):
+        n, give_up = count_trial(False, math.inf, n, stats)
+    assert give_up and n == stepping.NONFINITE_MAX_TRIES
+    assert stats[stepping.STAT_ACCEPTED] == 1
+    assert stats[stepping.STAT_REJECTED] == 2 * stepping.NONFINITE_MAX_TRIES
+
+
+def test_step_too_small_is_relative_to_t():
+    """Hairer's test: a step is too small at ten machine epsilons of |t|, either sign of t."""
+    for t in (1.0, -3.0, 1e8):
+        tiny = 10.0 * stepping.EPS * abs(t)
+        assert step_too_small(tiny, t) and not step_too_small(1.5 * tiny, t)
+    assert step_too_small(0.0, 0.0) and not step_too_small(1e-300, 0.0)
+
+
+def test_initial_guess_is_hinit_first_estimate():
+    """0.01 ||y0|| / ||f0|| in the scaled RMS norm; 1e-6 where a norm is below 1e-5 or NaN."""
+    y0, f0 = np.array([2.0, 0.5]), np.array([-1.0, 4.0])
+    atol, rtol = np.array([1e-9, 1e-6]), 1e-3
+    h, d1 = initial_guess(y0, f0, atol, rtol)
+    assert d1 == rms_norm(f0, y0, atol, rtol)
+    assert h == pytest.approx(0.01 * rms_norm(y0, y0, atol, rtol) / d1, rel=1e-15)
+    assert initial_guess(np.zeros(2), f0, atol, rtol)[0] == 1e-6
+    assert initial_guess(y0, np.array([math.nan, 0.0]), atol, rtol)[0] == 1e-6

@@ -346,7 +346,7 @@ def test_within_resolution_of_the_axis_edge():
 
 def test_batch_profiles_match_solve_point_including_A_minus_one():
     """solve_batch's per-triple profiles give solve_point's profiles, also for the A = -1 closed form."""
-    from cosserat_channel.integrate import rk45
+    from cosserat_channel.integrate import stepping
     from cosserat_channel.solver import batch, layout, stage1, stage2
 
     xi = np.linspace(0.0, 1.0, 21)
@@ -354,7 +354,7 @@ def test_batch_profiles_match_solve_point_including_A_minus_one():
     n = len(pts)
     eta = np.array([p[0] * p[1] for p in pts])
     res = np.empty((n, layout.N_R))
-    stats = np.zeros((n, 2, rk45.N_STATS), np.int64)
+    stats = np.zeros((n, 2, stepping.N_STATS), np.int64)
     one_minus = np.empty(n)
     prof = np.empty((n, layout.N_PROF, xi.size))
     batch.solve_batch(eta, np.array([p[3] for p in pts]), np.array([p[4] for p in pts]),

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_channel.integrate import rk45
+from cosserat_channel.integrate import stepping
 from cosserat_channel import solve_point
 from cosserat_channel.solver import batch, layout, plug_edge, stage1, stage2, stress_path
 from cosserat_channel import status as st
@@ -56,9 +56,9 @@ def test_status_path_skips_stage2_away_from_the_edge():
     """In the bulk the status path runs no stage 2 at all; next to the edge it does."""
     ws = Workspace()
     assert ws.status(1 / 3, 1 / 3, 1.0, 1e-8, 1e-12) == st.OK
-    assert ws.stats2[rk45.STAT_ACCEPTED] == 0 and math.isnan(ws.res[layout.R_J_AXIS])
+    assert ws.stats2[stepping.STAT_ACCEPTED] == 0 and math.isnan(ws.res[layout.R_J_AXIS])
     ws.run(1 / 3, 1 / 3, 1.0, 1e-8, 1e-12)
-    assert ws.stats2[rk45.STAT_ACCEPTED] > 0
+    assert ws.stats2[stepping.STAT_ACCEPTED] > 0
 
 
 def test_solve_point_subset_of_outputs():
@@ -273,7 +273,7 @@ def test_stiff_switch_picks_the_path_with_less_work(eta, A, N, rtol, cheaper):
     for method in (layout.METHOD_EXPLICIT, layout.METHOD_STIFF):
         code = ws.run(eta, A, N, rtol, 1e-12, method)
         path = ws.res[layout.R_PATH]
-        work[path] = ws.stats1[rk45.STAT_FEV] + ws.stats2[rk45.STAT_FEV]
+        work[path] = ws.stats1[stepping.STAT_FEV] + ws.stats2[stepping.STAT_FEV]
         out[path] = (code, ws.res[layout.R_MU_WALL], ws.res[layout.R_J_AXIS],
                      ws.res[layout.R_XI_STOP])
     ws.run(eta, A, N, rtol, 1e-12)
@@ -293,9 +293,9 @@ def test_stiffness_diagnostic_on_the_dop853_path():
     ws = Workspace()
     for eta, stiff in ((1e-4, 1), (0.3, 0)):
         ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, layout.METHOD_EXPLICIT)
-        assert ws.stats1[rk45.STAT_STIFF] == stiff, eta
+        assert ws.stats1[stepping.STAT_STIFF] == stiff, eta
         ws.run(eta, 1 / 3, 1.0, 1e-8, 1e-12, layout.METHOD_STIFF)
-        assert ws.stats1[rk45.STAT_STIFF] == 0 and ws.stats1[rk45.STAT_STIFF_STEPS] == 0
+        assert ws.stats1[stepping.STAT_STIFF] == 0 and ws.stats1[stepping.STAT_STIFF_STEPS] == 0
 
 
 def _plug_edge_by_brentq(eps_K, res, ax, T2, Q2):
@@ -352,7 +352,7 @@ def test_plug_edge_agrees_with_brentq_on_the_panel_series(order):
     if order == "shuffled":
         eps_K = np.concatenate([rng.permutation(eps_K[i * m:(i + 1) * m]) for i in range(len(triples))])
     res = np.empty((eta.size, layout.N_R))
-    stats = np.zeros((eta.size, 2, rk45.N_STATS), np.int64)
+    stats = np.zeros((eta.size, 2, stepping.N_STATS), np.int64)
     one_minus = np.empty(eps_K.size)
     batch.solve_batch(eta, A, N, eps_K, np.arange(eta.size + 1) * m, 1e-8, 1e-12,
                        stage1.MAX_STEPS_STAGE1, stage2.MAX_STEPS_STAGE2, res, stats, one_minus,

@@ -420,9 +420,9 @@ def _smooth_wall_D_kernel(eta, A, N, rtol, ax, T, Qw, Q, stats):
         y1[0] = w1
         atol1 = np.empty(1)
         atol1[0] = SMOOTH_ATOL
-        code, n, _ = rk45.dopri5(_w_rhs, rk45.no_event, xi1, y1, SMOOTH_XI_SWITCH, args, rtol,
+        code, n, _ = rk45.dopri5(_w_rhs, stepping.no_event, xi1, y1, SMOOTH_XI_SWITCH, args, rtol,
                                  atol1, 0.0, 0.0, T, Qw, stats)
-        if code != rk45.SUCCESS:
+        if code != stepping.SUCCESS:
             return math.nan
         dense.dense_eval_step(T, Qw, n - 1, SMOOTH_XI_SWITCH, y1)
         xi1, w1 = SMOOTH_XI_SWITCH, y1[0]
@@ -432,9 +432,9 @@ def _smooth_wall_D_kernel(eta, A, N, rtol, ax, T, Qw, Q, stats):
     atol = np.empty(2)
     atol[0] = SMOOTH_ATOL
     atol[1] = SMOOTH_ATOL_D
-    code, n, _ = rk45.dopri5(_delta_D_rhs, rk45.no_event, xi1, y, 1.0, args, rtol, atol, 0.0, 0.0,
+    code, n, _ = rk45.dopri5(_delta_D_rhs, stepping.no_event, xi1, y, 1.0, args, rtol, atol, 0.0, 0.0,
                              T, Q, stats)
-    if code != rk45.SUCCESS:
+    if code != stepping.SUCCESS:
         return math.nan
     dense.dense_eval_step(T, Q, n - 1, 1.0, y)
     return y[1]

@@ -37,7 +37,8 @@ from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .roots import find_root
-from .stepping import EPS, STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS
+from .stepping import (EPS, STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
+                       message)
 
 __all__ = [
     "N_DENSE",
@@ -351,7 +352,8 @@ class Solution(NamedTuple):
     Attributes
     ----------
     status : int
-        Status code (``SUCCESS``, ``EVENT``, ...).
+        Outcome code (:mod:`.stepping`'s ``SUCCESS``, ``EVENT``, ...); :attr:`message` says it in
+        words.
     t_stop : float
         Where the integration stopped.
     y_stop : ndarray, shape (n,)
@@ -413,6 +415,11 @@ class Solution(NamedTuple):
             n_stiff_steps=int(stats[STAT_STIFF_STEPS]),
             stiff=bool(stats[STAT_STIFF]),
         )
+
+    @property
+    def message(self):
+        """What :attr:`status` means (:func:`.stepping.message`)."""
+        return message(self.status)
 
     def sol(self, t):
         """Evaluate the dense output.

@@ -2,8 +2,9 @@
 dense output.
 
 The same calling convention as :func:`.rk45.dopri5` (right-hand side, terminal event, step
-budget, counters, status codes), so that a caller can pick either by tolerance: the integrator
-knows nothing about the physics. Each accepted step stores its dense output in Hairer's
+budget, counters, outcome codes) and the same driver loop (:func:`.explicit.explicit_rk`, given
+this module's step, error norm, controller and dense output), so that a caller can pick either
+by tolerance: the integrator knows nothing about the physics. Each accepted step stores its dense output in Hairer's
 ``CONTD8`` layout, which extends ``CONTD5``'s nesting by three rows (:mod:`.dense`), so one
 evaluation formula reads both.
 
@@ -36,10 +37,9 @@ import numpy as np
 from numba import njit
 
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
-from .dense import event_after_step, hermite_rows
-from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
-                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end,
-                       count_stiffness, first_step, step_limit)
+from .dense import hermite_rows
+from .explicit import explicit_rk
+from .stepping import NONFINITE_SHRINK
 
 __all__ = ["dop853", "dop853_step", "ERROR_ORDER"]
 
@@ -256,7 +256,6 @@ STIFF_DY = np.ascontiguousarray(B - A[N_STAGES - 1, :N_STAGES])
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
-NONFINITE_MAX_TRIES = 20
 
 
 @njit(**_JIT_INLINE)
@@ -325,25 +324,24 @@ def dense_coefficients(fun, t, y, y_new, h, args, K, ys, q):
 
 
 @njit(**_JIT)
-def _control(err, h_abs, h_max, reject):
+def _control(err, h_abs, h_max, memory, reject):
     # scipy's controller for DOP853: factor safety * err^(-1/8), in [0.2, 10], no growth
-    # right after a rejection.
+    # right after a rejection. It keeps no memory: `memory` passes through (explicit_rk's form).
     if not math.isfinite(err):
-        return False, h_abs * NONFINITE_SHRINK
+        return False, h_abs * NONFINITE_SHRINK, memory
     if err < 1.0:
         fac = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** (-1.0 / (ERROR_ORDER + 1)))
         if reject:
             fac = min(1.0, fac)
-        return True, min(h_abs * fac, h_max)
-    return False, h_abs * max(MIN_FACTOR, SAFETY * err ** (-1.0 / (ERROR_ORDER + 1)))
+        return True, min(h_abs * fac, h_max), memory
+    return False, h_abs * max(MIN_FACTOR, SAFETY * err ** (-1.0 / (ERROR_ORDER + 1))), memory
 
 
-@njit(**_JIT)
-def _work_arrays(y0):
-    n = y0.shape[0]
-    y = np.empty(n)
-    y[:] = y0
-    return y, np.empty(n), np.empty(n), np.empty(n), np.empty((N_STAGES_EXTENDED, n))
+@njit(**_JIT_INLINE)
+def _trial(fun, t, y, h, args, K, y_new, ys, atol, rtol):
+    # explicit_rk's trial step: the stages, y_new, and the error norm from the stages.
+    dop853_step(fun, t, y, h, args, K, y_new, ys)
+    return error_norm(K, h, y, y_new, atol, rtol)
 
 
 @njit(**_JIT_INLINE)
@@ -354,54 +352,6 @@ def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     for order 8; stiffness detection by :func:`.stepping.count_stiffness`). Evaluations:
     ``1 + [h0 <= 0] + 15 * accepted + 12 * rejected``.
     """
-    stats[:] = 0
-    T[0] = t0
-    if t_end == t0:
-        return SUCCESS, 0, t0
-    direction = 1.0 if t_end > t0 else -1.0
-    span = abs(t_end - t0)
-    hmax = step_limit(h_max, span)
-    y, y_new, ys, ytmp, K = _work_arrays(y0)
-    fun(t0, y, args, K[0])
-    stats[STAT_FEV] = 1
-    if not (all_finite(K[0]) and all_finite(y)):
-        return NONFINITE, 0, t0
-    habs = first_step(fun, t0, y, K[0], args, direction, rtol, atol, h0, hmax, span, ERROR_ORDER,
-                      ytmp, ys, stats)
-    g_old = event(t0, y, args)
-    t, reject = t0, False
-    nsteps = n_nonfinite = iasti = nonsti = 0
-    while True:
-        if nsteps >= Q.shape[0]:
-            return MAX_STEPS, nsteps, t
-        if habs <= 10.0 * EPS * abs(t):
-            return STEP_TOO_SMALL, nsteps, t
-        h, last = clip_to_end(t, habs, t_end, direction)
-        dop853_step(fun, t, y, h, args, K, y_new, ys)
-        stats[STAT_FEV] += N_STAGES
-        err = error_norm(K, h, y, y_new, atol, rtol)
-        if not (all_finite(y_new) and all_finite(K[N_STAGES])):
-            err = math.nan
-        accept, habs = _control(err, abs(h), hmax, reject)
-        reject = not accept
-        n_nonfinite = 0 if math.isfinite(err) else n_nonfinite + 1
-        if not accept:
-            stats[STAT_REJECTED] += 1
-            if n_nonfinite >= NONFINITE_MAX_TRIES:
-                return NONFINITE, nsteps, t
-            continue
-        stats[STAT_ACCEPTED] += 1
-        iasti, nonsti = count_stiffness(h, K, N_STAGES, STIFF_DY, STIFF_THRESHOLD, iasti,
-                                           nonsti, stats)
-        dense_coefficients(fun, t, y, y_new, h, args, K, ys, Q[nsteps])
-        stats[STAT_FEV] += N_STAGES_EXTENDED - N_STAGES - 1
-        T[nsteps + 1] = t_end if last else t + h
-        nsteps += 1
-        fired, t_event, g_old = event_after_step(event, args, T, Q, nsteps, g_old, y_new, ytmp)
-        if fired:
-            return EVENT, nsteps, t_event
-        if last:
-            return SUCCESS, nsteps, t_end
-        y[:] = y_new
-        K[0, :] = K[N_STAGES]
-        t = T[nsteps]
+    return explicit_rk(_trial, _control, dense_coefficients, N_STAGES_EXTENDED, N_STAGES,
+                       ERROR_ORDER, 0.0, STIFF_DY, STIFF_THRESHOLD, fun, event, t0, y0, t_end, args,
+                       rtol, atol, h0, h_max, T, Q, stats)

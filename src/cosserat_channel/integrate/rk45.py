@@ -6,10 +6,10 @@ output ``CONTD5``, initial step ``HINIT``, stiffness detection) into ``@njit`` k
 allocate their work arrays once per call, so that it can be called millions of times in
 parameter sweeps on small (n = 1 or 2) systems. It is split the way scipy splits a solver
 (``integrate/_ivp/rk.py`` + ``common.py``): the tableau as module constants, one step
-(:func:`dopri5_step`), the controller (:func:`control`) and a short driver (:func:`dopri5`)
-here; the error norm, ``HINIT``, the stiffness test, status codes and counters in
-:mod:`.stepping`; the dense output and event location in
-:mod:`.dense`.
+(:func:`dopri5_step`) and the controller (:func:`control`) here, which :func:`dopri5` hands to
+the driver loop it shares with DOP853 (:func:`.explicit.explicit_rk`); the error norm,
+``HINIT``, the stiffness test, outcome codes and counters in :mod:`.stepping`; the dense output
+and event location in :mod:`.dense`.
 
 All kernels are compiled with ``error_model="numpy"`` so that a division by zero yields inf/NaN
 (which the integrator then handles as a non-finite trial step) instead of raising a Python
@@ -17,8 +17,8 @@ exception from inside a kernel. An ``inline="always"`` kernel (below) is compile
 model of the jitted caller it is inlined into, so the divisions that can meet a zero scale for
 legitimate input (the error norms, the controller) are kept in kernels that are not inlined.
 
-The kernels that receive the right-hand side (``dopri5``, ``dopri5_step``, and the helpers in
-:mod:`.stepping`, :mod:`.dense` and :mod:`.roots` that receive ``fun`` or ``event``) are
+The kernels that receive the right-hand side (``dopri5``, ``dopri5_step``, the driver, and the
+helpers in :mod:`.stepping`, :mod:`.dense` and :mod:`.roots` that receive ``fun`` or ``event``) are
 additionally ``inline="always"`` (Numba-IR inlining into jitted callers). A jitted caller that
 passes a global ``@njit`` function into a non-inlined kernel has to materialise the dispatcher
 object's address in its machine code, which Numba refuses to cache ("uses dynamic globals").
@@ -50,19 +50,12 @@ import numpy as np
 from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
-from .dense import N_DENSE, Solution, dense_coefficients, event_after_step
-from .stepping import (EPS, EVENT, MAX_STEPS, N_STATS, NONFINITE, NONFINITE_SHRINK,
-                       STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
-                       STEP_TOO_SMALL, SUCCESS, all_finite, clip_to_end, count_stiffness,
-                       error_norm, first_step, no_event, step_limit)
+from .dense import N_DENSE, Solution, dense_coefficients
+from .explicit import explicit_rk
+from .stepping import N_STATS, NONFINITE_SHRINK, error_norm, no_event
 
-# The status codes, counter slots and no_event are part of dopri5's calling convention, so they
-# are re-exported here from their home, stepping.
-__all__ = [
-    "SUCCESS", "EVENT", "MAX_STEPS", "STEP_TOO_SMALL", "NONFINITE",
-    "STAT_ACCEPTED", "STAT_REJECTED", "STAT_FEV", "STAT_STIFF_STEPS", "STAT_STIFF", "N_STATS",
-    "no_event", "dopri5", "dopri5_step", "control", "integrate",
-]
+# The outcome codes, counter slots and no_event of dopri5's calling convention are stepping's.
+__all__ = ["dopri5", "dopri5_step", "control", "integrate"]
 
 # ---------------------------------------------------------------------------------------------
 # Dormand–Prince 5(4) tableau [DP80], as printed in [HNW93, Table II.5.2]; exact fractions.
@@ -120,9 +113,6 @@ MAX_FACTOR = 10.0
 BETA = 0.04
 ALPHA = 0.2 - 0.75 * BETA
 FACOLD_MIN = 1e-4
-
-# How many non-finite trial steps in a row we tolerate before giving up.
-NONFINITE_MAX_TRIES = 20
 
 # Stiffness detection [HNW93, IV.2]: h*rho beyond the real stability boundary of DOPRI5 (about
 # 3.3) means the step size is limited by stability (the run lengths STIFF_DECLARE and
@@ -239,14 +229,17 @@ def control(err, h_abs, h_max, facold, reject):
     return True, h_next, max(err, FACOLD_MIN)
 
 
-@njit(**_JIT)
-def _work_arrays(y0):
-    # The integrator's state and scratch, allocated once per run: y (a copy of y0), y_new,
-    # y_err, ytmp and the stages K.
-    n = y0.shape[0]
-    y = np.empty(n)
-    y[:] = y0
-    return y, np.empty(n), np.empty(n), np.empty(n), np.empty((7, n))
+@njit(**_JIT_INLINE)
+def _trial(fun, t, y, h, args, K, y_new, y_err, atol, rtol):
+    # explicit_rk's trial step: the stages, y_new, and the error norm of the estimate y_err.
+    dopri5_step(fun, t, y, h, args, K[0], y_new, y_err, K)
+    return error_norm(y_err, y, y_new, atol, rtol)
+
+
+@njit(**_JIT_INLINE)
+def _dense(fun, t, y, y_new, h, args, K, y_err, q):
+    # explicit_rk's dense output: CONTD5 needs no further stage.
+    dense_coefficients(y, y_new, h, K, q)
 
 
 @njit(**_JIT_INLINE)
@@ -265,8 +258,8 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     event : numba-compiled callable
         ``event(t, y, args) -> float``. The integration stops at the first zero along the
         solution after `t0` (sign change across an accepted step in either direction, or an
-        exact zero at a step end). An exact zero at `t0` is ignored. Use :func:`no_event` for
-        none.
+        exact zero at a step end). An exact zero at `t0` is ignored. Use
+        :func:`.stepping.no_event` for none.
     t0, t_end : float
         Start and end times; ``t_end < t0`` integrates backwards.
     y0 : ndarray of float64, shape (n,)
@@ -284,7 +277,8 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     T : ndarray of float64, shape (>= M + 1,)
         Output: ``T[0] = t0``, ``T[k+1]`` = end of accepted step `k`.
     Q : ndarray of float64, shape (M, N_DENSE, n)
-        Output: dense-output coefficients of each accepted step (:mod:`.dense`'s layout). ``M`` is the step budget.
+        Output: dense-output coefficients of each accepted step (:mod:`.dense`'s layout).
+        ``M`` is the step budget.
     stats : ndarray of int64, shape (N_STATS,)
         Output counters, see the ``STAT_*`` constants.
 
@@ -304,57 +298,9 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     f(t0, y0), one for the HINIT probe, and six per trial step thanks to FSAL. Trial steps that
     produce non-finite values count as rejected.
     """
-    stats[:] = 0
-    T[0] = t0
-    if t_end == t0:
-        return SUCCESS, 0, t0
-    direction = 1.0 if t_end > t0 else -1.0
-    span = abs(t_end - t0)
-    hmax = step_limit(h_max, span)
-    y, y_new, y_err, ytmp, K = _work_arrays(y0)
-    fun(t0, y, args, K[0])
-    stats[STAT_FEV] = 1
-    if not (all_finite(K[0]) and all_finite(y)):
-        return NONFINITE, 0, t0
-    # ytmp and y_err are free here and serve as HINIT's scratch.
-    habs = first_step(fun, t0, y, K[0], args, direction, rtol, atol, h0, hmax, span, ERROR_ORDER,
-                      ytmp, y_err, stats)
-    g_old = event(t0, y, args)
-    t, facold, reject = t0, FACOLD_MIN, False
-    nsteps = n_nonfinite = iasti = nonsti = 0
-    while True:
-        if nsteps >= Q.shape[0]:
-            return MAX_STEPS, nsteps, t
-        if habs <= 10.0 * EPS * abs(t):
-            return STEP_TOO_SMALL, nsteps, t
-        h, last = clip_to_end(t, habs, t_end, direction)
-        dopri5_step(fun, t, y, h, args, K[0], y_new, y_err, K)
-        stats[STAT_FEV] += 6
-        err = error_norm(y_err, y, y_new, atol, rtol)
-        if not (all_finite(y_new) and all_finite(K[6])):
-            err = math.nan
-        accept, habs, facold = control(err, abs(h), hmax, facold, reject)
-        reject = not accept
-        n_nonfinite = 0 if math.isfinite(err) else n_nonfinite + 1
-        if not accept:
-            stats[STAT_REJECTED] += 1
-            if n_nonfinite >= NONFINITE_MAX_TRIES:
-                return NONFINITE, nsteps, t
-            continue
-        stats[STAT_ACCEPTED] += 1
-        iasti, nonsti = count_stiffness(h, K, 6, STIFF_DY, STIFF_THRESHOLD, iasti, nonsti,
-                                           stats)
-        T[nsteps + 1] = t_end if last else t + h
-        dense_coefficients(y, y_new, h, K, Q[nsteps])
-        nsteps += 1
-        fired, t_event, g_old = event_after_step(event, args, T, Q, nsteps, g_old, y_new, ytmp)
-        if fired:
-            return EVENT, nsteps, t_event
-        if last:
-            return SUCCESS, nsteps, t_end
-        y[:] = y_new
-        K[0, :] = K[6]
-        t = T[nsteps]
+    return explicit_rk(_trial, control, _dense, 7, 6, ERROR_ORDER, FACOLD_MIN, STIFF_DY,
+                       STIFF_THRESHOLD, fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T,
+                       Q, stats)
 
 
 def integrate(fun, t0, y0, t_end, args=(), rtol=1e-6, atol=1e-9, event=None,

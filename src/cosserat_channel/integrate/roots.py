@@ -127,14 +127,24 @@ def find_root(f, args, a, b, fa, fb, tol, max_iter):
 
 
 @njit(**_JIT_INLINE)
-def _newton_start(a, b, fa, x0):
-    """``(lo, hi, x, width)`` of a safeguarded Newton search: the bracket's ends with
-    ``f(lo) < 0 < f(hi)``, the first iterate (`x0`, or the midpoint when `x0` is not inside) and
-    the bracket's width."""
+def _newton_start(a, b, fa, fb, x0):
+    """``(at_end, lo, hi, x, width)`` of a safeguarded Newton search: whether `a` or `b` is
+    already a root (then it is `x`), the bracket's ends with ``f(lo) < 0 < f(hi)``, the first
+    iterate (`x0`, or the midpoint when `x0` is not inside) and the bracket's width."""
     lo, hi = (a, b) if fa < 0.0 else (b, a)
     left, right = min(a, b), max(a, b)
     x = x0 if left < x0 < right else 0.5 * (a + b)
-    return lo, hi, x, right - left
+    if fa == 0.0:
+        x = a
+    elif fb == 0.0:
+        x = b
+    return fa == 0.0 or fb == 0.0, lo, hi, x, right - left
+
+
+@njit(**_JIT_INLINE)
+def _narrow(x, f, lo, hi):
+    # The bracket (lo, hi), f(lo) < 0 < f(hi), with the iterate x in place of the end of f's sign.
+    return (x, hi) if f < 0.0 else (lo, x)
 
 
 @njit(**_JIT_INLINE)
@@ -168,20 +178,15 @@ def newton_root(fdf, args, a, b, fa, fb, x0, tol, max_iter):
     n_eval : int
         Evaluations made; ``n_eval == max_iter`` means the budget ran out.
     """
-    if fa == 0.0:
-        return a, 0
-    if fb == 0.0:
-        return b, 0
-    lo, hi, x, dx_old = _newton_start(a, b, fa, x0)
+    at_end, lo, hi, x, dx_old = _newton_start(a, b, fa, fb, x0)
+    if at_end:
+        return x, 0
     dx = dx_old
     for it in range(max_iter):
         f, df = fdf(x, args)
         if f == 0.0:
             return x, it + 1
-        if f < 0.0:
-            lo = x
-        else:
-            hi = x
+        lo, hi = _narrow(x, f, lo, hi)
         x_new = x - f / df if df != 0.0 else math.nan
         if abs(x_new - x) <= tol:
             # Converged, also when the step is below the resolution of x (x_new == x == one end
@@ -213,20 +218,15 @@ def newton_root_d2(fdf, args, a, b, fa, fb, x0, tol, max_iter, curvature_stop=Tr
     :func:`newton_root` does, once Newton and bisection steps have shrunk the bracket around a
     sign change of ``f``.
     """
-    if fa == 0.0:
-        return a, 0
-    if fb == 0.0:
-        return b, 0
-    lo, hi, x, dx_old = _newton_start(a, b, fa, x0)
+    at_end, lo, hi, x, dx_old = _newton_start(a, b, fa, fb, x0)
+    if at_end:
+        return x, 0
     dx = dx_old
     for it in range(max_iter):
         f, df, d2f = fdf(x, args)
         if f == 0.0:
             return x, it + 1
-        if f < 0.0:
-            lo = x
-        else:
-            hi = x
+        lo, hi = _narrow(x, f, lo, hi)
         step = -f / df if df != 0.0 else math.nan
         x_new = x + step
         if abs(step) <= tol:

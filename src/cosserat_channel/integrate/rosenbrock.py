@@ -35,8 +35,8 @@ from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .dense import event_after_step
-from .stepping import (EPS, EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_ACCEPTED,
-                       STAT_FEV, STAT_REJECTED, STEP_TOO_SMALL, SUCCESS, step_limit)
+from .stepping import (EVENT, MAX_STEPS, NONFINITE, NONFINITE_SHRINK, STAT_FEV, STEP_TOO_SMALL,
+                       SUCCESS, begin_run, count_trial, initial_guess, step_too_small)
 
 # A tableau is (gamma, c2, c3, c4, d1, d2, d3, d4, a21, a31, a32, a41, a42, a43, a51, a52, a53,
 # a54, C21, C31, C32, C41, C42, C43, C51, C52, C53, C54, C61, C62, C63, C64, C65, h21, h22, h23,
@@ -94,9 +94,6 @@ TABLEAU = RODAS4P2
 SAFETY = 0.9
 MAX_GROWTH = 6.0
 MAX_SHRINK = 5.0
-# Non-finite trial steps in a row tolerated before giving up (the test is `>`, so one more than
-# rk45 allows).
-NONFINITE_MAX_TRIES = 20
 
 
 @njit(**_JIT_INLINE)
@@ -247,18 +244,20 @@ def control(err, h, h_max, h_old, err_old, rejected):
 
 
 @njit(**_JIT)
-def initial_step(y, f, atol, rtol, h_max, span):
-    """First step magnitude: the first estimate of :func:`.stepping.initial_step` only.
+def initial_step(y0, f0, atol, rtol, h_max, span):
+    """First step magnitude: HINIT's first estimate only (:func:`.stepping.initial_guess`).
 
-    Its Euler probe would measure the fast (stiff) time scale, which an L-stable method need
-    not resolve.
+    HINIT's Euler probe would measure the fast (stiff) time scale, which an L-stable method
+    need not resolve.
 
     Parameters
     ----------
-    y, f : float
-        Scalar initial state and ``f(t0, y)``.
-    atol, rtol : float
-        Tolerances.
+    y0, f0 : ndarray of float64, shape (1,)
+        Initial state and ``f(t0, y0)``.
+    atol : ndarray of float64, shape (1,)
+        Absolute tolerance.
+    rtol : float
+        Relative tolerance.
     h_max, span : float
         Largest allowed step and ``|t_end - t0|``.
 
@@ -266,10 +265,7 @@ def initial_step(y, f, atol, rtol, h_max, span):
     -------
     float
     """
-    sc = atol + rtol * abs(y)
-    d0 = abs(y) / sc
-    d1 = abs(f) / sc
-    h = 0.01 * d0 / d1 if (d0 > 1e-5 and d1 > 1e-5) else 1e-6
+    h = initial_guess(y0, f0, atol, rtol)[0]
     return min(max(h, 1e-10 * span), h_max)
 
 
@@ -295,29 +291,25 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
         As for :func:`.rk45.dopri5`; the dense output in ``T``/``Q`` is read by
         :func:`.dense.dense_eval`.
     """
-    stats[:] = 0
-    T[0] = t0
-    if t_end == t0:
+    direction, span, hmax = begin_run(t0, t_end, h_max, T, stats)
+    if span == 0.0:
         return SUCCESS, 0, t0
-    direction = 1.0 if t_end > t0 else -1.0
-    span = abs(t_end - t0)
-    hmax = step_limit(h_max, span)
     ys = y0.copy()
     ytmp = y0.copy()
     t = t0
     y = y0[0]
     fun(t, y0, args, ytmp)
     stats[STAT_FEV] += 1
-    h = min(h0, hmax) if h0 > 0.0 else initial_step(y, ytmp[0], atol[0], rtol, hmax, span)
+    h = min(h0, hmax) if h0 > 0.0 else initial_step(y0, ytmp, atol, rtol, hmax, span)
     g_prev = event(t, y0, args)
-    h_old, err_old, rejected = 0.0, 1.0, False
-    bad = nsteps = 0
+    h_old, err_old, accept = 0.0, 1.0, True
+    n_nonfinite = nsteps = 0
     while True:
         if nsteps >= Q.shape[0]:
             return MAX_STEPS, nsteps, t
         if (t_end - t) * direction <= 0.0:
             return SUCCESS, nsteps, t
-        if h < 10.0 * EPS * max(abs(t), 1.0):
+        if step_too_small(h, t):
             return STEP_TOO_SMALL, nsteps, t
         # Clipped onto t_end without dopri5's 1.01 sliver guard: the too-small test above sees
         # the controller's step, before clipping, so a sliver last step is still taken.
@@ -330,18 +322,15 @@ def rodas4(fun, jac, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, st
         err = error_norm(e, y, y_new, atol[0], rtol)
         if not math.isfinite(y_new):
             err = math.nan
-        accept, h, h_old, err_old = control(err, h, hmax, h_old, err_old, rejected)
-        rejected = not accept
-        bad = 0 if math.isfinite(err) else bad + 1
+        accept, h, h_old, err_old = control(err, h, hmax, h_old, err_old, not accept)
+        n_nonfinite, give_up = count_trial(accept, err, n_nonfinite, stats)
+        if give_up:
+            return NONFINITE, nsteps, t
         if not accept:
-            stats[STAT_REJECTED] += 1
-            if bad > NONFINITE_MAX_TRIES:
-                return NONFINITE, nsteps, t
             continue
         t_new = t + hs
         dense_coefficients(y, y_new, k1, k2, k3, k4, k5, tab, Q[nsteps])
         T[nsteps + 1] = t_new
-        stats[STAT_ACCEPTED] += 1
         nsteps += 1
         ys[0] = y_new
         fired, t_event, g_prev = event_after_step(event, args, T, Q, nsteps, g_prev, ys, ytmp)

@@ -1,11 +1,15 @@
 """What the adaptive integrators of the package share, in the role of scipy's
-``integrate/_ivp/common.py``: status codes, counter slots, the event function that never fires,
-weighted RMS norms, a finiteness test and Hairer's initial-step heuristic ``HINIT``.
+``integrate/_ivp/common.py``: outcome codes and their messages, counter slots, the event function
+that never fires, weighted RMS norms, a finiteness test, Hairer's initial-step heuristic
+``HINIT``, his stiffness test, and the driver policy: how a run starts (:func:`begin_run`), when
+a step is too small (:func:`step_too_small`), how trial steps are counted and when a run of
+non-finite ones ends it (:func:`count_trial`, ``NONFINITE_MAX_TRIES``).
 
-:mod:`.rk45` (explicit, any ``n``) and :mod:`.rosenbrock` (stiff, scalar) return the same status
-codes, fill the same counters and write the same dense output (:mod:`.dense`), so that
-:mod:`.solve` can run either one for stage 1. What differs between them (step-size controller,
-step clipping, initial step of RODAS) stays in their modules.
+The explicit pairs (:mod:`.rk45`, :mod:`.dop853`, any ``n``, one driver loop in
+:mod:`.explicit`) and RODAS (:mod:`.rosenbrock`, stiff, scalar) return the same outcome codes,
+fill the same counters and write the same dense output (:mod:`.dense`), so that the solver can
+run any of them for stage 1. What differs between them (step, error norm, step-size controller,
+step clipping, the initial step of RODAS) stays in their modules.
 
 Kernels that receive the right-hand side are ``inline="always"``; see :mod:`.rk45` for why, and
 for why the norms are not.
@@ -29,6 +33,8 @@ __all__ = [
     "MAX_STEPS",
     "STEP_TOO_SMALL",
     "NONFINITE",
+    "MESSAGES",
+    "message",
     "STAT_ACCEPTED",
     "STAT_REJECTED",
     "STAT_FEV",
@@ -43,6 +49,11 @@ __all__ = [
     "clip_to_end",
     "first_step",
     "NONFINITE_SHRINK",
+    "NONFINITE_MAX_TRIES",
+    "begin_run",
+    "step_too_small",
+    "count_trial",
+    "initial_guess",
     "no_event",
     "rms_norm",
     "error_norm",
@@ -50,12 +61,21 @@ __all__ = [
     "initial_step",
 ]
 
-# Status codes returned by the integrators.
+# Outcome codes, the first value every integrator returns; MESSAGES says what each means.
 SUCCESS = 0
 EVENT = 1
 MAX_STEPS = -1
 STEP_TOO_SMALL = -2
 NONFINITE = -3
+
+MESSAGES = {
+    SUCCESS: "reached the end of the interval",
+    EVENT: "stopped where the event function reached zero",
+    MAX_STEPS: "spent the budget of accepted steps before the end of the interval",
+    STEP_TOO_SMALL: "the step size fell below the resolution of t (10 machine epsilons of |t|)",
+    NONFINITE: "the right-hand side gave NaN or inf at the start, or on every trial step of a "
+               "shrinking run",
+}
 
 # Slots of the counter array ``stats`` (int64, length N_STATS).
 STAT_ACCEPTED = 0
@@ -74,6 +94,26 @@ NONSTIFF_RESET = 6
 EPS = 2.220446049250313e-16
 # Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
 NONFINITE_SHRINK = 0.25
+# A run gives up (NONFINITE) at this many non-finite trial steps in a row: the last of them is
+# 0.25**19 ~ 4e-12 of the first, far below any step that could be taken on purpose.
+NONFINITE_MAX_TRIES = 20
+
+
+def message(code):
+    """What the outcome code `code` of an integrator means, in a phrase.
+
+    Parameters
+    ----------
+    code : int
+        A status returned by :func:`.rk45.dopri5`, :func:`.dop853.dop853` or
+        :func:`.rosenbrock.rodas4`.
+
+    Returns
+    -------
+    str
+        The phrase of :data:`MESSAGES`, or ``"unknown outcome code <code>"``.
+    """
+    return MESSAGES.get(int(code), f"unknown outcome code {code}")
 
 
 @njit(**_JIT)
@@ -157,27 +197,9 @@ def count_stiffness(h, K, k_new, dy_weights, threshold, iasti, nonsti, stats):
 
 @njit(**_JIT)
 def rms_norm(v, y, atol, rtol):
-    """``sqrt(mean((v_i / (atol_i + rtol*|y_i|))**2))``.
-
-    Scaled with ``|y|`` only: the initial-step heuristic has no ``y_new`` yet.
-
-    Parameters
-    ----------
-    v, y, atol : ndarray of float64, shape (n,)
-        Vector to measure, state for the relative scale, componentwise absolute tolerance.
-    rtol : float
-        Relative tolerance.
-
-    Returns
-    -------
-    float
-    """
-    n = v.shape[0]
-    s = 0.0
-    for i in range(n):
-        r = v[i] / (atol[i] + rtol * abs(y[i]))
-        s += r * r
-    return math.sqrt(s / n)
+    """``sqrt(mean((v_i / (atol_i + rtol*|y_i|))**2))``: :func:`error_norm` of `v` with the
+    scale of `y` alone (``y_new = y``), for ``HINIT``, which has no ``y_new`` yet."""
+    return error_norm(v, y, y, atol, rtol)
 
 
 @njit(**_JIT)
@@ -228,6 +250,54 @@ def all_finite(v):
 
 
 @njit(**_JIT_INLINE)
+def begin_run(t0, t_end, h_max, T, stats):
+    """What every driver does first: zero ``stats``, set ``T[0] = t0``, and return
+    ``(direction, span, hmax)``: the sign of ``t_end - t0``, ``|t_end - t0|`` and
+    :func:`step_limit`'s largest step magnitude (the caller returns at once when ``span == 0``)."""
+    stats[:] = 0
+    T[0] = t0
+    span = abs(t_end - t0)
+    return (1.0 if t_end > t0 else -1.0), span, step_limit(h_max, span)
+
+
+@njit(**_JIT_INLINE)
+def step_too_small(habs, t):
+    """Whether a step of magnitude `habs` from `t` is below the resolution of `t`: Hairer's test
+    ``0.1 |h| <= uround |t|`` [HNW93, II.4]; a run then stops with ``STEP_TOO_SMALL``."""
+    return habs <= 10.0 * EPS * abs(t)
+
+
+@njit(**_JIT_INLINE)
+def count_trial(accept, err, n_nonfinite, stats):
+    """Count a trial step in ``stats`` and keep the run of non-finite ones.
+
+    Parameters
+    ----------
+    accept : bool
+        The controller's verdict (never True for a non-finite `err`).
+    err : float
+        The trial step's error norm; NaN or inf when it produced non-finite values.
+    n_nonfinite : int
+        Non-finite trial steps in a row before this one.
+    stats : ndarray of int64, shape (N_STATS,)
+        Counters: ``STAT_ACCEPTED`` or ``STAT_REJECTED`` grows by one.
+
+    Returns
+    -------
+    n_nonfinite : int
+        Non-finite trial steps in a row, this one included.
+    give_up : bool
+        Whether they reached ``NONFINITE_MAX_TRIES``: the run returns ``NONFINITE``.
+    """
+    if accept:
+        stats[STAT_ACCEPTED] += 1
+        return 0, False
+    stats[STAT_REJECTED] += 1
+    n_nonfinite = 0 if math.isfinite(err) else n_nonfinite + 1
+    return n_nonfinite, n_nonfinite >= NONFINITE_MAX_TRIES
+
+
+@njit(**_JIT_INLINE)
 def step_limit(h_max, span):
     """The largest step magnitude of a run over ``span``: `h_max` when it lies in ``(0, span]``,
     else ``span`` (``h_max <= 0``, inf or NaN mean no limit but the interval)."""
@@ -259,11 +329,41 @@ def first_step(fun, t0, y0, f0, args, direction, rtol, atol, h0, h_max, span, or
     return initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, order, y1, f1)
 
 
+@njit(**_JIT)
+def initial_guess(y0, f0, atol, rtol):
+    """The first estimate of ``HINIT`` [HNW93, II.4]: ``0.01 ||y0|| / ||f0||`` in :func:`rms_norm`.
+
+    Parameters
+    ----------
+    y0, f0 : ndarray of float64, shape (n,)
+        Initial state and ``f(t0, y0)``.
+    atol : ndarray of float64, shape (n,)
+        Absolute tolerance.
+    rtol : float
+        Relative tolerance.
+
+    Returns
+    -------
+    h0 : float
+        The estimate; ``1e-6`` where either norm is below ``1e-5`` or NaN.
+    d1 : float
+        ``||f0||``.
+    """
+    d0 = rms_norm(y0, y0, atol, rtol)
+    d1 = rms_norm(f0, y0, atol, rtol)
+    # Written as `not (...)` so that NaN norms fall into the cautious branch.
+    if not (d0 >= 1e-5 and d1 >= 1e-5):
+        return 1e-6, d1
+    return 0.01 * d0 / d1, d1
+
+
 @njit(**_JIT_INLINE)
 def initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, order, y1, f1):
     """Hairer's ``HINIT`` [HNW93, II.4], in the form of scipy's ``select_initial_step``.
 
-    Costs one evaluation of `fun` (an explicit Euler probe).
+    From :func:`initial_guess`, an explicit Euler probe (one evaluation of `fun`) estimates the
+    second derivative, and the step is sized so that the local error of order `order` meets
+    the tolerance.
 
     Parameters
     ----------
@@ -294,13 +394,7 @@ def initial_step(fun, t0, y0, f0, args, direction, rtol, atol, h_max, span, orde
         The (positive) initial step size.
     """
     n = y0.shape[0]
-    d0 = rms_norm(y0, y0, atol, rtol)
-    d1 = rms_norm(f0, y0, atol, rtol)
-    # Written as `not (...)` so that NaN norms fall into the cautious branch.
-    if not (d0 >= 1e-5 and d1 >= 1e-5):
-        h0 = 1e-6
-    else:
-        h0 = 0.01 * d0 / d1
+    h0, d1 = initial_guess(y0, f0, atol, rtol)
     h0 = min(h0, span)
     for i in range(n):
         y1[i] = y0[i] + direction * h0 * f0[i]

@@ -141,12 +141,12 @@ def _L_for_eta(rng, eta, spec):
 
 def _stage1_reaches_wall(eta, A, N):
     """Our stage 1 (rtol 1e-11) reaches the wall at each ``eta`` (used only to find the edge)."""
-    from ..integrate import rk45
+    from ..integrate import stepping
     from ..solver import batch, layout, stage1
 
     n = eta.size
     mu = np.empty(n)
-    stats = np.zeros((n, rk45.N_STATS), np.int64)
+    stats = np.zeros((n, stepping.N_STATS), np.int64)
     batch.stage1_batch(np.ascontiguousarray(eta), np.full(n, A), np.full(n, N), 1e-11, 1e-14,
                        layout.METHOD_AUTO, stage1.MAX_STEPS_STAGE1, mu, stats)
     return np.isfinite(mu)

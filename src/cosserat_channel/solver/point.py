@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import outputs as out_
 from .. import status as st
-from ..integrate import rk45
+from ..integrate import stepping
 from ..physics import model
 from . import batch, layout, plug_edge, stage1, stage2
 from ..parameters import (
@@ -121,8 +121,8 @@ class Workspace:
         self.ax = np.empty(model.N_AX)
         self.T1, self.Q1 = stage1.stage1_arrays(max_steps_stage1)
         self.T2, self.Q2 = stage2.stage2_arrays(max_steps_stage2)
-        self.stats1 = np.zeros(rk45.N_STATS, dtype=np.int64)
-        self.stats2 = np.zeros(rk45.N_STATS, dtype=np.int64)
+        self.stats1 = np.zeros(stepping.N_STATS, dtype=np.int64)
+        self.stats2 = np.zeros(stepping.N_STATS, dtype=np.int64)
         self.res = np.empty(layout.N_R)
 
     def run(self, eta, A, N, rtol, atol, method=layout.METHOD_AUTO, stage2=True):
@@ -243,14 +243,14 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
 def _counters(ws: Workspace) -> dict:
     s1, s2 = ws.stats1, ws.stats2
     return {
-        "stage1_accepted": int(s1[rk45.STAT_ACCEPTED]),
-        "stage1_rejected": int(s1[rk45.STAT_REJECTED]),
-        "stage1_fev": int(s1[rk45.STAT_FEV]),
-        "stage1_stiff": bool(s1[rk45.STAT_STIFF]),
+        "stage1_accepted": int(s1[stepping.STAT_ACCEPTED]),
+        "stage1_rejected": int(s1[stepping.STAT_REJECTED]),
+        "stage1_fev": int(s1[stepping.STAT_FEV]),
+        "stage1_stiff": bool(s1[stepping.STAT_STIFF]),
         "stage1_path": layout.PATH_NAMES.get(float(ws.res[layout.R_PATH]), "none"),
-        "stage2_accepted": int(s2[rk45.STAT_ACCEPTED]),
-        "stage2_rejected": int(s2[rk45.STAT_REJECTED]),
-        "stage2_fev": int(s2[rk45.STAT_FEV]),
+        "stage2_accepted": int(s2[stepping.STAT_ACCEPTED]),
+        "stage2_rejected": int(s2[stepping.STAT_REJECTED]),
+        "stage2_fev": int(s2[stepping.STAT_FEV]),
     }
 
 

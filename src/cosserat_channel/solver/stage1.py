@@ -15,7 +15,7 @@ from numba import njit
 
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .. import status as st
-from ..integrate import dense, dop853, rk45, rosenbrock
+from ..integrate import stepping, dense, dop853, rk45, rosenbrock
 from ..physics import model
 from ..physics.model import AX_BETA, AX_C0
 from .layout import (METHOD_AUTO, METHOD_STIFF, PATH_EXPLICIT, PATH_NONE,
@@ -238,9 +238,9 @@ def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res, max
 
 @njit(**_JIT_INLINE)
 def _add_stats(stats, more):
-    for i in range(rk45.STAT_STIFF):
+    for i in range(stepping.STAT_STIFF):
         stats[i] += more[i]
-    stats[rk45.STAT_STIFF] = max(stats[rk45.STAT_STIFF], more[rk45.STAT_STIFF])
+    stats[stepping.STAT_STIFF] = max(stats[stepping.STAT_STIFF], more[stepping.STAT_STIFF])
 
 
 @njit(**_JIT)
@@ -268,14 +268,14 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step=0
     s1, n1, t1 = _march_stage1(stiff, xi1, y0, end, xi1, max_step * (end - xi1), args1, rtol1,
                                atol1, T1, Q1, stats_r)
     _add_stats(stats1, stats_r)
-    if split and s1 == rk45.SUCCESS and n1 > 0:
+    if split and s1 == stepping.SUCCESS and n1 > 0:
         y0[0] = Q1[n1 - 1, 0, 0] + Q1[n1 - 1, 1, 0]  # w(N): the last step's end
         s1, n_more, t1 = _march_stage1(stiff, N, y0, 1.0, 0.0, max_step * (1.0 - N), args1, rtol1,
                                        atol1, T1[n1:], Q1[n1:], stats_r)
         n1 += n_more
         _add_stats(stats1, stats_r)
     for _ in range(EVENT_REFINEMENTS):
-        if s1 != rk45.EVENT:
+        if s1 != stepping.EVENT:
             break
         k = n1 - 1
         span = t1 - T1[k]
@@ -287,12 +287,12 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step=0
                                          rtol1, atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
         _add_stats(stats1, stats_r)
         n1 = k + nb
-        if s_new == rk45.SUCCESS:
+        if s_new == stepping.SUCCESS:
             # With finer steps the path reaches the wall: the crossing was the interpolant's.
             s1 = s_new
             t1 = t_new
             break
-        if s_new != rk45.EVENT:
+        if s_new != stepping.EVENT:
             # Budget spent crawling into the sqrt kink (D ~ 0 over a long stretch, next to the
             # axis edge): keep the previous location, good to the last pass's step width.
             break
@@ -412,7 +412,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
              else method == METHOD_STIFF)
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
     s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
-    if s1 == rk45.EVENT and rtol1 > STAGE1_RTOL_FLOOR:
+    if s1 == stepping.EVENT and rtol1 > STAGE1_RTOL_FLOOR:
         # Where the path meets D = 0, D often falls to zero nearly tangentially (D ~ (xi_stop -
         # xi)^2 over the last percent), so xi_stop moves by ~sqrt(the error of D): 2.6e-4 at
         # rtol 1e-8 for eps L = 3.8, A = 1/3, N = 1, from the few wide steps of a march that
@@ -420,7 +420,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         rtol1 = max(STAGE1_RTOL_FLOOR, 1e-3 * rtol1)
         atol1[0] = atol * min(1.0, rtol1 / rtol)
         s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res)
-    if s1 == rk45.SUCCESS:
+    if s1 == stepping.SUCCESS:
         delta_wall = _delta_wall(T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
         sensitivity = _wall_D_sensitivity(A, N, delta_wall)
@@ -435,16 +435,16 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
             atol1[0] = atol * min(1.0, rtol1 / rtol)
             s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res,
                                              EDGE_MAX_STEP)
-            if s1 == rk45.SUCCESS:
+            if s1 == stepping.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
                 sensitivity = _wall_D_sensitivity(A, N, delta_wall)
     res[R_N1] = n1
-    if s1 == rk45.EVENT:
+    if s1 == stepping.EVENT:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH
         res[R_XI_STOP] = t1
         return st.EPS_TOO_LARGE_PATH, False
-    if s1 != rk45.SUCCESS:
+    if s1 != stepping.SUCCESS:
         # The march gave up (step size or budget). For N < 1 and small eta that happens in the
         # fast jump to D = 0 just after xi = N (or crawling along the sqrt(N^2 - xi^2) kink of
         # the slow manifold before it, or at a start inside the series' radius ~N), where the

@@ -14,7 +14,7 @@ from numba import njit
 
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .. import status as st
-from ..integrate import dense, panels, rk45
+from ..integrate import stepping, dense, panels
 from ..physics import model
 from ..physics.model import AX_BETA, AX_C0
 from .layout import (R_J2, R_J_AXIS, R_LOGI2, R_LOGW2, R_N2, R_RTOL1, R_STATUS, R_T_TAIL, R_XI2)
@@ -178,7 +178,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
                 k = dense.find_step_from(T1, n1, xi, k) if xi > xi1 else -1
             f[j], g[j], rel_noise[j] = _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C, delta1, D1)
             noise_y = max(noise_y, abs(f[j]) * rel_noise[j])
-        stats2[rk45.STAT_FEV] += panels.N_NODES
+        stats2[stepping.STAT_FEV] += panels.N_NODES
         err_y, err_J = panels.integrate_panel(f, g, y_b, J_b, r, Q2, p, y_nodes)
         noise_J = 0.0
         for j in range(panels.N_NODES):
@@ -192,7 +192,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         floor_J = NOISE_FLOOR * 2.0 * r * noise_J + floor_y * abs(J_a - J_b)
         err = max(err_y / (qtol + floor_y), err_J / (qtol * abs(J_a) + atol_J + floor_J))
         if not err <= 1.0:  # also NaN: a node where D < 0 within round-off
-            stats2[rk45.STAT_REJECTED] += 1
+            stats2[stepping.STAT_REJECTED] += 1
             length = (b - a) * (min(0.5, panels.panel_error_factor(err, 1.0))
                                 if math.isfinite(err) else 0.25)
             if length < 1e-15:
@@ -200,7 +200,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
                 res[R_STATUS] = st.INTEGRATION_FAILED
                 return st.INTEGRATION_FAILED
             continue
-        stats2[rk45.STAT_ACCEPTED] += 1
+        stats2[stepping.STAT_ACCEPTED] += 1
         p += 1
         T2[p] = a
         b = a

@@ -32,7 +32,7 @@ import time
 import numpy as np
 
 from .. import __version__
-from ..integrate import rk45
+from ..integrate import stepping
 from .. import outputs as out_
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
@@ -265,7 +265,7 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None, stage2=True
     need = (stage2, plug_edge)
     n = inp.eta.size
     res = np.empty((n, layout.N_R))
-    stats = np.zeros((n, 2, rk45.N_STATS), dtype=np.int64)
+    stats = np.zeros((n, 2, stepping.N_STATS), dtype=np.int64)
     one_minus = np.empty(inp.eps_K.size)
     xi_k = np.empty(0) if xi is None else xi
     prof = np.empty((n, layout.N_PROF, xi_k.size))
@@ -289,7 +289,7 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None, stage2=True
                 prof[i] = np.nan
     out = {
         "res": res,
-        "steps": stats[:, :, rk45.STAT_ACCEPTED].copy(),
+        "steps": stats[:, :, stepping.STAT_ACCEPTED].copy(),
         "one_minus": one_minus,
     }
     if xi is not None:

@@ -101,11 +101,9 @@ def _bench(args: argparse.Namespace) -> int:
                                     command=command, log=log)
     except OSError as exc:
         raise CliError(f"cannot write the report into {output!r}: {exc}", EXIT_FAILURE) from None
-    # An "(informative)" target is reported, not required.
-    missed = [t for t in rep.targets if t.passed is False and "(informative)" not in t.text]
+    missed = [t for t in rep.targets if t.missed]
     for target in rep.targets:
-        line = target.line().replace("**", "")
-        print(("quick set, not a verdict: " if args.quick else "") + line)
+        print(("quick set, not a verdict: " if args.quick else "") + target.line())
     print("wrote " + ", ".join(str(p) for p in rep.paths.values()))
     if missed and not args.quick:
         _error(f"{len(missed)} required target(s) of the report missed (the FAIL lines above); "

@@ -22,7 +22,6 @@ Only numbers and markdown here; the figure is
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +31,7 @@ from .. import parameters, regimes
 from ..solver import point as sv
 from .. import status as st
 from ..physics.reference import reference
+from .harness import best_of, word
 from .textfile import write_text
 
 L_REPORT = 10.0  # eps = eta / L; the outputs depend on eta only (model.md's similarity)
@@ -94,18 +94,9 @@ def feasible_eta_max(A, N, ws=None, eta_cap=ETA_CAP):
 
 
 def _time_us(ws, eta, A, N, repeats):
-    """Best-of-``repeats`` kernel time per point in microseconds (inner loops above 2 ms)."""
-    t0 = time.perf_counter()
-    ws.run(eta, A, N, RTOL, ATOL)
-    once = time.perf_counter() - t0
-    inner = max(1, min(200, int(2e-3 / max(once, 1e-7))))
-    best = math.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(inner):
-            ws.run(eta, A, N, RTOL, ATOL)
-        best = min(best, (time.perf_counter() - t0) / inner)
-    return 1e6 * best
+    """Best-of-``repeats`` kernel time per point in microseconds (each timing at least 2 ms)."""
+    return 1e6 * best_of(lambda: ws.run(eta, A, N, RTOL, ATOL), repeats, min_seconds=2e-3,
+                         max_inner=200).seconds
 
 
 def _reference(eps, L, K, A, N):
@@ -278,12 +269,12 @@ def markdown(rep: Report) -> str:
         if "cost_ratio" in e:
             head += (f" cost at eta = {ETA_STIFFEST:g} / cost at eta = {ETA_TYPICAL:g} = "
                      f"{e['cost_ratio']:.2f} (limit {COST_RATIO_LIMIT:g}: "
-                     f"{'PASS' if e['cost_pass'] else 'FAIL'});")
+                     f"{word(e['cost_pass'])});")
         if "stiff_slope" in e:
             lo, hi = e["stiff_steps_range"]
             head += (f" stiff-path stage-1 steps {lo}..{hi}, log-log slope vs eta "
                      f"{e['stiff_slope']:+.3f} (flat if |slope| < {FLAT_SLOPE_LIMIT:g}: "
-                     f"{'PASS' if e['flat_pass'] else 'FAIL'})")
+                     f"{word(e['flat_pass'])})")
         lines.append(head)
     return "\n".join(lines) + "\n"
 

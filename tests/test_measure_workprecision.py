@@ -187,14 +187,38 @@ def test_matched_ratio_interpolates_log_log_and_never_extrapolates():
 
 
 def test_tolerance_target_on_ideal_and_bad_curves():
-    """error = rtol passes; 1000x rtol fails as less accurate; 1e-3 rtol fails as more accurate."""
+    """error = rtol passes; 1000x rtol fails as less accurate; 1e-3 rtol passes, with the note
+    that it is more accurate than the band; above at one rtol and below at another fails."""
     rtols = [1e-4, 1e-6, 1e-8, 1e-10]
     ok = report.tolerance_target(_curve("ours", rtols, [1] * 4, rtols, "both"))
-    assert ok[0].passed
+    assert ok[0].passed and ok[0].note == "" and ok[0].required and not ok[1].required
     bad = report.tolerance_target(_curve("ours", rtols, [1] * 4, [1e3 * r for r in rtols], "both"))
     assert bad[0].passed is False and "less accurate" in bad[0].detail and "by 10x" in bad[0].detail
-    over = report.tolerance_target(_curve("ours", rtols, [1] * 4, [1e-3 * r for r in rtols], "both"))
-    assert over[0].passed is False and "more accurate" in over[0].detail
+    assert bad[0].missed and bad[0].line().startswith("FAIL: ")
+    over = report.tolerance_target(_curve("ours", rtols, [1] * 4, [1e-5 * r for r in rtols], "both"))
+    assert over[0].passed is True and not over[0].missed
+    assert over[0].line().startswith("PASS (more accurate than the band): ")
+    assert "m_wall at rtol 1e-04 by 1e+03x" in over[0].detail
+    mixed = report.tolerance_target(_curve("ours", rtols, [1] * 4, [1e-5, 1e-4, 1e-12, 1e-10],
+                                           "both"))
+    assert mixed[0].passed is False and "less accurate" in mixed[0].detail
+    assert "more accurate" in mixed[0].detail
+
+
+def test_bench_more_accurate_than_the_band_is_no_failure(tmp_path, monkeypatch, capsys):
+    """A full ``bench`` whose answers are 1000x more accurate than the band (error rtol/1e5)
+    exits 0 and prints no FAIL line: better than asked is reported, not failed."""
+    from types import SimpleNamespace
+
+    rtols = [1e-4, 1e-6, 1e-8, 1e-10]
+    targets = report.tolerance_target(_curve("ours", rtols, [1] * 4, [1e-5 * r for r in rtols],
+                                             "both"))
+    fake = SimpleNamespace(targets=targets, paths={"md": str(tmp_path / "r.md")})
+    monkeypatch.setattr(workprecision, "run", lambda *a, **k: fake)
+    assert cli.main(["bench", "-o", str(tmp_path / "r")]) == 0
+    out, err = capsys.readouterr()
+    assert "FAIL" not in out and "error" not in err
+    assert "PASS (more accurate than the band): median error" in out
 
 
 def test_speed_targets_say_by_how_much():

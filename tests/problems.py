@@ -1,7 +1,10 @@
-"""Test problems with closed-form solutions, shared by the integrator and dense-output tests.
+"""Test problems shared by the integrator, stepping and dense-output tests: right-hand sides with
+closed-form solutions or a known behaviour (stiff, non-finite), and events.
 
 Module level so that Numba can cache the right-hand sides.
 """
+
+import math
 
 import numpy as np
 from numba import njit
@@ -24,6 +27,32 @@ def oscillator(t, y, args, out):
 @njit(cache=True)
 def const_one(t, y, args, out):
     out[0] = 1.0
+
+
+@njit(cache=True)
+def stiff(t, y, args, out):
+    # Jacobian -1000: |h lambda| = 1000 |h| exactly; quasi-steady solution cos t + 1e-3 sin t.
+    out[0] = -1000.0 * (y[0] - math.cos(t))
+
+
+@njit(cache=True)
+def nan_after_t0(t, y, args, out):
+    # Finite only at t = 0, so every trial step sees NaN.
+    out[0] = -y[0] if t == 0.0 else np.nan
+
+
+@njit(cache=True)
+def vdp(t, y, args, out):
+    # Van der Pol with mu = args[0].
+    mu = args[0]
+    out[0] = y[1]
+    out[1] = mu * (1.0 - y[0] * y[0]) * y[1] - y[0]
+
+
+@njit(cache=True)
+def y_half(t, y, args):
+    # Event: y crosses 1/2.
+    return y[0] - 0.5
 
 
 def gauss_exact(t, t0=0.0, y0=1.0):

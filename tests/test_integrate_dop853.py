@@ -15,29 +15,14 @@ from cosserat_channel.integrate import dense, dop853, rk45
 from cosserat_channel.integrate.stepping import (EVENT, N_STATS, NONFINITE, STAT_ACCEPTED, STAT_FEV,
                                        STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS, SUCCESS,
                                        no_event)
-from problems import OSC_ARGS, gauss, gauss_exact, osc_exact, oscillator
+from problems import (OSC_ARGS, gauss, gauss_exact, nan_after_t0, osc_exact, oscillator, stiff,
+                      y_half)
 
 
 @njit(cache=True)
 def growth(t, y, args, out):
     # y = exp(sin t)
     out[0] = math.cos(t) * y[0]
-
-
-@njit(cache=True)
-def stiff(t, y, args, out):
-    # Jacobian -1000: |h lambda| = 1000 |h| exactly; quasi-steady solution cos t + 1e-3 sin t.
-    out[0] = -1000.0 * (y[0] - math.cos(t))
-
-
-@njit(cache=True)
-def nan_after_t0(t, y, args, out):
-    out[0] = -y[0] if t == 0.0 else np.nan
-
-
-@njit(cache=True)
-def y_half(t, y, args):
-    return y[0] - 0.5
 
 
 @njit(cache=True)

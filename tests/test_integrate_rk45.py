@@ -25,7 +25,8 @@ from cosserat_channel.integrate.rk45 import (
     integrate,
     no_event,
 )
-from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
+from problems import (OSC_ARGS, const_one, gauss, gauss_exact, nan_after_t0, osc_exact,
+                      oscillator, stiff, vdp, y_half)
 
 
 # ---------------------------------------------------------------------------
@@ -39,29 +40,6 @@ def decay(t, y, args, out):
 @njit(cache=True)
 def blowup(t, y, args, out):
     out[0] = y[0] * y[0]
-
-
-@njit(cache=True)
-def stiff(t, y, args, out):
-    out[0] = -1000.0 * (y[0] - math.cos(t))
-
-
-@njit(cache=True)
-def nan_after_t0(t, y, args, out):
-    # Finite only at t = 0, so every trial step sees NaN.
-    out[0] = -y[0] if t == 0.0 else np.nan
-
-
-@njit(cache=True)
-def vdp(t, y, args, out):
-    mu = args[0]
-    out[0] = y[1]
-    out[1] = mu * (1.0 - y[0] * y[0]) * y[1] - y[0]
-
-
-@njit(cache=True)
-def y_half(t, y, args):
-    return y[0] - 0.5
 
 
 @njit(cache=True)

@@ -4,17 +4,10 @@ import math
 
 import numpy as np
 import pytest
-from numba import njit
 from scipy.integrate._ivp.common import select_initial_step
 
 from cosserat_channel.integrate.stepping import all_finite, error_norm, initial_step, rms_norm
-
-
-@njit(cache=True)
-def vdp(t, y, args, out):
-    mu = args[0]
-    out[0] = y[1]
-    out[1] = mu * (1.0 - y[0] * y[0]) * y[1] - y[0]
+from problems import vdp
 
 
 def test_error_norm_closed_form():

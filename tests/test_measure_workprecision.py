@@ -7,6 +7,7 @@ shared). numbalsoda is made to look absent so the test does not depend on the op
 
 import csv
 import math
+import signal
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from matplotlib.collections import PolyCollection
 from cosserat_channel import cli
 from cosserat_channel.measure import report, runners, validation, workprecision
 from cosserat_channel.measure.report import Curve
+from support import start_cli, wait_until
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -292,3 +294,50 @@ def test_edge_stratum_edges_are_pinned():
     spec = validation.SetSpec()
     assert validation._edge_eta(1 / 3, 1.0, spec) == 3.30886
     assert validation._edge_eta(0.0, 1.0, spec) == 1.4434
+
+
+# ---------------------------------------------------------------------------------------------
+# Interrupted
+# ---------------------------------------------------------------------------------------------
+def test_interrupted_bench_keeps_the_references_and_resumes(tmp_path, monkeypatch):
+    """Ctrl-C while the references are computed: one line naming what is kept, exit 130, each
+    finished reference in reference_cache.partial.npz, no report file; building the set again
+    computes only the references still missing, then keeps the whole set and drops the partial
+    file."""
+    out = tmp_path / "bench"
+    spec = workprecision.QUICK.spec
+    proc = start_cli("bench", "--quick", "-o", out)
+    wait_until(proc, lambda: validation.partial_count(spec, out) >= 2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    lines = [ln for ln in err.strip().splitlines() if "error" in ln or "Traceback" in ln]
+    kept = validation.partial_count(spec, out)
+    partial = out / validation.PARTIAL_NAME
+    assert lines == [f"cosserat-channel: error: interrupted; the references of {kept} candidate "
+                     f"points are kept in {partial}: run the same command again to continue "
+                     "from them"], err
+    assert sorted(p.name for p in out.iterdir()) == [validation.PARTIAL_NAME]
+
+    computed = []
+    real = validation._reference_point
+
+    def counting(p):
+        computed.append(p)
+        return real(p)
+
+    monkeypatch.setattr(validation, "_reference_point", counting)
+    said = []
+    vs = validation.get(spec, out, said.append)
+    assert any(f"resuming from {partial} ({kept} candidates done before)" in m for m in said)
+    assert len(computed) == vs.counts["candidates"] - kept
+    assert sorted(p.name for p in out.iterdir()) == [validation.CACHE_NAME]
+    assert "the reference set is kept in" in workprecision.kept(out, quick=True)
+    assert validation.load(spec, out / validation.CACHE_NAME).size == vs.size
+
+
+def test_kept_says_what_an_interrupted_run_left(tmp_path, quick):
+    """Nothing, the references of some candidates, or the whole set (the quick report's)."""
+    assert workprecision.kept(tmp_path, quick=True) == "no reference was finished, nothing is kept"
+    assert "reference set is kept" in workprecision.kept(quick[0], quick=True)
+    assert "no reference" in workprecision.kept(quick[0], quick=False)  # another set

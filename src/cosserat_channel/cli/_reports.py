@@ -12,6 +12,8 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     PROG,
     Progress,
     _error,
+    interruptible,
+    interrupted,
     register,
 )
 # ---------------------------------------------------------------------------------------------
@@ -40,13 +42,20 @@ def _stability(args: argparse.Namespace) -> int:
 
     repeats = 1 if args.quick else args.repeats
     try:
-        with Progress("stability", "finding the edges of the series") as bar:
+        with interruptible(), Progress("stability", "finding the edges of the series") as bar:
             def progress(i, n, row):
                 bar.update(f"{i}/{n} points; last: {row['case']} eta = {row['eta']:.3g}: "
                            f"{row['status']}, {row['path']} path")
 
             rep = write_report(args.output_dir, quick=args.quick, repeats=repeats,
                                progress=progress)
+    except KeyboardInterrupt as exc:
+        from ..measure.stability import PARTIAL_NAME, kept
+
+        n = kept(args.output_dir, args.quick, repeats)
+        return interrupted(exc, f"the {n} rows measured so far are kept in "
+                           f"{os.path.join(args.output_dir, PARTIAL_NAME)}: run the same command "
+                           "again to continue from them" if n else "no row was finished")
     except OSError as exc:
         raise CliError(f"cannot write the report into {args.output_dir!r}: {exc}",
                        EXIT_FAILURE) from None
@@ -92,13 +101,15 @@ def _bench(args: argparse.Namespace) -> int:
     from ..measure import workprecision
 
     try:
-        with Progress("bench", "starting") as bar:
+        with interruptible(), Progress("bench", "starting") as bar:
             def log(message):
                 bar.line(f"{PROG}: bench: {message}")
                 bar.update(f"running; last: {message}")
 
             rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
                                     command=command, log=log)
+    except KeyboardInterrupt as exc:
+        return interrupted(exc, workprecision.kept(output, quick=args.quick))
     except OSError as exc:
         raise CliError(f"cannot write the report into {output!r}: {exc}", EXIT_FAILURE) from None
     missed = [t for t in rep.targets if t.missed]

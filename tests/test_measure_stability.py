@@ -139,8 +139,10 @@ def _partial_rows(path):
         return 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
-                                             (signal.SIGTERM, 143, "terminated")])
+                                             (signal.SIGTERM, 143, "terminated")],
+                         ids=["SIGINT", "SIGTERM"])
 def test_interrupted_report_keeps_its_rows_and_resumes(tmp_path, monkeypatch, capsys, sig, code,
                                                        word):
     """Ctrl-C or SIGTERM after two rows: one line naming what is kept, exit 130 or 143, the rows

@@ -2,7 +2,8 @@
 the figures' artists and the target logic.
 
 The quick report runs once per module on the tiny set (timings are not checked: the machine is
-shared). numbalsoda is made to look absent so the test does not depend on the optional extra.
+shared); it takes about 15 s, so the tests that read it are marked slow, as is the interrupted
+run. numbalsoda is made to look absent so the test does not depend on the optional extra.
 """
 
 import csv
@@ -39,6 +40,7 @@ def rows(quick):
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.slow
 def test_files_written(quick):
     """CSV, both PNGs, the markdown and the reference cache exist; the PNGs are PNGs."""
     out, rep = quick
@@ -49,12 +51,14 @@ def test_files_written(quick):
         assert (out / name).read_bytes()[:8] == PNG_SIGNATURE
 
 
+@pytest.mark.slow
 def test_no_temporary_files_left(quick):
     """Every file went through files.atomic_output: nothing but the outputs in the directory."""
     out, _ = quick
     assert not [p.name for p in out.iterdir() if p.name.startswith(".") or "tmp" in p.name]
 
 
+@pytest.mark.slow
 def test_csv_columns_are_the_contract(quick):
     """The header is exactly the columns the notebook reads, in order."""
     with open(quick[1].paths["csv"], newline="") as fh:
@@ -63,6 +67,7 @@ def test_csv_columns_are_the_contract(quick):
                       "median_rel_err", "max_rel_err"]
 
 
+@pytest.mark.slow
 def test_csv_rows(quick, rows):
     """Ours has both stages (three quantities) and stage 1; peers stage 1 with m_wall only."""
     rtols = set(workprecision.QUICK.rtols)
@@ -78,6 +83,7 @@ def test_csv_rows(quick, rows):
     assert {m for m, _ in by} == {"ours", "scipy-RK45", "scipy-LSODA"}  # numbalsoda absent
 
 
+@pytest.mark.slow
 def test_validation_set_is_cross_checked(quick):
     """Every kept point has finite references; the cross-checked ones agree to 1e-9."""
     vs = quick[1].validation_set
@@ -88,6 +94,7 @@ def test_validation_set_is_cross_checked(quick):
     assert set(vs.stratum) == {0, 1, 2}  # bulk, stiff and edge points are all there
 
 
+@pytest.mark.slow
 def test_work_precision_figure(quick):
     """Log-log error against time, one labelled line per curve, ours first."""
     rep = quick[1]
@@ -104,6 +111,7 @@ def test_work_precision_figure(quick):
     assert "12 points" in rep.figures["work_precision"].get_suptitle()
 
 
+@pytest.mark.slow
 def test_work_precision_figure_pairs_each_peer_with_ours_on_its_points(quick):
     """The second panel draws each peer on the points it solved next to ours on the same points."""
     fig = quick[1].figures["work_precision"]
@@ -117,6 +125,7 @@ def test_work_precision_figure_pairs_each_peer_with_ours_on_its_points(quick):
         assert np.allclose(line.get_xdata(), c.peer_solved.time_us)
 
 
+@pytest.mark.slow
 def test_tolerance_figure(quick):
     """Achieved error against rtol with the ideal line y = x and the factor-100 band."""
     ax = quick[1].figures["tolerance"].axes[0]
@@ -131,6 +140,7 @@ def test_tolerance_figure(quick):
         assert f"{q}, median" in labels and f"{q}, max" in labels
 
 
+@pytest.mark.slow
 def test_markdown_has_provenance_and_verdicts(quick):
     """The report names the command, date, machine and versions and gives a verdict per target."""
     text = quick[1].paths["markdown"].read_text()
@@ -142,6 +152,7 @@ def test_markdown_has_provenance_and_verdicts(quick):
     assert "NOT MEASURED" in text and "numbalsoda not installed (simulated" in text
 
 
+@pytest.mark.slow
 def test_cli_rerun_reuses_the_cache(quick, capsys):
     """``bench --quick -o DIR`` over an existing report reuses the references, exits 0."""
     out, rep = quick
@@ -299,6 +310,7 @@ def test_edge_stratum_edges_are_pinned():
 # ---------------------------------------------------------------------------------------------
 # Interrupted
 # ---------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_interrupted_bench_keeps_the_references_and_resumes(tmp_path, monkeypatch):
     """Ctrl-C while the references are computed: one line naming what is kept, exit 130, each
     finished reference in reference_cache.partial.npz, no report file; building the set again
@@ -336,6 +348,7 @@ def test_interrupted_bench_keeps_the_references_and_resumes(tmp_path, monkeypatc
     assert validation.load(spec, out / validation.CACHE_NAME).size == vs.size
 
 
+@pytest.mark.slow
 def test_kept_says_what_an_interrupted_run_left(tmp_path, quick):
     """Nothing, the references of some candidates, or the whole set (the quick report's)."""
     assert workprecision.kept(tmp_path, quick=True) == "no reference was finished, nothing is kept"

@@ -78,7 +78,8 @@ def _bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true",
                    help="a tiny set (12 points, 3 rtols, scipy RK45 and LSODA on 3 points), "
                    "well under two minutes; for checks, not for numbers: its PASS/FAIL lines are "
-                   "no verdict and the exit code is 0 (a full run exits 1 if a target is missed)")
+                   "no verdict and the exit code is 0 (a full run exits 1 if a required target "
+                   "is missed)")
     p.add_argument("-o", "--output", metavar="DIR",
                    help=f"report directory, created if missing (default: {_BENCH_OUTPUT}); its "
                    "reference_cache.npz is reused by later runs with the same set")

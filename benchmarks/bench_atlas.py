@@ -1,4 +1,4 @@
-"""The solvability atlas against its targets (issue 14): accuracy, classification, cost, speed.
+"""The solvability atlas against its targets: accuracy, classification, cost, speed.
 
 On one box of ``(A, N)`` (default A in [-0.5, 0.5], N in [1, 1.5]: one edge eta_max, steep
 towards A = -1):
@@ -34,14 +34,13 @@ towards A = -1):
 always built or read). The uniform grid's traces are the expensive part (129 x 129 by default:
 about 140 s on one core); the 200 reference bisections serve the atlas, the uniform grids and the learner alike.
 
-The targets of issue 14 are printed with PASS/FAIL at the end.
+The targets are printed with PASS/FAIL at the end (and kept with the numbers by ``--json``).
 
-Run: ``PYTHONPATH=src .venv/bin/python benchmarks/bench_atlas.py --atlas-out atlas.nc``.
+Run: ``PYTHONPATH=src .venv/bin/python benchmarks/bench_atlas.py --atlas-out atlas.nc [--json PATH]``.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import subprocess
@@ -51,13 +50,15 @@ import time
 
 import numpy as np
 
+from cosserat_channel.measure import harness
+
 
 def log(msg):
     print(msg, flush=True)
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = harness.parser(__doc__)
     ap.add_argument("--A", default="-0.5:0.5")
     ap.add_argument("--N", default="1:1.5")
     ap.add_argument("--tol", type=float, default=1e-8)
@@ -90,7 +91,6 @@ def main():
 
     from cosserat_channel import atlas as at
     from cosserat_channel import regimes
-    from cosserat_channel.measure import machine
     from cosserat_channel.solver.point import Workspace
 
     if args.status_bisection:
@@ -102,7 +102,7 @@ def main():
     N_rng = tuple(float(v) for v in args.N.split(":"))
     rng = np.random.default_rng(args.seed)
     trace_range = (1e-3 / at.TRACE_WIDEN, 100.0 * at.TRACE_WIDEN)
-    log(f"machine: {machine.machine()}; {machine.git_revision()}")
+    rec = harness.Record("bench_atlas", args.json)
     max_degree = at.MAX_DEGREE if args.max_degree is None else args.max_degree
     log(f"box A {A_rng}, N {N_rng}, tol {args.tol:g}, degree {at.DEGREE}, max degree "
         f"{max_degree}, max depth {args.max_depth}"
@@ -134,30 +134,33 @@ def main():
         f"({per_trace:.1f} per trace), cell estimates {np.min(atlas.leaf_error):.1e} to "
         f"{np.max(atlas.leaf_error):.1e}, {int(np.sum(atlas.leaf_error > args.tol))} above tol; "
         f"load {os.getloadavg()[0]:.1f}")
+    rec.add("atlas", {"seconds": t_build, "read": bool(args.atlas_in), "cells": atlas.leaf_n.size,
+                      "unresolved": int((atlas.leaf_n < 0).sum()), "traces": n_tr,
+                      "solves": n_sol, "max_cell_estimate": np.max(atlas.leaf_error)})
     if args.atlas_out:
         at.save_atlas(atlas, args.atlas_out)
     if not parts & {"accuracy", "classify", "plot"}:
-        return
+        return rec.finish()
     ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
-    summary = []
     if "accuracy" in parts:
         atlas_rel, A, N, ok, ref, defined = accuracy(args, atlas, A_rng, N_rng, rng, ws,
-                                                     trace_range, summary)
+                                                     trace_range, rec)
         atlas_err = float(np.max(atlas_rel))
     else:
         rng.uniform(size=2 * args.points)  # the classify points stay those of a full run
     if "uniform" in parts:
         uniform(args, atlas, A_rng, N_rng, ws, trace_range, atlas_rel, A, N, ok, ref,
-                defined, summary)
+                defined, rec)
     if "learner" in parts:
         learner(args, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref)
     if "classify" in parts:
-        classify(args, atlas, A_rng, N_rng, rng, ws, summary)
+        classify(args, atlas, A_rng, N_rng, rng, ws, rec)
     if "plot" in parts:
-        plot(atlas, A_rng, N_rng, summary)
-    log("targets (issue 14):")
-    for line in summary:
-        log("  " + line)
+        plot(atlas, A_rng, N_rng, rec)
+    log("targets:")
+    for v in rec.verdicts:
+        log("  " + v.line())
+    return rec.finish()
 
 
 def errors_of(interp, A, N, ref):
@@ -178,11 +181,7 @@ def status_is_monotone(ws, edge, A, N):
 
     return all(ok(edge * (1 - d)) for d in LADDER) and not any(ok(edge * (1 + d)) for d in LADDER)
 
-def verdict(ok):
-    return "PASS" if ok else "FAIL"
-
-
-def accuracy(args, atlas, A_rng, N_rng, rng, ws, trace_range, summary):
+def accuracy(args, atlas, A_rng, N_rng, rng, ws, trace_range, rec):
     """2. eta_max of the atlas against direct traces at random (A, N)."""
     from cosserat_channel import regimes
     from cosserat_channel import status as st
@@ -229,11 +228,14 @@ def accuracy(args, atlas, A_rng, N_rng, rng, ws, trace_range, summary):
         f"{np.max(rel[defined & tangential], initial=0):.2e}), at the ragged "
         f"{np.max(rel[ragged], initial=0):.2e}, {np.sum(rel[ragged] <= band[ragged])} of "
         f"{ragged.sum()} within their trace's noise band")
-    summary.append(f"eta_max within tol ({args.tol:g}) of direct traces at {ok.sum()} random "
-                   f"(A, N): max {atlas_err:.2e}: {verdict(atlas_err <= args.tol)} "
-                   f"({atlas_err / args.tol:.2g} x tol); at the {defined.sum()} with a defined "
-                   f"reference: max {np.max(rel[defined], initial=0):.2e}: "
-                   f"{verdict(np.max(rel[defined], initial=0) <= args.tol)}")
+    worst_defined = np.max(rel[defined], initial=0)
+    rec.check(f"eta_max within tol ({args.tol:g}) of direct traces at {ok.sum()} random (A, N)",
+                  atlas_err <= args.tol, f"max {atlas_err:.2e} ({atlas_err / args.tol:.2g} x tol)")
+    rec.check(f"the same at the {defined.sum()} with a defined reference",
+                  worst_defined <= args.tol, f"max {worst_defined:.2e}")
+    rec.add("accuracy", {"points": int(ok.sum()), "max_rel": atlas_err,
+                             "median_rel": np.median(rel[ok]), "defined": int(defined.sum()),
+                             "max_rel_defined": worst_defined})
     # Where a point is outside its estimate: is the solver's edge itself ragged between the
     # atlas's value and the reference (ok and not ok alternating)?
     for k in np.flatnonzero(ok & (rel > bound)):
@@ -250,7 +252,7 @@ def accuracy(args, atlas, A_rng, N_rng, rng, ws, trace_range, summary):
 
 
 def uniform(args, atlas, A_rng, N_rng, ws, trace_range, atlas_rel, A, N, ok, ref, defined,
-            summary):
+            rec):
     """3. uniform grids, bicubic."""
     from scipy.interpolate import RectBivariateSpline
 
@@ -291,8 +293,11 @@ def uniform(args, atlas, A_rng, N_rng, ws, trace_range, atlas_rel, A, N, ok, ref
             f"order {order:.2f}; for the atlas's {target:.2e}: about {need:.0f}x{need:.0f} = "
             f"{need * need:.3g} traces, {need * need * uni_per_trace:.3g} solves; atlas/uniform = "
             f"{n_tr / need**2:.4f} in traces, {ratio:.4f} in solves")
-    summary.append("cost: atlas/uniform solves at the atlas's max error <= 0.1: " + "; ".join(
-        f"{label} ({k}, max {t:.2e}): {r:.3g} {verdict(r <= 0.1)}" for label, k, t, r in ratios))
+    for label, k, t, r in ratios:
+        rec.check(f"cost: atlas/uniform solves at the atlas's max error <= 0.1, {label} ({k})",
+                      r <= 0.1, f"max {t:.2e}: {r:.3g}")
+    rec.add("uniform", [{"points": label, "n": k, "max_rel": t, "atlas_over_uniform_solves": r}
+                            for label, k, t, r in ratios])
     d = int(np.max(atlas.leaf_level))
     cheb = (atlas.roots[0] * 2**d * atlas.degree + 1) * (atlas.roots[1] * 2**d * atlas.degree + 1)
     log(f"uniform Chebyshev cells of degree {atlas.degree} at the atlas's finest level {d}: "
@@ -345,7 +350,7 @@ def learner(args, A_rng, N_rng, ws, trace_range, atlas_err, A, N, ok, ref):
 
 
 
-def classify(args, atlas, A_rng, N_rng, rng, ws, summary):
+def classify(args, atlas, A_rng, N_rng, rng, ws, rec):
     """5. classify against direct solves."""
     from cosserat_channel import atlas as at
     from cosserat_channel.physics import model
@@ -382,11 +387,13 @@ def classify(args, atlas, A_rng, N_rng, rng, ws, summary):
     log(f"classify: {ceta.size} points in {t_cls:.2f} s; direct solves {t_solve:.0f} s "
         f"(Workspace.status in a loop); wrong decided points {wrong}; statuses "
         f"{dict(zip(*np.unique(truth, return_counts=True)))}; load {os.getloadavg()[0]:.1f}")
-    summary.append(f"classify right on every decided point of {ceta.size}: {wrong} wrong, "
-                   f"{100 * (1 - dec.mean()):.2f} % undecided: {verdict(wrong == 0)}")
+    rec.check(f"classify right on every decided point of {ceta.size}", wrong == 0,
+                  f"{wrong} wrong, {100 * (1 - dec.mean()):.2f} % undecided")
+    rec.add("classify", {"points": ceta.size, "wrong": wrong,
+                             "undecided_fraction": 1 - dec.mean(), "seconds": t_cls})
 
 
-def plot(atlas, A_rng, N_rng, summary):
+def plot(atlas, A_rng, N_rng, rec):
     """6. a regime map from the atlas, in a fresh process."""
     from cosserat_channel import atlas as at
     from cosserat_channel.sweep import run_sweep
@@ -399,16 +406,13 @@ def plot(atlas, A_rng, N_rng, summary):
                             "N": {"linspace": [*N_rng, 26]}}}, workers=1).to_netcdf(res)
         cmd = [sys.executable, "-m", "cosserat_channel.cli", "plot", res, "--regime", "--x", "A",
                "--y", "N", "--atlas", path, "-o", os.path.join(tmp, "map.png")]
-        times = []
-        for _ in range(5):
-            t0 = time.perf_counter()
-            subprocess.run(cmd, check=True, capture_output=True)
-            times.append(time.perf_counter() - t0)
-        log(f"plot --regime --atlas (fresh process): best of 5 {min(times):.2f} s, median "
-            f"{np.median(times):.2f} s; load {os.getloadavg()[0]:.1f}")
-    summary.append(f"regime map from a cached atlas < 3 s: best of 5 {min(times):.2f} s, median "
-                   f"{np.median(times):.2f} s: {verdict(min(times) < 3)}")
+        t = harness.best_of(lambda: subprocess.run(cmd, check=True, capture_output=True), 5)
+        log(f"plot --regime --atlas (fresh process): best of 5 {t.seconds:.2f} s, median "
+            f"{np.median(t.times):.2f} s; load {os.getloadavg()[0]:.1f}")
+    rec.check("regime map from a cached atlas < 3 s", t.seconds < 3,
+                  f"best of 5 {t.seconds:.2f} s, median {np.median(t.times):.2f} s")
+    rec.add("plot_seconds", list(t.times))
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -7,17 +7,16 @@ Measures, in one run on this machine:
 2. ``regimes.trace_edge`` deciding feasibility by the full two-stage solve (as before) and by
    ``Workspace.status`` (stage 2 only next to the edge), with the two eta_max compared;
 3. with ``--baseline REF``, the same edges traced by the package as it was at git commit REF
-   (default 5fd2cfb, the code when issue 15 was filed: feasibility by both stages, the kernels of
-   that day), in a subprocess of this run on a ``git archive`` of REF. This is the "today's
-   time" of the issue's target, measured side by side rather than quoted.
+   (default 5fd2cfb, the last commit before the status path: feasibility by both stages, the
+   kernels of that day), in a subprocess of this run on a ``git archive`` of REF: the time
+   before, measured side by side rather than quoted.
 
-Run: ``.venv/bin/python benchmarks/bench_needed.py [--quick] [--baseline [REF]]``. Targets: sweep
-ratio <= 0.55, trace_edge ratio <= 0.5 with identical eta_max to 1e-10 (relative).
+Run: ``.venv/bin/python benchmarks/bench_needed.py [--quick] [--baseline [REF]] [--json PATH]``.
+Targets: sweep ratio <= 0.55, trace_edge ratio <= 0.5 with identical eta_max to 1e-10 (relative).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import subprocess
@@ -28,7 +27,7 @@ import time
 import numpy as np
 
 from cosserat_channel import regimes, run_sweep
-from cosserat_channel.measure.machine import cpu_model
+from cosserat_channel.measure import harness
 from cosserat_channel.solver.point import Workspace
 
 EDGE_CASES = ((1 / 3, 1.0), (0.0, 2.0), (-0.5, 1.0), (3.0, 0.5), (1.0, 1.0), (2.0, 3.0))
@@ -50,12 +49,9 @@ def sweep_mapping(n_eps, n_L, variables=None):
 
 
 def time_sweep(mapping, repeat):
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        ds = run_sweep(mapping, reduce=False, workers=1, progress=False)
-        best = min(best, time.perf_counter() - t0)
-    return best, ds
+    """Seconds of the unreduced sweep on one core (best of ``repeat``) and its Dataset."""
+    t = harness.best_of(lambda: run_sweep(mapping, reduce=False, workers=1, progress=False), repeat)
+    return t.seconds, t.result
 
 
 BASELINE_SCRIPT = """
@@ -91,15 +87,16 @@ def trace_baseline(ref: str, cases) -> list | None:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = harness.parser(__doc__)
     ap.add_argument("--quick", action="store_true", help="a small grid (CI smoke run)")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--baseline", nargs="?", const="5fd2cfb", default=None, metavar="REF",
                     help="also trace the edges with the package at git commit REF (default "
-                         "5fd2cfb, when issue 15 was filed)")
+                         "5fd2cfb, the last commit before the status path)")
     args = ap.parse_args()
+    rec = harness.Record("bench_needed", args.json)
     n = 20 if args.quick else 100
-    print(f"CPU: {cpu_model()}; one core; unreduced sweep of {n} x {n} x 5 x 2 points")
+    print(f"one core; unreduced sweep of {n} x {n} x 5 x 2 points")
     time_sweep(sweep_mapping(3, 2), 1)  # compile / load the kernels outside the timing
 
     t_all, ds_all = time_sweep(sweep_mapping(n, n), args.repeat)
@@ -107,10 +104,13 @@ def main() -> int:
     same_status = bool((ds_all.status.values == ds_m.status.values).all())
     same_m = bool(np.array_equal(ds_all.m_wall.values, ds_m.m_wall.values, equal_nan=True))
     ratio = t_m / t_all
+    rec.add("sweep", {"points": n * n * 10, "every_output_s": t_all, "m_wall_only_s": t_m,
+                      "ratio": ratio, "statuses_identical": same_status,
+                      "m_wall_identical": same_m})
+    v = rec.check("sweep of m_wall alone / every output <= 0.55", ratio <= 0.55, f"{ratio:.2f}")
     print(f"sweep, every output : {t_all:8.2f} s")
     print(f"sweep, m_wall only  : {t_m:8.2f} s   ratio {ratio:.2f}  (target <= 0.55: "
-          f"{'PASS' if ratio <= 0.55 else 'FAIL'})  statuses identical: {same_status}, "
-          f"m_wall identical: {same_m}")
+          f"{v.word})  statuses identical: {same_status}, m_wall identical: {same_m}")
 
     ws_full, ws_new = FullSolveWorkspace(max_steps_stage1=regimes.EDGE_MAX_STEPS), \
         Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
@@ -129,12 +129,17 @@ def main() -> int:
         etas.append(new.eta_max)
         if np.isfinite(old.eta_max) or np.isfinite(new.eta_max):
             worst = max(worst, abs(new.eta_max - old.eta_max) / abs(old.eta_max))
+        rec.row("edges", A=A, N=N, eta_max_full=old.eta_max, eta_max_status=new.eta_max,
+                full_s=t1 - t0, status_s=t2 - t1)
         print(f"  A = {A:6.3f}, N = {N:4.2f}: eta_max {old.eta_max:.12g} (full) "
               f"{new.eta_max:.12g} (status path); {t1 - t0:6.2f} s -> {t2 - t1:6.2f} s")
     r = t_new / t_old
+    v1 = rec.check("trace_edge by status / by the full solve <= 0.5", r <= 0.5, f"{r:.2f}")
+    v2 = rec.check("eta_max of the two the same to 1e-10 (relative)", worst <= 1e-10,
+                   f"{worst:.1e}")
     print(f"trace_edge, {len(EDGE_CASES)} edges: {t_old:.2f} s -> {t_new:.2f} s, ratio {r:.2f} "
-          f"(target <= 0.5: {'PASS' if r <= 0.5 else 'FAIL'}); max relative eta_max difference "
-          f"{worst:.1e} (target <= 1e-10: {'PASS' if worst <= 1e-10 else 'FAIL'})")
+          f"(target <= 0.5: {v1.word}); max relative eta_max difference "
+          f"{worst:.1e} (target <= 1e-10: {v2.word})")
     if args.baseline:
         base = trace_baseline(args.baseline, [list(c) for c in EDGE_CASES])
         if base is not None:
@@ -143,13 +148,16 @@ def main() -> int:
                            if np.isfinite(b[1])), default=0.0)
             rb = t_new / t_base
             for (A, N), b, new_e in zip(EDGE_CASES, base, etas):
+                rec.row("baseline", A=A, N=N, eta_max_then=b[1], eta_max_now=new_e, then_s=b[0])
                 print(f"  A = {A:6.3f}, N = {N:4.2f}: eta_max {b[1]:.12g} (at {args.baseline}) "
                       f"{new_e:.12g} (now); {b[0]:6.2f} s")
-            print(f"trace_edge at {args.baseline} (the code when issue 15 was filed), same edges: "
-                  f"{t_base:.2f} s; this commit {t_new:.2f} s, ratio {rb:.2f} (target <= 0.5: "
-                  f"{'PASS' if rb <= 0.5 else 'FAIL'}); max relative eta_max difference "
-                  f"{worst_b:.1e} (target <= 1e-10: {'PASS' if worst_b <= 1e-10 else 'FAIL'})")
-    return 0
+            v1 = rec.check(f"trace_edge now / at {args.baseline} <= 0.5", rb <= 0.5, f"{rb:.2f}")
+            v2 = rec.check(f"eta_max now and at {args.baseline} the same to 1e-10 (relative)",
+                           worst_b <= 1e-10, f"{worst_b:.1e}")
+            print(f"trace_edge at {args.baseline}, same edges: {t_base:.2f} s; this commit "
+                  f"{t_new:.2f} s, ratio {rb:.2f} (target <= 0.5: {v1.word}); max relative "
+                  f"eta_max difference {worst_b:.1e} (target <= 1e-10: {v2.word})")
+    return rec.finish()
 
 
 if __name__ == "__main__":

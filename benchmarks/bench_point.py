@@ -1,6 +1,6 @@
 """Microseconds per point: ours (both stages, stage 1) against numbalsoda and scipy, in one run.
 
-Grid (issue 2): eps log-spaced in [1/600, 0.2] (50 values) x L in [2, 20] (20 values), A = 1/3,
+Grid: eps log-spaced in [1/600, 0.2] (50 values) x L in [2, 20] (20 values), A = 1/3,
 N = 1, K = 0.5: 1000 points, one core. Ours runs the whole grid inside one Numba kernel
 (`solve_batch`, no reduction: every point integrated). scipy runs the same two-stage problem
 (same formulation: stage 1 in w = delta/xi^2 from the axis series, stage 2 in ln xi) point by
@@ -9,12 +9,11 @@ measured in one run, so the ratios hold on a noisy shared machine. With numbalso
 (``pip install -e '.[bench]'``, needs gfortran) its LSODA and DOP853 solve stage 1 of the same
 points at rtol 1e-6 and 1e-8, and the ratios to numbalsoda LSODA are checked against the targets.
 
-Run:  .venv/bin/python benchmarks/bench_point.py [--scipy-points 40] [--repeat 3]
+Run:  .venv/bin/python benchmarks/bench_point.py [--scipy-points 40] [--repeat 3] [--json PATH]
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 
@@ -25,7 +24,7 @@ from scipy.optimize import brentq
 
 from cosserat_channel.physics import model
 from cosserat_channel.solver import stage1, stage2
-from cosserat_channel.measure import machine, runners
+from cosserat_channel.measure import harness, runners
 
 RTOL = 1e-8
 ATOL = 1e-12
@@ -99,7 +98,7 @@ def scipy_point(eps, L, K, A, N, method):
     return -math.expm1(tp) / eps
 
 
-# The issue-9 settings: numbalsoda's stage 1 at (rtol, atol) = (1e-6, 1e-8) and (1e-8, 1e-10); ours
+# numbalsoda's stage 1 at (rtol, atol) = (1e-6, 1e-8) and (1e-8, 1e-10); ours
 # at the same tolerances. Targets: ours, both stages <= 1.0 x numbalsoda LSODA's stage 1; ours,
 # stage 1 <= 0.5 x.
 TOLERANCES = ((1e-6, 1e-8), (1e-8, 1e-10))
@@ -112,7 +111,7 @@ def _rel(a, b):
     return float(np.max(np.abs(a[ok] / b[ok] - 1))) if ok.any() else math.nan
 
 
-def peers(eps, L, repeat):
+def peers(eps, L, repeat, rec):
     """Ours (both stages, stage 1) and numbalsoda LSODA / DOP853 (stage 1), one table per rtol."""
     n = eps.size
     A, N, K = np.full(n, 1 / 3), np.ones(n), np.full(n, 0.5)
@@ -137,31 +136,32 @@ def peers(eps, L, repeat):
         for name, t, err in rows:
             ratio = "-" if base is None else f"{t / base:.2f}"
             lines.append(f"| {name:<28} | {t * 1e6:>9.1f} | {ratio:>26} | {err:>31.1e} |")
-        if base is None:
-            lines.append(f"numbalsoda not available ({nbs_note}): no peer ratios")
-            continue
+            rec.row("peers", rtol=rtol, atol=atol, method=name, us_per_point=t * 1e6,
+                    x_numbalsoda_lsoda=None if base is None else t / base, max_rel_diff_m_wall=err)
         for label, t, target in (("both stages", t_both, TARGET_BOTH), ("stage 1", t_s1, TARGET_STAGE1)):
-            r = t / base
-            verdict = "PASS" if r <= target else f"FAIL by {r / target:.2f}x"
-            lines.append(f"target: ours, {label} <= {target:g} x numbalsoda LSODA's stage 1: "
-                         f"{r:.2f} -> {verdict}")
+            text = f"rtol {rtol:g}: ours, {label} <= {target:g} x numbalsoda LSODA's stage 1"
+            if base is None:
+                v = rec.check(text, None, f"numbalsoda not available ({nbs_note})")
+            else:
+                r = t / base
+                v = rec.check(text, r <= target,
+                              f"{r:.2f}" + ("" if r <= target else f", {r / target:.2f}x over"))
+            lines.append("target: " + v.line())
     return lines
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = harness.parser(__doc__)
     ap.add_argument("--scipy-points", type=int, default=40)
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     numba.set_num_threads(1)
     eps, L = grid()
     n = eps.size
+    rec = harness.Record("bench_point", args.json)
     runners.warm_up()
-    print(f"# bench_point: {n} points, eps in [1/600, 0.2] x L in [2, 20], A = 1/3, N = 1, K = 0.5, "
-          "one core")
-    print(f"# machine: {machine.machine()}")
-    print(f"# versions: {machine.versions()}")
-    for line in peers(eps, L, args.repeat):
+    print(f"{n} points, eps in [1/600, 0.2] x L in [2, 20], A = 1/3, N = 1, K = 0.5, one core")
+    for line in peers(eps, L, args.repeat, rec):
         print(line)
 
     # scipy solve_ivp in a Python loop, at RTOL, on an evenly spread subsample.
@@ -189,8 +189,11 @@ def main():
     for name, npts, us, err, base in rows:
         err_s = "-" if math.isnan(err) else f"{err:.1e}"
         print(f"| {name:<42} | {npts:>6} | {us:>9.1f} | {us / base:>20.1f} | {err_s:>21} |")
+        rec.row("scipy_loops", method=name, points=npts, us_per_point=us, x_ours=us / base,
+                max_rel_diff=err)
     print("\n(max rel. diff: Delta for both stages, m_wall for stage 1)")
+    return rec.finish()
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -23,14 +23,12 @@ loaded machine the time spent waiting for a core lands in the second: it is a bo
 Peak RSS is each child's own (``os.wait4``). Everything runs in one invocation so the ratios hold
 on a noisy shared machine.
 
-Run:  .venv/bin/python benchmarks/bench_sweep.py [--points 20000] [--repeat 2]
+Run:  .venv/bin/python benchmarks/bench_sweep.py [--points 20000] [--repeat 2] [--json PATH]
 """
 
 from __future__ import annotations
 
-import argparse
 import os
-import platform
 import re
 import subprocess
 import sys
@@ -41,7 +39,7 @@ from pathlib import Path
 import dask
 import numpy as np
 
-from cosserat_channel.measure import machine
+from cosserat_channel.measure import harness
 from cosserat_channel.sweep import engine
 from cosserat_channel.sweep.plan import COST_FIXED, COST_PER_INV_ETA, BlockInputs, block_plan
 from cosserat_channel.sweep.spec import load_sweep
@@ -105,21 +103,15 @@ def run_unreduced(inputs, rtol, atol, workers: int) -> float:
     return time.perf_counter() - t0
 
 
-def verdict(ok: bool) -> str:
-    return "PASS" if ok else "FAIL"
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main() -> int:
+    ap = harness.parser(__doc__)
     ap.add_argument("--points", type=int, default=20_000, help="subsample size for (b)")
     ap.add_argument("--repeat", type=int, default=2, help="best of this many timings in (b)")
     ap.add_argument("--workers", type=int, default=2,
                     help="workers for (a) and the 'N workers' of (b)")
     args = ap.parse_args()
 
-    print("command:  " + " ".join([sys.executable, *sys.argv]))
-    print(f"machine:  {platform.node()}: {machine.machine()}")
-    print(f"versions: {machine.versions(dask=dask.__version__)}")
+    rec = harness.Record("bench_sweep", args.json, dask=dask.__version__)
     engine.warm_up()  # compile (or load) the kernels here, not inside a timing
     with tempfile.TemporaryDirectory(dir=ROOT / "benchmarks") as tmp_name:
         tmp = Path(tmp_name)
@@ -136,21 +128,32 @@ def main() -> None:
 
     spec, inputs = subsample(args.points)
     run_unreduced(inputs[:2], spec.rtol, spec.atol, 1)
-    t1 = min(run_unreduced(inputs, spec.rtol, spec.atol, 1) for _ in range(args.repeat))
-    tw = min(run_unreduced(inputs, spec.rtol, spec.atol, args.workers) for _ in range(args.repeat))
+    t1 = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol, 1),
+                         args.repeat).seconds
+    tw = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol, args.workers),
+                         args.repeat).seconds
 
     n_large = spec.size
     reduced_pps = n_large / a["wall"]
     reduced_solve_pps = n_large / a["solve"]
     unreduced_pps = args.points / tw
     speedup = t1 / tw
-    ok_time = a["wall"] < 60.0
-    ok_rss = a["rss"] < 1 * GiB
-    ok_speedup = speedup >= 1.8
     overhead = c["write"] / c["solve"]
-    ok_huge_rss = c["rss"] < 2 * GiB
-    ok_overhead = overhead <= 0.30
-    ok_query = d["wall"] < 2.0 and d["rss"] < 1 * GiB and d["rows"] == 10_000
+    ok_time = rec.check("(a) large_5d end to end < 60 s", a["wall"] < 60.0, f"{a['wall']:.2f} s")
+    ok_rss = rec.check("(a) peak RSS < 1 GiB", a["rss"] < 1 * GiB, f"{a['rss'] / GiB:.2f} GiB")
+    ok_speedup = rec.check(f"(b) {args.workers} workers >= 1.8x one worker", speedup >= 1.8,
+                           f"{speedup:.2f}x")
+    ok_huge_rss = rec.check("(c) peak RSS < 2 GiB", c["rss"] < 2 * GiB, f"{c['rss'] / GiB:.2f} GiB")
+    ok_overhead = rec.check("(c) assemble and write <= 30 % of the solve", overhead <= 0.30,
+                            f"{overhead:.0%}")
+    ok_query = rec.check("(d) query of 10^4 rows < 2 s and < 1 GiB, every row",
+                         d["wall"] < 2.0 and d["rss"] < 1 * GiB and d["rows"] == 10_000,
+                         f"{d['wall']:.2f} s, {d['rss'] / GiB:.2f} GiB, {d['rows']:,} rows")
+    rec.add("a_large_5d", {k: a[k] for k in ("cmd", "wall", "solve", "write", "rss", "size")})
+    rec.add("b_unreduced", {"points": args.points, "one_worker_s": t1, "workers": args.workers,
+                            "workers_s": tw, "speedup": speedup})
+    rec.add("c_1e8_points", {k: c[k] for k in ("cmd", "wall", "solve", "write", "rss", "size")})
+    rec.add("d_query", {k: d[k] for k in ("cmd", "wall", "rss", "rows")})
 
     print()
     for r in (a, c, d):
@@ -158,18 +161,18 @@ def main() -> None:
         print("    " + r["log"].replace("\n", "\n    "))
     rows = [
         ("(a) large_5d, reduced, end to end", f"{a['wall']:.2f} s", f"{reduced_pps:,.0f} points/s",
-         f"< 60 s: {verdict(ok_time)}"),
+         f"< 60 s: {ok_time.word}"),
         ("    of which solve", f"{a['solve']:.2f} s", f"{reduced_solve_pps:,.0f} points/s",
          f"{a['solve'] / a['wall']:.0%}"),
         ("    of which assemble and write", f"{a['write']:.2f} s", f"{a['size'] / 1e6:.0f} MB file",
          f"{a['write'] / a['wall']:.0%}"),
         ("    startup, plan, store", f"{a['wall'] - a['solve'] - a['write']:.2f} s", "", ""),
-        ("(a) peak RSS", f"{a['rss'] / GiB:.2f} GiB", "", f"< 1 GiB: {verdict(ok_rss)}"),
+        ("(a) peak RSS", f"{a['rss'] / GiB:.2f} GiB", "", f"< 1 GiB: {ok_rss.word}"),
         (f"(b) unreduced, {args.points:,} points, 1 worker", f"{t1:.2f} s",
          f"{args.points / t1:,.0f} points/s", ""),
         (f"(b) unreduced, {args.points:,} points, {args.workers} workers", f"{tw:.2f} s",
          f"{unreduced_pps:,.0f} points/s",
-         f"{speedup:.2f}x one worker, >= 1.8x: {verdict(ok_speedup)}"),
+         f"{speedup:.2f}x one worker, >= 1.8x: {ok_speedup.word}"),
         ("reduced (a) / unreduced (b), per point", "", "",
          f"{reduced_pps / unreduced_pps:,.0f}x end to end "
          f"({reduced_solve_pps / unreduced_pps:,.0f}x solve only)"),
@@ -177,10 +180,10 @@ def main() -> None:
          f"{1e8 / c['wall']:,.0f} points/s", ""),
         ("    of which solve", f"{c['solve']:.2f} s", f"{1e8 / c['solve']:,.0f} points/s", ""),
         ("    of which assemble and write", f"{c['write']:.2f} s", f"{c['size'] / 1e6:.0f} MB file",
-         f"{overhead:.0%} of solve, <= 30 %: {verdict(ok_overhead)}"),
-        ("(c) peak RSS", f"{c['rss'] / GiB:.2f} GiB", "", f"< 2 GiB: {verdict(ok_huge_rss)}"),
+         f"{overhead:.0%} of solve, <= 30 %: {ok_overhead.word}"),
+        ("(c) peak RSS", f"{c['rss'] / GiB:.2f} GiB", "", f"< 2 GiB: {ok_huge_rss.word}"),
         (f"(d) query, {d['rows']:,} rows to CSV", f"{d['wall']:.2f} s",
-         f"{d['rss'] / GiB:.2f} GiB peak RSS", f"< 2 s, < 1 GiB: {verdict(ok_query)}"),
+         f"{d['rss'] / GiB:.2f} GiB peak RSS", f"< 2 s, < 1 GiB: {ok_query.word}"),
     ]
     w0 = max(len(r[0]) for r in rows)
     print()
@@ -188,7 +191,8 @@ def main() -> None:
     print("-" * (w0 + 70))
     for name, t, thr, note in rows:
         print(f"{name:<{w0}}  {t:>10}  {thr:>20}  {note}")
+    return rec.finish()
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -1,4 +1,5 @@
-"""Test problems with closed-form solutions, shared by the integrator and dense-output tests.
+"""Test problems shared by the integrator, stepping and dense-output tests: right-hand sides with
+closed-form solutions or a known behaviour (stiff, non-finite), and events.
 
 Module level so that Numba can cache the right-hand sides.
 """
@@ -38,6 +39,20 @@ def stiff(t, y, args, out):
 def nan_after_t0(t, y, args, out):
     # Finite only at t = 0, so every trial step sees NaN.
     out[0] = -y[0] if t == 0.0 else np.nan
+
+
+@njit(cache=True)
+def vdp(t, y, args, out):
+    # Van der Pol with mu = args[0].
+    mu = args[0]
+    out[0] = y[1]
+    out[1] = mu * (1.0 - y[0] * y[0]) * y[1] - y[0]
+
+
+@njit(cache=True)
+def y_half(t, y, args):
+    # Event: y crosses 1/2.
+    return y[0] - 0.5
 
 
 def gauss_exact(t, t0=0.0, y0=1.0):

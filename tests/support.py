@@ -1,4 +1,5 @@
-"""Assertions shared by the sweep-store and fault-injection tests."""
+"""Helpers shared by the tests: the result-file assertion of the sweep-store and fault tests, and
+a command line in a subprocess for the interruption tests."""
 
 import numpy as np
 import xarray as xr
@@ -11,3 +12,38 @@ def assert_identical(path, ds):
         assert set(f.data_vars) == set(ds.data_vars)
         for v in ds.data_vars:
             assert np.array_equal(f[v].values, ds[v].values, equal_nan=True), v
+
+
+def start_cli(*argv):
+    """``cosserat-channel ARGV`` in a subprocess of this package's sources, with the SIGINT
+    disposition a terminal gives it (a shell starts background jobs with SIGINT ignored, and
+    Python then installs no KeyboardInterrupt handler: a Ctrl-C test would test nothing)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    import cosserat_channel
+
+    src = os.path.dirname(os.path.dirname(os.path.abspath(cosserat_channel.__file__)))
+    path = [p for p in (src, os.environ.get("PYTHONPATH")) if p]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(path))
+    return subprocess.Popen([sys.executable, "-m", "cosserat_channel.cli", *map(str, argv)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def wait_until(proc, condition, timeout=600):
+    """Poll ``condition()`` until it is true; fail if ``proc`` ends first or time runs out."""
+    import time
+
+    import pytest
+
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if proc.poll() is not None:
+            pytest.fail(f"the command ended before the moment to interrupt it: {proc.communicate()}")
+        if time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail("the moment to interrupt the command never came")
+        time.sleep(0.05)

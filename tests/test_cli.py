@@ -342,10 +342,10 @@ def test_bench_exit_code_says_whether_the_targets_were_met(capsys, tmp_path, mon
     from types import SimpleNamespace
 
     from cosserat_channel.measure import workprecision
-    from cosserat_channel.measure.report import Target
+    from cosserat_channel.measure.harness import Verdict
 
-    targets = [Target("speed", False, "2x slower"), Target("max error (informative)", False, ""),
-               Target("median error", True, "")]
+    targets = [Verdict("speed", False, "2x slower"), Verdict("max error", False, "", required=False),
+               Verdict("median error", True, "")]
     fake = SimpleNamespace(targets=targets, paths={"md": str(tmp_path / "r.md")})
     monkeypatch.setattr(workprecision, "run", lambda *a, **k: fake)
     assert cli.main(["bench", "-o", str(tmp_path / "r")]) == 1

@@ -105,6 +105,7 @@ def _check_invariants(r):
             assert 0 < r.xi_stop <= 1
 
 
+@pytest.mark.slow
 @settings(max_examples=50, **SETTINGS)
 @given(eps=EPS, L=L_, K=K_, A=A_, N=N_)
 def test_domain_agrees_with_radau_reference(eps, L, K, A, N):

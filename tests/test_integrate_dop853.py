@@ -15,18 +15,14 @@ from cosserat_channel.integrate import dense, dop853, rk45
 from cosserat_channel.integrate.stepping import (EVENT, N_STATS, NONFINITE, STAT_ACCEPTED, STAT_FEV,
                                        STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS, SUCCESS,
                                        no_event)
-from problems import OSC_ARGS, gauss, gauss_exact, nan_after_t0, osc_exact, oscillator, stiff
+from problems import (OSC_ARGS, gauss, gauss_exact, nan_after_t0, osc_exact, oscillator, stiff,
+                      y_half)
 
 
 @njit(cache=True)
 def growth(t, y, args, out):
     # y = exp(sin t)
     out[0] = math.cos(t) * y[0]
-
-
-@njit(cache=True)
-def y_half(t, y, args):
-    return y[0] - 0.5
 
 
 @njit(cache=True)

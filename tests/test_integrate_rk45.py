@@ -22,8 +22,8 @@ from cosserat_channel.integrate.stepping import (
     SUCCESS,
     no_event,
 )
-from problems import (OSC_ARGS, const_one, gauss, gauss_exact, nan_after_t0, osc_exact, oscillator,
-                      stiff)
+from problems import (OSC_ARGS, const_one, gauss, gauss_exact, nan_after_t0, osc_exact,
+                      oscillator, stiff, vdp, y_half)
 
 
 # ---------------------------------------------------------------------------
@@ -37,18 +37,6 @@ def decay(t, y, args, out):
 @njit(cache=True)
 def blowup(t, y, args, out):
     out[0] = y[0] * y[0]
-
-
-@njit(cache=True)
-def vdp(t, y, args, out):
-    mu = args[0]
-    out[0] = y[1]
-    out[1] = mu * (1.0 - y[0] * y[0]) * y[1] - y[0]
-
-
-@njit(cache=True)
-def y_half(t, y, args):
-    return y[0] - 0.5
 
 
 @njit(cache=True)

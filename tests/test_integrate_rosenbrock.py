@@ -7,6 +7,7 @@ import pytest
 from numba import njit
 
 from cosserat_channel.integrate import dense, rosenbrock, stepping
+from problems import y_half
 
 
 @njit(cache=True)
@@ -23,23 +24,13 @@ def _pr_jac(t, y, args):
 
 
 @njit(cache=True)
-def _no_event(t, y, args):
-    return 1.0
-
-
-@njit(cache=True)
-def _event_cos_half(t, y, args):
-    return y[0] - 0.5
-
-
-@njit(cache=True)
 def _pr_run(lam, rtol, t_end, h_max, tab, T, Q, stats, with_event):
     y0 = np.ones(1)
     atol = np.full(1, 1e-13)
     if with_event:
-        return rosenbrock.rodas4(_pr_rhs, _pr_jac, _event_cos_half, 0.0, y0, t_end, (lam,), rtol,
+        return rosenbrock.rodas4(_pr_rhs, _pr_jac, y_half, 0.0, y0, t_end, (lam,), rtol,
                                  atol, 0.0, h_max, T, Q, stats, tab)
-    return rosenbrock.rodas4(_pr_rhs, _pr_jac, _no_event, 0.0, y0, t_end, (lam,), rtol, atol,
+    return rosenbrock.rodas4(_pr_rhs, _pr_jac, stepping.no_event, 0.0, y0, t_end, (lam,), rtol, atol,
                              0.0, h_max, T, Q, stats, tab)
 
 

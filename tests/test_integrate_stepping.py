@@ -4,20 +4,14 @@ import math
 
 import numpy as np
 import pytest
-from numba import njit
 from scipy.integrate._ivp.common import select_initial_step
+
+from numba import njit
 
 from cosserat_channel.integrate import dense, dop853, rk45, rosenbrock, stepping
 from cosserat_channel.integrate.stepping import (all_finite, count_trial, error_norm, initial_guess,
                                                  initial_step, rms_norm, step_too_small)
-from problems import nan_after_t0
-
-
-@njit(cache=True)
-def vdp(t, y, args, out):
-    mu = args[0]
-    out[0] = y[1]
-    out[1] = mu * (1.0 - y[0] * y[0]) * y[1] - y[0]
+from problems import nan_after_t0, vdp
 
 
 def test_error_norm_closed_form():

@@ -4,13 +4,16 @@ Timings are not checked (the machine is shared); files, table columns, statuses,
 verdict and the figure's artists are.
 """
 
+import json
 import math
+import signal
 
 import pytest
 
 from cosserat_channel import cli
 from cosserat_channel.measure import stability
 from cosserat_channel.plot.stability import stability_figure
+from support import start_cli, wait_until
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -127,3 +130,65 @@ def test_markdown_formats_nan_as_dash():
     rep = stability.Report(rows=[row], verdict=stability.verdict([row]))
     md = stability.markdown(rep)
     assert "nan" not in md.split("## Verdict")[0]
+
+
+def _partial_rows(path):
+    try:
+        return len(json.loads(path.read_text())["rows"])
+    except (OSError, ValueError):
+        return 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                             (signal.SIGTERM, 143, "terminated")],
+                         ids=["SIGINT", "SIGTERM"])
+def test_interrupted_report_keeps_its_rows_and_resumes(tmp_path, monkeypatch, capsys, sig, code,
+                                                       word):
+    """Ctrl-C or SIGTERM after two rows: one line naming what is kept, exit 130 or 143, the rows
+    in stability.partial.json; the same command again measures only the rows still missing,
+    writes the report and removes the partial file."""
+    out = tmp_path / "report"
+    partial = out / stability.PARTIAL_NAME
+    proc = start_cli("stability", "--quick", "-o", out)
+    wait_until(proc, lambda: _partial_rows(partial) >= 2)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    kept = _partial_rows(partial)
+    assert lines[0] == (f"cosserat-channel: error: {word}; the {kept} rows measured so far are kept "
+                        f"in {partial}: run the same command again to continue from them")
+    assert sorted(p.name for p in out.iterdir()) == [stability.PARTIAL_NAME]
+
+    measured = []
+    real = stability.measure
+
+    def counting(case, *args, **kw):
+        measured.append(case)
+        return real(case, *args, **kw)
+
+    monkeypatch.setattr(stability, "measure", counting)
+    assert cli.main(["stability", "--quick", "-o", str(out)]) == 0
+    md = (out / "stability.md").read_text()
+    rows = _table(md)[1]
+    assert len(measured) == len(rows) - kept
+    assert f"{kept} of the {len(rows)} rows were measured by an interrupted run" in md
+    assert sorted(p.name for p in out.iterdir()) == ["stability.md", "stability.png"]
+
+
+def test_partial_rows_of_other_settings_are_not_taken(tmp_path):
+    """Rows kept by a run with other settings (or other sources) are measured again."""
+    path = tmp_path / stability.PARTIAL_NAME
+    row = {c: 1.0 for c in stability.COLUMNS}
+    row.update(case="sweep", eta=1e-8, A=1 / 3, N=1.0)
+    key = stability._run_key(True, 1)
+    path.write_text(json.dumps({"key": key, "rows": [row]}))
+    assert stability.kept(tmp_path, True, 1) == 1
+    assert stability.kept(tmp_path, True, 5) == 0
+    assert stability.kept(tmp_path, False, 1) == 0
+    path.write_text(json.dumps({"key": dict(key, sources="0" * 12), "rows": [row]}))
+    assert stability.kept(tmp_path, True, 1) == 0
+    path.write_text("not json")
+    assert stability.kept(tmp_path, True, 1) == 0

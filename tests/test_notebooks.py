@@ -17,12 +17,7 @@ import pytest
 
 NOTEBOOKS = pathlib.Path(__file__).resolve().parent.parent / "notebooks"
 NAMES = ["01_quickstart", "02_paper_figures", "03_solvability_regions", "04_work_precision"]
-
-
-def _bench_available():
-    from cosserat_channel import cli
-
-    return "bench" in cli.COMMANDS
+SLOW = {"03_solvability_regions", "04_work_precision"}  # 20-30 s each in their kernel
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -34,11 +29,10 @@ def test_notebook_committed_without_outputs(name):
             assert cell["outputs"] == [] and cell["execution_count"] is None
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n
+                                  for n in NAMES])
 def test_notebook_runs_in_a_kernel_and_shows_every_figure(name, tmp_path, monkeypatch):
     """All cells run without error in a kernel; each display(...) of a figure is a PNG image."""
-    if name == "04_work_precision" and not _bench_available():
-        pytest.skip("04 needs the 'cosserat-channel bench' subcommand, not registered yet")
     nb = nbformat.read(NOTEBOOKS / f"{name}.ipynb", as_version=4)
     # The kernel inherits this process's environment: small mode, and no MPLBACKEND that a
     # developer's shell or CI may set (it must not matter: the figures never use pyplot).

@@ -250,6 +250,7 @@ def _stage2_series_agree(eta, A, N):
     return True
 
 
+@pytest.mark.slow
 def test_stage2_series_are_the_quadratures_of_B_and_h():
     """model.stage2_series: log omega_hat and int_0^xi h omega_hat from the series equal scipy
     quadratures of e-60 and e-59 on the independent stage-1 march, below stage2_series_reach."""

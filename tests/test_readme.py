@@ -85,6 +85,7 @@ def test_readme_has_the_commands_it_should():
     assert blocks("python")
 
 
+@pytest.mark.slow
 def test_every_readme_command_runs_as_written(scratch, monkeypatch, capsys):
     """Each command exits 0 and writes what it names; nothing lands outside demo/.
 

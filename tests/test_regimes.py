@@ -419,7 +419,9 @@ def _scipy_D_state_wall(eta, A, N, xi_switch=0.8):
 SWITCH_CASES = [(-0.265, 1.415), (-0.1, 1.5), (0.09, 1.5)]
 
 
-@pytest.mark.parametrize("A,N", SWITCH_CASES)
+# The first two take 10-40 s each (the independent stage 1 resolves D(1) ~ 1e-8): slow.
+@pytest.mark.parametrize("A,N", [pytest.param(*c, marks=pytest.mark.slow) for c in SWITCH_CASES[:2]]
+                         + SWITCH_CASES[2:])
 def test_smooth_edge_against_an_independent_stage_1(A, N):
     """Next to the switch trace_edge reports the zero of the smooth D(1). An independent march
     (scipy DOP853, D carried as a state from xi = 0.8) has D(1) > 0 1e-9 (relative) below it and

@@ -246,7 +246,7 @@ def test_dop853_crosses_the_stretch_in_more_than_one_step(eta):
         assert abs(r.Delta / ref["Delta"] - 1) < 5 * rtol, rtol
 
 
-# Points where benchmarks/probe_stiff_switch.py measured one stage-1 path at least 1.7x cheaper
+# Points where benchmarks/probes/probe_stiff_switch.py measured one stage-1 path at least 1.7x cheaper
 # than the other (CPU time of both stages): (eta, A, N, rtol, the cheaper path). The first two
 # were picked wrong by the earlier rule STIFF_LAMBDA sqrt(1e-6/rtol) (12x and 2.9x).
 SWITCH_POINTS = [

@@ -19,6 +19,7 @@ the commands, so ``--help`` and argument errors answer at once. Nothing imports 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from dataclasses import dataclass
@@ -144,6 +145,43 @@ def _error(message: str) -> None:
 
 def _note(message: str) -> None:
     print(f"{PROG}: note: {' '.join(message.split())}", file=sys.stderr)
+
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT: what a shell reports after Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread where Ctrl-C raises KeyboardInterrupt (see
+    :func:`interruptible`)."""
+
+
+@contextlib.contextmanager
+def interruptible():
+    """Inside, SIGTERM raises :class:`Terminated`, so that one ``except KeyboardInterrupt`` keeps
+    what is finished after Ctrl-C and after a ``kill`` alike; :func:`interrupted` reports it."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def interrupted(exc: KeyboardInterrupt, kept: str) -> int:
+    """One line, ``interrupted; <kept>`` (``terminated`` after SIGTERM); the exit code, 130 or 143."""
+    term = isinstance(exc, Terminated)
+    _error(f"{'terminated' if term else 'interrupted'}; {kept}")
+    return EXIT_TERMINATED if term else EXIT_INTERRUPTED
 
 
 HEARTBEAT = 60.0  # seconds between Progress's lines when stderr is not a terminal

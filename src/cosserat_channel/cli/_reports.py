@@ -12,6 +12,8 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     PROG,
     Progress,
     _error,
+    interruptible,
+    interrupted,
     register,
 )
 # ---------------------------------------------------------------------------------------------
@@ -40,13 +42,20 @@ def _stability(args: argparse.Namespace) -> int:
 
     repeats = 1 if args.quick else args.repeats
     try:
-        with Progress("stability", "finding the edges of the series") as bar:
+        with interruptible(), Progress("stability", "finding the edges of the series") as bar:
             def progress(i, n, row):
                 bar.update(f"{i}/{n} points; last: {row['case']} eta = {row['eta']:.3g}: "
                            f"{row['status']}, {row['path']} path")
 
             rep = write_report(args.output_dir, quick=args.quick, repeats=repeats,
                                progress=progress)
+    except KeyboardInterrupt as exc:
+        from ..measure.stability import PARTIAL_NAME, kept
+
+        n = kept(args.output_dir, args.quick, repeats)
+        return interrupted(exc, f"the {n} rows measured so far are kept in "
+                           f"{os.path.join(args.output_dir, PARTIAL_NAME)}: run the same command "
+                           "again to continue from them" if n else "no row was finished")
     except OSError as exc:
         raise CliError(f"cannot write the report into {args.output_dir!r}: {exc}",
                        EXIT_FAILURE) from None
@@ -69,7 +78,8 @@ def _bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quick", action="store_true",
                    help="a tiny set (12 points, 3 rtols, scipy RK45 and LSODA on 3 points), "
                    "well under two minutes; for checks, not for numbers: its PASS/FAIL lines are "
-                   "no verdict and the exit code is 0 (a full run exits 1 if a target is missed)")
+                   "no verdict and the exit code is 0 (a full run exits 1 if a required target "
+                   "is missed)")
     p.add_argument("-o", "--output", metavar="DIR",
                    help=f"report directory, created if missing (default: {_BENCH_OUTPUT}); its "
                    "reference_cache.npz is reused by later runs with the same set")
@@ -92,20 +102,20 @@ def _bench(args: argparse.Namespace) -> int:
     from ..measure import workprecision
 
     try:
-        with Progress("bench", "starting") as bar:
+        with interruptible(), Progress("bench", "starting") as bar:
             def log(message):
                 bar.line(f"{PROG}: bench: {message}")
                 bar.update(f"running; last: {message}")
 
             rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
                                     command=command, log=log)
+    except KeyboardInterrupt as exc:
+        return interrupted(exc, workprecision.kept(output, quick=args.quick))
     except OSError as exc:
         raise CliError(f"cannot write the report into {output!r}: {exc}", EXIT_FAILURE) from None
-    # An "(informative)" target is reported, not required.
-    missed = [t for t in rep.targets if t.passed is False and "(informative)" not in t.text]
+    missed = [t for t in rep.targets if t.missed]
     for target in rep.targets:
-        line = target.line().replace("**", "")
-        print(("quick set, not a verdict: " if args.quick else "") + line)
+        print(("quick set, not a verdict: " if args.quick else "") + target.line())
     print("wrote " + ", ".join(str(p) for p in rep.paths.values()))
     if missed and not args.quick:
         _error(f"{len(missed)} required target(s) of the report missed (the FAIL lines above); "

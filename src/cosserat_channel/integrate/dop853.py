@@ -17,7 +17,7 @@ stability boundary) counts into the same counters as Dormand-Prince's
 (:func:`.stepping.count_stiffness`).
 
 Why it is here: on stage 1 it takes about as many evaluations as Dormand–Prince 5(4) at the
-same rtol and is 20-40x more accurate (``benchmarks/probe_high_order.py``), so at a matched
+same rtol and is 20-40x more accurate (``benchmarks/probes/probe_high_order.py``), so at a matched
 error it is several times cheaper; :mod:`cosserat_channel.solver.stage1` uses it for tight tolerances.
 
 The coefficients are Hairer's, as transcribed in scipy's ``integrate/_ivp/dop853_coefficients.py``

@@ -7,6 +7,8 @@
   peers, timed) and :mod:`.report` (curves, matched-error ratios, targets, markdown and CSV);
 - :mod:`.machine`: CPU model, git revision and versions, printed by every report and by the
   scripts in ``benchmarks/``;
+- :mod:`.harness`: what the reports and the scripts in ``benchmarks/`` share: best-of timing,
+  the header, PASS/FAIL verdicts and the JSON record of ``--json``;
 - :mod:`.textfile`: text files written through :func:`cosserat_channel.files.atomic_output`.
 
 Direction of the imports: these modules use the solver, :mod:`cosserat_channel.regimes` and

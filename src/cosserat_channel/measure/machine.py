@@ -28,9 +28,14 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+def os_name() -> str:
+    """``"<OS> <release>"``, e.g. ``Linux 6.1.0``."""
+    return f"{platform.system()} {platform.release()}"
+
+
 def machine() -> str:
     """``"<CPU model>, <n> cores, <OS> <release>"``."""
-    return f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
+    return f"{cpu_model()}, {os.cpu_count()} cores, {os_name()}"
 
 
 def git_revision() -> str:
@@ -58,16 +63,31 @@ def source_digest() -> str:
     return digest.hexdigest()[:12]
 
 
-def versions(**others) -> str:
-    """cosserat-channel (version, git revision, source digest), Python, numba, numpy and scipy,
-    then ``name version`` for each keyword, in order (e.g. ``dask=dask.__version__``)."""
+def version_table(**others) -> dict:
+    """``{name: version}``: cosserat-channel, its git revision and source digest, Python, numba,
+    numpy and scipy, then each keyword in order (e.g. ``dask=dask.__version__``)."""
     import numba
     import numpy
     import scipy
 
     from .. import __version__
 
-    text = (f"cosserat-channel {__version__} (git {git_revision()}, package sources sha256 "
-            f"{source_digest()}), Python {platform.python_version()}, numba {numba.__version__}, "
-            f"numpy {numpy.__version__}, scipy {scipy.__version__}")
-    return text + "".join(f", {name} {v}" for name, v in others.items())
+    table = {"cosserat-channel": __version__, "git": git_revision(),
+             "package sources sha256": source_digest(), "Python": platform.python_version(),
+             "numba": numba.__version__, "numpy": numpy.__version__, "scipy": scipy.__version__}
+    table.update(others)
+    return table
+
+
+def versions(**others) -> str:
+    """:func:`version_table` as one line (:func:`format_versions`)."""
+    return format_versions(version_table(**others))
+
+
+def format_versions(table: dict) -> str:
+    """``cosserat-channel 0.1.0 (git 1a2b3c4, package sources sha256 ...), Python ..., numba ...,
+    numpy ..., scipy ...`` and ``, name version`` for each further entry, in order."""
+    t = dict(table)
+    head = (f"cosserat-channel {t.pop('cosserat-channel')} (git {t.pop('git')}, package sources "
+            f"sha256 {t.pop('package sources sha256')})")
+    return ", ".join([head] + [f"{name} {v}" for name, v in t.items()])

@@ -31,6 +31,7 @@ from ..physics import model
 from ..integrate import stepping
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
+from .harness import best_of
 
 SCIPY_METHODS = ("RK45", "DOP853", "LSODA", "Radau")
 NUMBALSODA_METHODS = ("LSODA", "DOP853")
@@ -40,15 +41,6 @@ ATOL = 1e-12
 # ---------------------------------------------------------------------------------------------
 # Ours
 # ---------------------------------------------------------------------------------------------
-def _best_of(call, repeat):
-    best = math.inf
-    for _ in range(max(1, repeat)):
-        t0 = time.perf_counter()
-        call()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def ours_both(eps, L, K, A, N, rtol, atol=ATOL, repeat=5):
     """Both stages with ``solve_batch`` (one call for all points); ``(s per point, outputs)``."""
     n = eps.size
@@ -67,7 +59,7 @@ def ours_both(eps, L, K, A, N, rtol, atol=ATOL, repeat=5):
         batch.solve_batch(eta, A, N, eps_K, offsets, rtol, atol, stage1.MAX_STEPS_STAGE1,
                           stage2.MAX_STEPS_STAGE2, res, stats, one_minus, no_xi, no_prof)
 
-    seconds = _best_of(call, repeat)
+    seconds = best_of(call, repeat).seconds
     ok = res[:, layout.R_STATUS] == st.OK
     J = res[:, layout.R_J_AXIS]
     out = {
@@ -91,7 +83,7 @@ def ours_stage1(eps, L, A, N, rtol, atol=ATOL, repeat=5):
         batch.stage1_batch(eta, A, N, rtol, atol, layout.METHOD_AUTO, stage1.MAX_STEPS_STAGE1, mu,
                            stats)
 
-    seconds = _best_of(call, repeat)
+    seconds = best_of(call, repeat).seconds
     return seconds / n, L * mu
 
 
@@ -239,8 +231,8 @@ def numbalsoda_stage1(nbs, eps, L, A, N, method, rtol, atol=ATOL, repeat=5, mxst
     use_dop853 = method == "DOP853"
     with _c_output_discarded():
         loop(address, use_dop853, eta[:1], A[:1], N[:1], rtol, atol, mxstep, mu[:1])  # compile
-        seconds = _best_of(lambda: loop(address, use_dop853, eta, A, N, rtol, atol, mxstep, mu),
-                           repeat)
+        seconds = best_of(lambda: loop(address, use_dop853, eta, A, N, rtol, atol, mxstep, mu),
+                          repeat).seconds
     return seconds / eta.size, L * mu
 
 

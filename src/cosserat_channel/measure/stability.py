@@ -15,14 +15,17 @@ and the relative error of ``Delta`` and
   ``beta = 2N/(eta c0)`` is ~1e8 and beyond), our own solver at rtol 1e-12, ``ref = ours 1e-12``
   (a self-convergence check, labelled as such).
 
-Only numbers and markdown here; the figure is
+Each row is kept in ``stability.partial.json`` as soon as it is measured, so a run that is
+interrupted (Ctrl-C, a kill) resumes with the rows it finished, when the sources and settings are
+the same. Only numbers and markdown here; the figure is
 :func:`cosserat_channel.plot.stability.stability_figure`, drawn from the :class:`Report`.
 """
 
 from __future__ import annotations
 
+import json
 import math
-import time
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +35,8 @@ from .. import parameters, regimes
 from ..solver import point as sv
 from .. import status as st
 from ..physics.reference import reference
+from . import machine
+from .harness import best_of, word
 from .textfile import write_text
 
 L_REPORT = 10.0  # eps = eta / L; the outputs depend on eta only (model.md's similarity)
@@ -70,6 +75,7 @@ class Report:
     # The fixed parameters, for the figure's title (L is raised above eta = 5, see report_L).
     L: float = L_REPORT
     K: float = K_REPORT
+    resumed: int = 0  # rows taken from an interrupted run's partial file
 
 
 def _status(ws, eta, A, N):
@@ -94,18 +100,9 @@ def feasible_eta_max(A, N, ws=None, eta_cap=ETA_CAP):
 
 
 def _time_us(ws, eta, A, N, repeats):
-    """Best-of-``repeats`` kernel time per point in microseconds (inner loops above 2 ms)."""
-    t0 = time.perf_counter()
-    ws.run(eta, A, N, RTOL, ATOL)
-    once = time.perf_counter() - t0
-    inner = max(1, min(200, int(2e-3 / max(once, 1e-7))))
-    best = math.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(inner):
-            ws.run(eta, A, N, RTOL, ATOL)
-        best = min(best, (time.perf_counter() - t0) / inner)
-    return 1e6 * best
+    """Best-of-``repeats`` kernel time per point in microseconds (each timing at least 2 ms)."""
+    return 1e6 * best_of(lambda: ws.run(eta, A, N, RTOL, ATOL), repeats, min_seconds=2e-3,
+                         max_inner=200).seconds
 
 
 def _reference(eps, L, K, A, N):
@@ -167,8 +164,44 @@ def eta_grid(eta_max, quick):
     return grid + [eta_max * (1 - 1e-6)]
 
 
-def build_report(quick=False, repeats=5, progress=None) -> Report:
-    """Measure every row; ``progress(i, n, row)`` is called after each (optional)."""
+PARTIAL_NAME = "stability.partial.json"
+
+
+def _run_key(quick, repeats) -> dict:
+    """What a row depends on besides its point: the sources, the settings, the tolerances."""
+    return {"sources": machine.source_digest(), "quick": bool(quick), "repeats": int(repeats),
+            "rtol": RTOL, "atol": ATOL}
+
+
+def _row_key(case, eta, A, N):
+    return json.dumps([case, eta, A, N])
+
+
+def _read_partial(path, key) -> dict:
+    """The rows kept at ``path`` by a run with the same ``key``, by point; {} otherwise."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+        if data.get("key") != key:
+            return {}
+        return {_row_key(r["case"], r["eta"], r["A"], r["N"]): r for r in data["rows"]}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}
+
+
+def kept(directory, quick=False, repeats=5) -> int:
+    """How many rows an interrupted run left in ``directory`` for a run with these settings."""
+    return len(_read_partial(os.path.join(directory, PARTIAL_NAME), _run_key(quick, repeats)))
+
+
+def build_report(quick=False, repeats=5, progress=None, partial=None) -> Report:
+    """Measure every row; ``progress(i, n, row)`` is called after each (optional).
+
+    ``partial``: a path where the rows are kept as they are measured, and read back from: rows
+    of a run with the same sources and settings are taken from it instead of measured again.
+    """
+    key = _run_key(quick, repeats)
+    done = _read_partial(partial, key) if partial is not None else {}
     ws = sv.Workspace()
     plan = []
     for A, N in SERIES[:1] if quick else SERIES:
@@ -191,8 +224,16 @@ def build_report(quick=False, repeats=5, progress=None) -> Report:
         plan.append(("N = 10", 5e-8, 1 / 3, 10.0))
     rep = Report(rtol=RTOL, quick=quick)
     for i, (case, eta, A, N) in enumerate(plan):
-        row = measure(case, eta, A, N, ws, repeats=repeats)
+        row = done.get(_row_key(case, eta, A, N))
+        if row is None:
+            row = measure(case, eta, A, N, ws, repeats=repeats)
+        else:
+            rep.resumed += 1
         rep.rows.append(row)
+        if partial is not None:
+            # NaN stays NaN (json's extension): this file is read back by this module only.
+            write_text(partial, json.dumps({"key": key, "rows": rep.rows},
+                                           default=lambda x: x.item()) + "\n")
         if progress is not None:
             progress(i + 1, len(plan), row)
     rep.verdict = verdict(rep.rows)
@@ -258,7 +299,9 @@ def markdown(rep: Report) -> str:
         f"rtol = {rep.rtol:g}, atol = {ATOL:g}; "
         "time = kernel (both stages) per point, best of repeats, microseconds; errors relative to "
         "the reference named in `ref` (Radau rtol 1e-12, Appendix A's closed form, or our solver "
-        "at rtol 1e-12 where Radau cannot start)." + (" Quick version." if rep.quick else ""),
+        "at rtol 1e-12 where Radau cannot start)." + (" Quick version." if rep.quick else "")
+        + (f" {rep.resumed} of the {len(rep.rows)} rows were measured by an interrupted run of "
+           "the same sources and settings, and taken from it." if rep.resumed else ""),
         "",
         "| " + " | ".join(COLUMNS) + " |",
         "|" + "|".join("---" for _ in COLUMNS) + "|",
@@ -278,20 +321,18 @@ def markdown(rep: Report) -> str:
         if "cost_ratio" in e:
             head += (f" cost at eta = {ETA_STIFFEST:g} / cost at eta = {ETA_TYPICAL:g} = "
                      f"{e['cost_ratio']:.2f} (limit {COST_RATIO_LIMIT:g}: "
-                     f"{'PASS' if e['cost_pass'] else 'FAIL'});")
+                     f"{word(e['cost_pass'])});")
         if "stiff_slope" in e:
             lo, hi = e["stiff_steps_range"]
             head += (f" stiff-path stage-1 steps {lo}..{hi}, log-log slope vs eta "
                      f"{e['stiff_slope']:+.3f} (flat if |slope| < {FLAT_SLOPE_LIMIT:g}: "
-                     f"{'PASS' if e['flat_pass'] else 'FAIL'})")
+                     f"{word(e['flat_pass'])})")
         lines.append(head)
     return "\n".join(lines) + "\n"
 
 
 def directory_problem(directory) -> str | None:
     """Why the report cannot be written into ``directory`` (created if missing), or None."""
-    import os
-
     if os.path.exists(directory) and not os.path.isdir(directory):
         return f"{directory!r} exists and is not a directory"
     try:
@@ -304,16 +345,17 @@ def directory_problem(directory) -> str | None:
 
 
 def write_report(directory, quick=False, repeats=5, progress=None) -> Report:
-    """Build the report and write ``directory/stability.md`` and ``directory/stability.png``."""
-    import os
-
+    """Build the report and write ``directory/stability.md`` and ``directory/stability.png``;
+    the rows are kept in ``directory/stability.partial.json`` until both are written."""
     from ..plot.stability import stability_figure
 
-    rep = build_report(quick=quick, repeats=repeats, progress=progress)
+    partial = os.path.join(directory, PARTIAL_NAME)
+    rep = build_report(quick=quick, repeats=repeats, progress=progress, partial=partial)
     write_text(os.path.join(directory, "stability.md"), markdown(rep))
     stability_figure(rep, os.path.join(directory, "stability.png"))
+    os.unlink(partial)
     return rep
 
 
-__all__ = ["Report", "build_report", "directory_problem", "feasible_eta_max", "markdown", "measure", "verdict",
-           "write_report", "COLUMNS"]
+__all__ = ["Report", "build_report", "directory_problem", "feasible_eta_max", "kept", "markdown",
+           "measure", "verdict", "write_report", "COLUMNS", "PARTIAL_NAME"]

@@ -26,7 +26,9 @@ integration, so nothing is lost). Candidates are screened with the exact algebra
 Where both exist the DOP853 value is the reference (its dense output, which feeds stage 2, is
 of order 7 against Radau's 3). The points and values are cached in ``reference_cache.npz`` under
 a key hashing the set definition, :data:`GENERATOR_VERSION` and the source of
-:mod:`cosserat_channel.physics.reference`; a rerun with the same key reuses them.
+:mod:`cosserat_channel.physics.reference`; a rerun with the same key reuses them. While the set
+is built, each candidate's reference is kept in ``reference_cache.partial.npz`` as soon as it is
+computed, so a build that is interrupted (Ctrl-C, a kill) resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -220,8 +222,75 @@ def _reference_point(p):
     return {q: float(d[q]) for q in QUANTITIES}, True, dis, None
 
 
-def build(spec: SetSpec, log=None) -> ValidationSet:
-    """Draw the set and compute its references (slow: ~1 s per point in Python)."""
+PARTIAL_NAME = "reference_cache.partial.npz"
+_REASONS = ("", "regime", "status", "conditioning", "disagree")  # "": kept
+
+
+class _Partial:
+    """Each candidate's reference result, on disk from the moment it is computed.
+
+    The candidates are drawn from the seed, so a rebuild meets the same points in the same
+    order and takes the results it finds here instead of computing them again (the key is the
+    set's, :meth:`SetSpec.key`; a file with another key is ignored and replaced).
+    """
+
+    def __init__(self, spec: SetSpec, path=None):
+        self.path, self.key, self.done = path, spec.key(), {}
+        if path is None:
+            return
+        try:
+            with np.load(os.fspath(path)) as z:
+                if str(z["key"]) != self.key:
+                    return
+                for p, r, v, c, d in zip(z["points"], z["reason"], z["values"], z["checked"],
+                                         z["disagreement"]):
+                    values = None if r else dict(zip(QUANTITIES, map(float, v)))
+                    self.done[tuple(map(float, p))] = (values, bool(c), float(d), str(r) or None)
+        except (OSError, KeyError, ValueError):
+            self.done = {}
+
+    def get(self, p):
+        return self.done.get(tuple(map(float, p)))
+
+    def put(self, p, result) -> None:
+        self.done[tuple(map(float, p))] = result
+        if self.path is not None:
+            self._save()
+
+    def _save(self) -> None:
+        rows = list(self.done.items())
+        arrays = {
+            "key": np.array(self.key),
+            "points": np.array([p for p, _ in rows], float).reshape(-1, 5),
+            "reason": np.array([r[3] or "" for _, r in rows], dtype=f"<U{max(map(len, _REASONS))}"),
+            "values": np.array([[math.nan] * len(QUANTITIES) if r[0] is None
+                                else [r[0][q] for q in QUANTITIES] for _, r in rows],
+                               float).reshape(-1, len(QUANTITIES)),
+            "checked": np.array([r[1] for _, r in rows], bool),
+            "disagreement": np.array([r[2] for _, r in rows], float),
+        }
+
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **arrays)
+
+        atomic_output(self.path, write)
+
+
+def partial_count(spec: SetSpec, directory) -> int:
+    """How many candidates of ``spec``'s set have their reference kept in ``directory``."""
+    return len(_Partial(spec, os.path.join(os.fspath(directory), PARTIAL_NAME)).done)
+
+
+def build(spec: SetSpec, log=None, partial=None) -> ValidationSet:
+    """Draw the set and compute its references (slow: ~1 s per point in Python).
+
+    ``partial``: a path where each candidate's reference is kept as soon as it is computed, and
+    read back from, so that an interrupted build resumes (:class:`_Partial`).
+    """
+    done = _Partial(spec, partial)
+    if log is not None and done.done:
+        log(f"reference: resuming from {partial} ({len(done.done)} candidates done before)")
     rng = np.random.default_rng(spec.seed)
     quotas = spec.quotas()
     counts = {"candidates": 0, "regime": 0, "status": 0, "conditioning": 0, "disagree": 0,
@@ -239,7 +308,11 @@ def build(spec: SetSpec, log=None) -> ValidationSet:
             if p is None:  # no edge in range for this (A, N), or no L to match eta
                 continue
             tried += 1
-            values, checked, dis, reason = _reference_point(p)
+            result = done.get(p)
+            if result is None:
+                result = _reference_point(p)
+                done.put(p, result)
+            values, checked, dis, reason = result
             if reason is not None:
                 counts[reason] += 1
                 if reason == "disagree":
@@ -310,7 +383,7 @@ def load(spec: SetSpec, path) -> ValidationSet | None:
 
 def get(spec: SetSpec, directory, log=None) -> ValidationSet:
     """The set for ``spec``: from ``directory/reference_cache.npz`` when its key matches, else
-    built and cached there."""
+    built (resuming from ``directory/reference_cache.partial.npz``) and cached there."""
     path = os.path.join(os.fspath(directory), CACHE_NAME)
     vs = load(spec, path)
     if vs is not None:
@@ -319,6 +392,11 @@ def get(spec: SetSpec, directory, log=None) -> ValidationSet:
         return vs
     if log is not None:
         log(f"reference: computing {spec.size} points (cached in {path} afterwards)")
-    vs = build(spec, log)
+    partial = os.path.join(os.fspath(directory), PARTIAL_NAME)
+    vs = build(spec, log, partial)
     save(vs, path)
+    try:
+        os.unlink(partial)
+    except FileNotFoundError:
+        pass
     return vs

@@ -3,7 +3,9 @@
 ``cosserat-channel bench [--quick] [-o DIR]`` runs :func:`run`, which writes into ``DIR``:
 
 - ``reference_cache.npz``: the validation set and its scipy references (:mod:`.validation`),
-  reused by later runs with the same set definition and ``reference.py``;
+  reused by later runs with the same set definition and ``reference.py``; while it is built,
+  ``reference_cache.partial.npz`` keeps each reference as it is computed, so an interrupted
+  run (:func:`kept` says what it left) resumes;
 - ``work_precision.csv``: long format, columns ``method, stages, rtol, quantity, n_points,
   time_per_point_us, median_rel_err, max_rel_err`` (stage-1 rows have ``m_wall`` only;
   ``n_points`` counts the points that entered the error statistics, the time is per attempted
@@ -206,6 +208,25 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
                   notes=notes)
 
 
+def kept(output_dir=DEFAULT_OUTPUT, *, quick: bool = False) -> str:
+    """What an interrupted :func:`run` left in ``output_dir`` for the next one, as a sentence.
+
+    The references are kept (whole, or each candidate's as it was computed); the timings are
+    not: every ratio of the report compares numbers measured in one run.
+    """
+    spec = (QUICK if quick else FULL).spec
+    cache = Path(output_dir) / validation.CACHE_NAME
+    if validation.load(spec, cache) is not None:
+        return (f"the reference set is kept in {cache}: run the same command again to reuse it "
+                "(the timings start over: a report compares timings of one run)")
+    n = validation.partial_count(spec, output_dir)
+    if n:
+        return (f"the references of {n} candidate points are kept in "
+                f"{Path(output_dir) / validation.PARTIAL_NAME}: run the same command again to "
+                "continue from them")
+    return "no reference was finished, nothing is kept"
+
+
 # ---------------------------------------------------------------------------------------------
 # Curves of each solver over a set of point indices
 # ---------------------------------------------------------------------------------------------
@@ -346,4 +367,4 @@ def _notes(settings: Settings, vs, sub, nbs_note: str) -> list[str]:
     return notes
 
 
-__all__ = ["run", "Report", "Settings", "FULL", "QUICK", "CSV_COLUMNS", "DEFAULT_OUTPUT"]
+__all__ = ["run", "kept", "Report", "Settings", "FULL", "QUICK", "CSV_COLUMNS", "DEFAULT_OUTPUT"]

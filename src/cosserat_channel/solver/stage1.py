@@ -35,7 +35,7 @@ REFINE_MAX_STEPS = 400
 # On the work-precision set, at the same rtol, it takes about as many evaluations (15 per step
 # with its dense output, against 6) and m_wall comes out 2-14x, Delta 1.5-4x more accurate; both
 # stages cost the same from 1e-4 to 1e-6 and 4-25 % less from 1e-7 to 1e-10
-# (benchmarks/probe_high_order.py, docs/performance.md). Dormand-Prince stays the default where
+# (benchmarks/probes/probe_high_order.py, docs/performance.md). Dormand-Prince stays the default where
 # the two cost the same.
 DOP853_RTOL = 1e-6
 # Next to the path edge (the conditioning re-march of solve_stage1) D(1) is small and the
@@ -57,7 +57,7 @@ WALL_D_RESOLUTION = 0.1
 # ... and when stage 2 fails with D(1) below this many, the dense output's error decides (see there).
 WALL_D_FALLBACK = 1e5
 # Stage 1 switches to RODAS4P2 when the stiffness left to march exceeds a threshold (see
-# use_stiff_path, benchmarks/probe_stiff_switch.py): against Dormand-Prince (rtol > DOP853_RTOL)
+# use_stiff_path, benchmarks/probes/probe_stiff_switch.py): against Dormand-Prince (rtol > DOP853_RTOL)
 # this times sqrt(1e-6/rtol) ...
 STIFF_LAMBDA = 20.0
 # ... against DOP853 this times (1e-6/rtol)^(1/4) / max(N - 1, STIFF_N_MARGIN), where the axis is
@@ -124,7 +124,7 @@ def use_stiff_path(eta, A, N, ax, xi1, rtol1):
       for small eta) the stiffness sits at the axis, not on the manifold, and the N factor is
       left out.
 
-    Measured with ``benchmarks/probe_stiff_switch.py`` (both paths forced on bench_point's grid,
+    Measured with ``benchmarks/probes/probe_stiff_switch.py`` (both paths forced on bench_point's grid,
     1000 random points and lines in eta at N = 0.9-1.3; CPU time of both stages): at rtol 1e-8
     the crossover in ``x`` (thresholds within 2 % of the best total) lies at 880-2080 for N in
     (0.9, 1], 110-340 for N in (1.05, 1.1], 21-87 for N in (1.2, 1.5] and 4-25 for N in (2, 3];

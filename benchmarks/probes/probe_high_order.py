@@ -1,13 +1,16 @@
 """Does the 8th-order pair pay on stage 1? Dormand-Prince 5(4) against DOP853, on the same points.
 
-The measurement behind ``stage1.DOP853_RTOL``: both of the package's explicit integrators
+Calibrates: ``cosserat_channel.solver.stage1.DOP853_RTOL`` (the rtol at and below which the
+explicit path marches with DOP853).
+
+Both of the package's explicit integrators
 (``rk45.dopri5``, ``dop853.dop853``) march stage 1 of the work-precision set's points where the
 solver takes the explicit path, from the same axis-series start (``stage1.stage1_start``), with the
 same right-hand side, the same split at xi = N (N < 1) and the same first step, no event (these
 points reach the wall) and no step cap. It prints the mean right-hand-side evaluations (DOP853's
 include the 3 of its dense output per step) and the median m_wall error against the set's
 references. Run after ``cosserat-channel bench -o DIR`` (which caches the references):
-``PYTHONPATH=src .venv/bin/python benchmarks/probe_high_order.py DIR/reference_cache.npz``.
+``PYTHONPATH=src .venv/bin/python benchmarks/probes/probe_high_order.py DIR/reference_cache.npz``.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from cosserat_channel.integrate import dense, dop853, rk45, stepping
+from cosserat_channel.measure import harness
 from cosserat_channel.physics import model
 from cosserat_channel.solver import stage1
 
@@ -53,6 +57,8 @@ def march(use_dop853, xi1, w1, args, rtol, T, Q, stats, total):
 
 
 def main(path):
+    print("\n".join(harness.header_lines(harness.header())))
+    print(f"stage1.DOP853_RTOL is now {stage1.DOP853_RTOL:g}")
     d = np.load(path)
     eps, L, A, N, ref = (d[k] for k in ("eps", "L", "A", "N", "ref_m_wall"))
     eta = eps * L

@@ -1,6 +1,9 @@
 """Where does the stiff path pay on stage 1? RODAS4P2 against the explicit path, on the same points.
 
-The measurement behind ``stage1.use_stiff_path``. Each point is solved at each rtol with stage 1
+Calibrates: ``cosserat_channel.solver.stage1.STIFF_LAMBDA``, ``STIFF_LAMBDA_DOP853`` and
+``STIFF_N_MARGIN``, the thresholds of ``stage1.use_stiff_path``.
+
+Each point is solved at each rtol with stage 1
 forced onto either path (``METHOD_EXPLICIT``: DOP853 at rtol <= ``stage1.DOP853_RTOL``,
 Dormand-Prince above; ``METHOD_STIFF``: RODAS4P2), as the solver runs it (the march from the axis
 series, the split at xi = N, the event and conditioning re-marches): both stages
@@ -23,8 +26,8 @@ total time of the rule in the code and of the earlier rule (``STIFF_LAMBDA sqrt(
 against the better path for every point; and each path's errors.
 
 Run (about 5 minutes on one core):
-    PYTHONPATH=src .venv/bin/python benchmarks/probe_stiff_switch.py [--points 1000] [--save F.npz]
-    PYTHONPATH=src .venv/bin/python benchmarks/probe_stiff_switch.py --load F.npz
+    PYTHONPATH=src .venv/bin/python benchmarks/probes/probe_stiff_switch.py [--points 1000] [--save F.npz]
+    PYTHONPATH=src .venv/bin/python benchmarks/probes/probe_stiff_switch.py --load F.npz
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ import numpy as np
 from numba import njit
 
 from cosserat_channel.integrate import dense, panels, stepping
+from cosserat_channel.measure import harness
 from cosserat_channel.physics import model
 from cosserat_channel.solver import batch, layout, stage1, stage2
 from cosserat_channel import status as st
@@ -80,16 +84,14 @@ class Solver:
                        self.Q2, self.stats1, self.stats2, self.res)
 
     def seconds(self, point, rtol, method, both):
-        """CPU seconds of the thread per solve: best of 3 runs of enough solves."""
+        """CPU seconds of the thread per solve: best of 3 runs of enough solves, looped inside
+        the kernel (no Python between them)."""
         t0 = time.thread_time()
         self.run(point, rtol, ATOL, method, both)
         reps = max(1, int(MIN_SECONDS / max(time.thread_time() - t0, 1e-6)))
-        best = np.inf
-        for _ in range(3):
-            t0 = time.thread_time()
-            self.run(point, rtol, ATOL, method, both, reps)
-            best = min(best, (time.thread_time() - t0) / reps)
-        return best
+        t = harness.best_of(lambda: self.run(point, rtol, ATOL, method, both, reps), 3,
+                            clock=time.thread_time)
+        return t.seconds / reps
 
 
 def points(n, seed=1):
@@ -256,6 +258,9 @@ def main():
     ap.add_argument("--save", help="write the raw measurements to this .npz")
     ap.add_argument("--load", help="report on measurements saved with --save")
     args = ap.parse_args()
+    print("\n".join(harness.header_lines(harness.header())))
+    print(f"stage1.STIFF_LAMBDA = {stage1.STIFF_LAMBDA:g}, STIFF_LAMBDA_DOP853 = "
+          f"{stage1.STIFF_LAMBDA_DOP853:g}, STIFF_N_MARGIN = {stage1.STIFF_N_MARGIN:g}")
     if args.load:
         d = dict(np.load(args.load))
         report(d, d["which"])

@@ -26,17 +26,25 @@ def growth(t, y, args, out):
 
 
 @njit(cache=True)
-def _run(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
-    return dop853.dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats)
+@njit(cache=True)
+def linear(t, y, args, out):
+    out[0] = args[0] * y[0]
 
 
-def run(fun, t0, y0, t_end, args=(), rtol=1e-8, atol=1e-12, event=no_event, h0=0.0, max_steps=10_000):
+@njit(cache=True)
+def _run(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats, rho0):
+    return dop853.dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats,
+                         rho0)
+
+
+def run(fun, t0, y0, t_end, args=(), rtol=1e-8, atol=1e-12, event=no_event, h0=0.0, max_steps=10_000,
+        rho0=0.0):
     y0 = np.asarray(y0, dtype=float)
     T = np.empty(max_steps + 1)
     Q = np.empty((max_steps, dense.N_DENSE, y0.size))
     stats = np.zeros(N_STATS, np.int64)
     status, n, t_stop = _run(fun, event, float(t0), y0, float(t_end), args, rtol,
-                             np.full(y0.size, atol), h0, 0.0, T, Q, stats)
+                             np.full(y0.size, atol), h0, 0.0, T, Q, stats, float(rho0))
     return status, n, t_stop, T[:n + 1], Q[:n], stats
 
 
@@ -143,3 +151,48 @@ def test_nonstiff_problem_not_flagged(rtol):
     status, _, _, _, _, stats = run(gauss, 0.0, [1.0], 3.0, rtol=rtol, atol=1e-14)
     assert status == SUCCESS
     assert stats[STAT_STIFF_STEPS] == 0 and stats[STAT_STIFF] == 0
+
+
+def _linear_step(z):
+    """``(R(z), E5 part, E3 part)`` of one DOP853 step on y' = lambda y from y = 1, z = h lambda,
+    from the stage polynomials of the module's tableau."""
+    k = np.zeros(dop853.N_STAGES + 1)
+    for s in range(dop853.N_STAGES):
+        k[s] = 1.0 + z * (dop853.A[s, :s] @ k[:s])
+    k[dop853.N_STAGES] = 1.0 + z * (dop853.B @ k[:dop853.N_STAGES])
+    return k[dop853.N_STAGES], z * (dop853.E5 @ k), z * (dop853.E3 @ k)
+
+
+def test_first_step_on_a_zero_of_the_error_estimate_is_rejected_given_rho0():
+    """Hairer's blended error estimate vanishes with its 5th-order part: on y' = lambda y at a
+    z = h lambda near -23, where the step multiplies y by |R(z)| ~ 3e3 instead of e^z. A first
+    step of that size passes the error test (as stage 1's first step of half its stretch did,
+    next to such a zero, on a clipped right-hand side). Told |lambda| at the start, the
+    integrator rejects it, and the solution is exp(lambda t) to the tolerance."""
+    from cosserat_channel.integrate.stepping import STABLE_FACTOR
+
+    zs = np.linspace(-40.0, -10.0, 301)
+    e5 = np.array([_linear_step(z)[1] for z in zs])
+    k = int(np.flatnonzero(np.sign(e5[1:]) != np.sign(e5[:-1]))[0])
+    lo, hi = zs[k], zs[k + 1]
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if np.sign(_linear_step(mid)[1]) == np.sign(e5[k]):
+            lo = mid
+        else:
+            hi = mid
+    R = _linear_step(lo)[0]
+    assert abs(R) > 1e3
+    lam, rtol, atol = -100.0, 1e-8, 1e-12
+    h0 = lo / lam
+    # Unchecked, the first step is taken as it is, with the useless factor R.
+    _, n, _, T, Q, _ = run(linear, 0.0, [1.0], 1.0, args=(lam,), rtol=rtol, atol=atol, h0=h0)
+    assert T[1] == h0 and abs(Q[0, 0, 0] + Q[0, 1, 0]) > 1e3
+    status, n, _, T, Q, stats = run(linear, 0.0, [1.0], 1.0, args=(lam,), rtol=rtol, atol=atol,
+                                    h0=h0, rho0=-lam)
+    assert status == SUCCESS and stats[STAT_REJECTED] >= 1
+    assert np.max(np.diff(T)) * -lam <= STABLE_FACTOR * dop853.STIFF_THRESHOLD * (1 + 1e-12)
+    # Steps at the stability boundary (|R| <= 1) do not amplify the errors of earlier ones: the
+    # global error is at most the sum of the n local ones, each within rtol |y| + atol, |y| <= 1.
+    ts = np.linspace(0.0, 1.0, 401)
+    assert np.max(np.abs(_dense(T, Q, n, ts) - np.exp(lam * ts))) <= n * (rtol + atol)

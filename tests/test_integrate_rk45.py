@@ -405,6 +405,27 @@ def test_stiffness_detected():
     assert s.y_stop[0] == pytest.approx(math.cos(5.0) + 1e-3 * math.sin(5.0), abs=1e-4)
 
 
+@njit(cache=True)
+def linear(t, y, args, out):
+    out[0] = args[0] * y[0]
+
+
+def test_steps_beyond_the_stability_boundary_are_rejected_given_rho0():
+    """On y' = -1000 y from y = 0 every step is exact (error 0), so nothing but the stability
+    check stops a step far beyond the boundary (what an error estimate that vanishes by accident
+    lets through). Told |lambda| = 1000 at the start, no accepted step exceeds STABLE_FACTOR times
+    the boundary; without it the steps grow to the end of the interval."""
+    from cosserat_channel.integrate.stepping import STABLE_FACTOR
+
+    free = integrate(linear, 0.0, [0.0], 1.0, args=(-1000.0,), rtol=1e-6, atol=1e-9, h0=0.1)
+    assert free.status == SUCCESS and np.max(np.diff(free.T)) * 1000.0 > 10.0
+    s = integrate(linear, 0.0, [0.0], 1.0, args=(-1000.0,), rtol=1e-6, atol=1e-9, h0=0.1,
+                  rho0=1000.0)
+    assert s.status == SUCCESS and np.all(s.Q == 0.0)
+    assert np.max(np.diff(s.T)) * 1000.0 <= STABLE_FACTOR * rk45.STIFF_THRESHOLD * (1 + 1e-12)
+    assert s.n_rejected >= 1
+
+
 def test_nonstiff_not_flagged():
     """y' = -y is not flagged stiff."""
     s = integrate(decay, 0.0, [1.0], 20.0, rtol=1e-6, atol=1e-9)

@@ -246,6 +246,37 @@ def test_dop853_crosses_the_stretch_in_more_than_one_step(eta):
         assert abs(r.Delta / ref["Delta"] - 1) < 5 * rtol, rtol
 
 
+# Points in bands ~1e-5 (relative) wide in eta where stage 1's first DOP853 trial step (half the
+# stretch from the series start, |h lambda| ~ 16 or ~ 24) sits on a zero of the pair's error
+# estimate: the step passed the error test with w off by O(1), and stage 2, integrating that
+# solution, gave up after 65-69 rejected panels (integration_failed) at the default tolerances.
+# The first was reported, the next two found by benchmarks/fuzz_stage2.py's random points (its
+# "stiff start" domain, seed 1), the others by its band search (all at L = 2).
+FIRST_STEP_BANDS = [
+    (0.007390722033525775, 2.0, 0.5, 1.489795918367347, 1.0693877551020408),
+    (0.012561988181163443 / 2, 2.0, 0.5, 3.1081934531689765, 0.9835296325845494),
+    (0.013362628185310093 / 2, 2.0, 0.5, 0.6693017824677775, 1.0750604225446436),
+    (0.009072417309512049 / 2, 2.0, 0.5, 4.707735808323018, 0.9381097059549877),
+    (0.00961526424354731 / 2, 2.0, 0.5, 0.9398055668618642, 1.0165585118508902),
+    (0.0036007415572872487 / 2, 2.0, 0.5, 2.716719476212939, 1.1717865958366986),
+]
+
+
+@pytest.mark.parametrize("point", FIRST_STEP_BANDS)
+def test_first_step_on_a_zero_of_the_error_estimate(point):
+    """ok at the default tolerances, stage 2 without a string of rejections, and the outputs of
+    scipy Radau at rtol 1e-12 (``reference``, its own formulation) to 1e-6 relative, the
+    accuracy the default rtol 1e-8 gives away from the edges (tests/test_domain.py)."""
+    from cosserat_channel.physics import reference
+
+    r = solve_point(*point)
+    assert r.status == st.Status.ok
+    assert r.counters["stage2_rejected"] <= 4
+    ref = reference.reference(*point, method="Radau")
+    for name in ("Delta", "m_wall", "u_axis", "sigma_yx_wall"):
+        assert abs(getattr(r, name) / ref[name] - 1) < 1e-6, name
+
+
 # Points where benchmarks/probes/probe_stiff_switch.py measured one stage-1 path at least 1.7x cheaper
 # than the other (CPU time of both stages): (eta, A, N, rtol, the cheaper path). The first two
 # were picked wrong by the earlier rule STIFF_LAMBDA sqrt(1e-6/rtol) (12x and 2.9x).

@@ -14,7 +14,9 @@ solution, ``|h| err5^2 / sqrt(err5^2 + 0.01 err3^2)``, which behaves like an 8th
 step sizes follow it with exponent 1/8 (scipy's controller: safety 0.9, factors in [0.2, 10]).
 After each accepted step Hairer's stiffness test (``|h lambda|`` beyond 6.1, DOP853's real
 stability boundary) counts into the same counters as Dormand-Prince's
-(:func:`.stepping.count_stiffness`).
+(:func:`.stepping.count_stiffness`), and its ``|lambda|`` estimate bounds the next step: one
+that passes the error test beyond 1.5 times the boundary is rejected all the same
+(:func:`.stepping.beyond_stability`; the error estimate vanishes out there).
 
 Why it is here: on stage 1 it takes about as many evaluations as Dormand–Prince 5(4) at the
 same rtol and is 20-40x more accurate (``benchmarks/probes/probe_high_order.py``), so at a matched
@@ -250,7 +252,7 @@ ERROR_ORDER = 7
 # boundary (about 6.1) means the step size is limited by stability.
 STIFF_THRESHOLD = 6.1
 # y_new minus the 12th stage's argument (both at t + h) is h * sum_j STIFF_DY[j] K[j]: formed from
-# the stages (stepping.count_stiffness), because the two states agree to a few digits.
+# the stages (stepping.stiffness_ratio), because the two states agree to a few digits.
 STIFF_DY = np.ascontiguousarray(B - A[N_STAGES - 1, :N_STAGES])
 
 SAFETY = 0.9
@@ -345,13 +347,18 @@ def _trial(fun, t, y, h, args, K, y_new, ys, atol, rtol):
 
 
 @njit(**_JIT_INLINE)
-def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
+def dop853(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats, rho0=0.0):
     """Integrate ``y' = fun(t, y)`` from `t0` to `t_end` with adaptive DOP853.
 
     Arguments, returns and counters as :func:`.rk45.dopri5` (``h0 <= 0``: Hairer's ``HINIT``
-    for order 8; stiffness detection by :func:`.stepping.count_stiffness`). Evaluations:
-    ``1 + [h0 <= 0] + 15 * accepted + 12 * rejected``.
+    for order 8; stiffness detection by :func:`.stepping.count_stiffness`; ``rho0`` and the
+    stability check as there). Evaluations: ``1 + [h0 <= 0] + 15 * accepted + 12 * rejected``.
+
+    The check matters most here: Hairer's blended error estimate vanishes where its 5th-order
+    part does, at ``h lambda ~ -23`` for ``y' = lambda y`` (``R(h lambda) ~ -3e3``), and on
+    problems whose trial stages leave the domain of a clipped right-hand side from ~2.5 times the
+    stability boundary on.
     """
     return explicit_rk(_trial, _control, dense_coefficients, N_STAGES_EXTENDED, N_STAGES,
                        ERROR_ORDER, 0.0, STIFF_DY, STIFF_THRESHOLD, fun, event, t0, y0, t_end, args,
-                       rtol, atol, h0, h_max, T, Q, stats)
+                       rtol, atol, h0, h_max, T, Q, stats, rho0)

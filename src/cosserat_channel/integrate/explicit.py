@@ -1,10 +1,11 @@
 """The one driver loop of the explicit Runge-Kutta pairs: Dormand-Prince 5(4) and DOP853.
 
 :func:`explicit_rk` is Hairer's driver [HNW93, II.4-II.6, IV.2]: ``HINIT`` for the first step,
-trial steps clipped onto the end, acceptance by the pair's controller, the stiffness test, one
-dense-output record per accepted step, terminal events, and the outcome codes and counters of
-:mod:`.stepping`. The pairs differ in their step, error norm, controller and dense rows, so a
-method is passed in as those pieces (:func:`.rk45.dopri5`, :func:`.dop853.dop853`):
+trial steps clipped onto the end, acceptance by the pair's controller and a stability check
+(:func:`.stepping.beyond_stability`), the stiffness test, one dense-output record per accepted
+step, terminal events, and the outcome codes and counters of :mod:`.stepping`. The pairs differ
+in their step, error norm, controller and dense rows, so a method is passed in as those pieces
+(:func:`.rk45.dopri5`, :func:`.dop853.dop853`):
 
 ``trial(fun, t, y, h, args, K, y_new, w, atol, rtol) -> err``
     One trial step of signed size ``h`` from ``(t, y)``: with ``K[0] = f(t, y)`` on entry, the
@@ -36,8 +37,8 @@ from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .dense import event_after_step
 from .stepping import (EVENT, MAX_STEPS, NONFINITE, STAT_FEV, STEP_TOO_SMALL, SUCCESS, all_finite,
-                       begin_run, clip_to_end, count_stiffness, count_trial, first_step,
-                       step_too_small)
+                       begin_run, beyond_stability, clip_to_end, count_stiffness, count_trial,
+                       first_step, step_too_small, stiffness_ratio)
 
 __all__ = ["explicit_rk"]
 
@@ -54,7 +55,7 @@ def _work_arrays(y0, n_rows):
 
 @njit(**_JIT_INLINE)
 def explicit_rk(trial, control, dense, n_rows, k_new, order, memory0, stiff_dy, stiff_threshold,
-                fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
+                fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats, rho0):
     """Integrate ``y' = fun(t, y)`` from `t0` to `t_end` with the explicit pair given by its pieces.
 
     Parameters
@@ -71,8 +72,9 @@ def explicit_rk(trial, control, dense, n_rows, k_new, order, memory0, stiff_dy, 
     memory0 : float
         The controller's memory before the first step.
     stiff_dy, stiff_threshold
-        The pair's weights and stability boundary for :func:`.stepping.count_stiffness`.
-    fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats
+        The pair's weights and stability boundary for :func:`.stepping.stiffness_ratio`,
+        :func:`.stepping.count_stiffness` and :func:`.stepping.beyond_stability`.
+    fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats, rho0
         As for :func:`.rk45.dopri5`.
 
     Returns
@@ -97,6 +99,7 @@ def explicit_rk(trial, control, dense, n_rows, k_new, order, memory0, stiff_dy, 
     # rejection.
     t, memory, accept = t0, memory0, True
     nsteps = n_nonfinite = iasti = nonsti = 0
+    rho = rho0  # |lambda| at the start of the next step (0: unknown)
     while True:
         if nsteps >= Q.shape[0]:
             return MAX_STEPS, nsteps, t
@@ -107,14 +110,23 @@ def explicit_rk(trial, control, dense, n_rows, k_new, order, memory0, stiff_dy, 
         stats[STAT_FEV] += k_new
         if not (all_finite(y_new) and all_finite(K[k_new])):
             err = math.nan
-        accept, habs, memory = control(err, abs(h), hmax, memory, not accept)
+        accept, habs_next, memory_next = control(err, abs(h), hmax, memory, not accept)
+        if accept and beyond_stability(h, rho, stiff_threshold):
+            # Passed the error test far outside the stability region: see beyond_stability.
+            accept = False
+            habs_next = stiff_threshold / rho
+        else:
+            memory = memory_next
+        habs = habs_next
         n_nonfinite, give_up = count_trial(accept, err, n_nonfinite, stats)
         if give_up:
             return NONFINITE, nsteps, t
         if not accept:
             continue
-        iasti, nonsti = count_stiffness(h, K, k_new, stiff_dy, stiff_threshold, iasti, nonsti,
-                                        stats)
+        h_rho = stiffness_ratio(h, K, k_new, stiff_dy)
+        iasti, nonsti = count_stiffness(h_rho, stiff_threshold, iasti, nonsti, stats)
+        if h_rho > 0.0:
+            rho = h_rho / abs(h)
         dense(fun, t, y, y_new, h, args, K, w, Q[nsteps])
         stats[STAT_FEV] += n_rows - k_new - 1
         T[nsteps + 1] = t_end if last else t + h

@@ -119,7 +119,7 @@ FACOLD_MIN = 1e-4
 # NONSTIFF_RESET are stepping's, shared with DOP853).
 STIFF_THRESHOLD = 3.25
 # y_new minus the 6th stage's argument (both at t + h) is h * sum_j STIFF_DY[j] K[j]
-# (stepping.count_stiffness).
+# (stepping.stiffness_ratio).
 STIFF_DY = np.array([B1 - A61, B2 - A62, B3 - A63, B4 - A64, B5 - A65, B6])
 
 
@@ -243,7 +243,7 @@ def _dense(fun, t, y, y_new, h, args, K, y_err, q):
 
 
 @njit(**_JIT_INLINE)
-def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
+def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats, rho0=0.0):
     """Integrate ``y' = fun(t, y)`` from `t0` to `t_end` with adaptive DOPRI5.
 
     Dormand–Prince 5(4) pair [DP80] with local extrapolation, Hairer's PI step-size controller,
@@ -281,6 +281,12 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
         ``M`` is the step budget.
     stats : ndarray of int64, shape (N_STATS,)
         Output counters, see the ``STAT_*`` constants.
+    rho0 : float, optional
+        ``|lambda|`` of the Jacobian at ``(t0, y0)`` where the caller knows it (its spectral
+        radius; 0: unknown). A step that passes its error test is still rejected where ``|h|``
+        times the ``|lambda|`` at its start (``rho0``, then Hairer's estimate from the last
+        accepted step) lies beyond ``STABLE_FACTOR`` times the stability boundary
+        (:func:`.stepping.beyond_stability`); the next trial is the boundary.
 
     Returns
     -------
@@ -300,11 +306,11 @@ def dopri5(fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T, Q, stats):
     """
     return explicit_rk(_trial, control, _dense, 7, 6, ERROR_ORDER, FACOLD_MIN, STIFF_DY,
                        STIFF_THRESHOLD, fun, event, t0, y0, t_end, args, rtol, atol, h0, h_max, T,
-                       Q, stats)
+                       Q, stats, rho0)
 
 
 def integrate(fun, t0, y0, t_end, args=(), rtol=1e-6, atol=1e-9, event=None,
-              h0=0.0, h_max=0.0, max_steps=100000):
+              h0=0.0, h_max=0.0, max_steps=100000, rho0=0.0):
     """Convenience wrapper around :func:`dopri5` for tests and interactive use.
 
     Parameters
@@ -327,6 +333,8 @@ def integrate(fun, t0, y0, t_end, args=(), rtol=1e-6, atol=1e-9, event=None,
         Initial and maximal step magnitude (``<= 0``: automatic / unbounded).
     max_steps : int, optional
         Budget of accepted steps.
+    rho0 : float, optional
+        ``|lambda|`` of the Jacobian at the start, if known (see :func:`dopri5`).
 
     Returns
     -------
@@ -343,5 +351,5 @@ def integrate(fun, t0, y0, t_end, args=(), rtol=1e-6, atol=1e-9, event=None,
     stats = np.zeros(N_STATS, dtype=np.int64)
     status, nsteps, t_stop = dopri5(fun, event, float(t0), y0, float(t_end),
                                     args, float(rtol), atol_arr, float(h0),
-                                    float(h_max), T, Q, stats)
+                                    float(h_max), T, Q, stats, float(rho0))
     return Solution.from_run(status, nsteps, t_stop, y0, T, Q, stats)

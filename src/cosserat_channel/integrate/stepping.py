@@ -44,6 +44,9 @@ __all__ = [
     "STIFF_DECLARE",
     "NONSTIFF_RESET",
     "count_stiffness",
+    "stiffness_ratio",
+    "STABLE_FACTOR",
+    "beyond_stability",
     "EPS",
     "step_limit",
     "clip_to_end",
@@ -90,6 +93,10 @@ N_STATS = 5
 # (stats[STAT_STIFF] = 1), and this many that are not, in a row, reset the run.
 STIFF_DECLARE = 15
 NONSTIFF_RESET = 6
+
+# An explicit pair accepts a step only where |h lambda|, by the |lambda| known at its start, is
+# within this many times the pair's real stability boundary (beyond_stability).
+STABLE_FACTOR = 1.5
 
 EPS = 2.220446049250313e-16
 # Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
@@ -138,37 +145,29 @@ def no_event(t, y, args):
 
 
 @njit(**_JIT_INLINE)
-def count_stiffness(h, K, k_new, dy_weights, threshold, iasti, nonsti, stats):
-    """Hairer's stiffness test after an accepted step [HNW93, IV.2], for an explicit RK pair.
+def stiffness_ratio(h, K, k_new, dy_weights):
+    """Hairer's estimate of ``|h lambda|`` for a step of an explicit RK pair [HNW93, IV.2].
 
-    Estimates ``|h lambda|`` as ``|h| ||f(t+h, y_new) - f(t+h, Y)|| / ||y_new - Y||``, where ``Y``
-    is the argument of the last stage evaluated at ``t + h`` (``K[k_new - 1] = f(t+h, Y)``,
-    ``K[k_new] = f(t+h, y_new)``). ``y_new - Y`` is formed from the stages,
-    ``h sum_j dy_weights[j] K[j]``, because the two states agree to a few digits. Against
-    ``threshold``, the pair's real stability boundary, the step is counted as stiff or not.
+    ``|h| ||f(t+h, y_new) - f(t+h, Y)|| / ||y_new - Y||``, where ``Y`` is the argument of the last
+    stage evaluated at ``t + h`` (``K[k_new - 1] = f(t+h, Y)``, ``K[k_new] = f(t+h, y_new)``).
+    ``y_new - Y`` is formed from the stages, ``h sum_j dy_weights[j] K[j]``, because the two
+    states agree to a few digits.
 
     Parameters
     ----------
     h : float
-        Signed size of the accepted step.
+        Signed size of the step.
     K : ndarray of float64, shape (stages, n)
         Its stages.
     k_new : int
         Row of ``f(t+h, y_new)`` in ``K``.
     dy_weights : ndarray of float64
         The pair's weights minus the last stage's coefficients (``b_j - a_{k_new-1, j}``).
-    threshold : float
-        The pair's real stability boundary: beyond it the step size is limited by stability.
-    iasti, nonsti : int
-        Current run lengths of stiff and non-stiff steps.
-    stats : ndarray of int64, shape (N_STATS,)
-        Counters; ``STAT_STIFF_STEPS`` counts the stiff steps, ``STAT_STIFF`` is set to 1 after a
-        run of ``STIFF_DECLARE`` of them (``NONSTIFF_RESET`` non-stiff steps in a row reset the run).
 
     Returns
     -------
-    iasti, nonsti : int
-        Updated run lengths (unchanged where ``y_new - Y`` vanishes).
+    float
+        The estimate; NaN where ``y_new - Y`` vanishes.
     """
     num = 0.0
     den = 0.0
@@ -181,8 +180,23 @@ def count_stiffness(h, K, k_new, dy_weights, threshold, iasti, nonsti, stats):
         dy = h * acc
         den += dy * dy
     if not den > 0.0:
+        return math.nan
+    return abs(h) * math.sqrt(num / den)
+
+
+@njit(**_JIT_INLINE)
+def count_stiffness(h_rho, threshold, iasti, nonsti, stats):
+    """Hairer's stiffness test after an accepted step, on its :func:`stiffness_ratio` ``h_rho``.
+
+    Against ``threshold``, the pair's real stability boundary (beyond it the step size is
+    limited by stability), the step is counted as stiff or not: ``STAT_STIFF_STEPS`` counts the
+    stiff steps, ``STAT_STIFF`` is set to 1 after a run of ``STIFF_DECLARE`` of them
+    (``NONSTIFF_RESET`` non-stiff steps in a row reset the run). ``iasti, nonsti`` are the
+    current run lengths; returns them updated (unchanged where ``h_rho`` is NaN).
+    """
+    if math.isnan(h_rho):
         return iasti, nonsti
-    if abs(h) * math.sqrt(num / den) > threshold:
+    if h_rho > threshold:
         stats[STAT_STIFF_STEPS] += 1
         nonsti = 0
         iasti += 1
@@ -193,6 +207,24 @@ def count_stiffness(h, K, k_new, dy_weights, threshold, iasti, nonsti, stats):
         if nonsti >= NONSTIFF_RESET:
             iasti = 0
     return iasti, nonsti
+
+
+@njit(**_JIT_INLINE)
+def beyond_stability(h, rho, threshold):
+    """Whether a step of size ``h`` that passed its error test must be rejected all the same:
+    ``|h| rho`` beyond ``STABLE_FACTOR`` times ``threshold``, the pair's real stability boundary.
+
+    ``rho`` estimates ``|lambda|`` at the step's start: :func:`stiffness_ratio` of the last
+    accepted step divided by its size, or for the first step what the caller knows of the
+    Jacobian (0: nothing, no check). Why: an explicit pair's error estimate is a polynomial in
+    ``h lambda`` with zeros far outside the stability region (DOP853's at ``h lambda ~ -23`` for
+    ``y' = lambda y``), where a step whose result is useless passes the error test. The step's
+    own estimate cannot stand in for ``rho``: its stages are as wrong as its result (on stage 1,
+    next to such zeros, it came out below 1 for most of them). Steps that far out are rejected
+    by the error test anyway unless they hit a zero, so the check leaves other runs as they were
+    (docs/model.md, "Stiffness and the integrator", says what was measured).
+    """
+    return abs(h) * rho > STABLE_FACTOR * threshold
 
 
 @njit(**_JIT)

@@ -165,12 +165,17 @@ def _march_stage1(stiff, xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1,
     if stiff:
         return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, xi_end, args1,
                                  rtol, atol1, h0, h_max, T1, Q1, stats1)
+    # The explicit pairs check their first step against the exact |df/dw| at the start (later
+    # steps against their own estimate): a first step of xi1, or half the stretch, is often far
+    # beyond their stability boundary, where their error estimate can vanish (stepping's
+    # beyond_stability).
+    rho0 = abs(_stage1_jac(xi0, y0, args1)[0])
     if rtol <= DOP853_RTOL:
         cap = DOP853_MAX_STEP * (xi_end - xi0)
         return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
-                             cap if not (0.0 < h_max < cap) else h_max, T1, Q1, stats1)
+                             cap if not (0.0 < h_max < cap) else h_max, T1, Q1, stats1, rho0)
     return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0, h_max,
-                       T1, Q1, stats1)
+                       T1, Q1, stats1, rho0)
 
 
 @njit(**_JIT)

@@ -291,11 +291,12 @@ def tolerances_from_args(args: argparse.Namespace) -> dict:
     return {k: getattr(args, k) for k in ("rtol", "atol") if getattr(args, k) is not None}
 
 
-def check_output_path(path: str, option: str) -> None:
-    """Raise CliError unless a file can be created at ``path`` (checked before any work)."""
+def check_output_path(path: str, option: str, stream: bool = True) -> None:
+    """Raise CliError unless a file can be written at ``path`` (checked before any work; see
+    :func:`files.output_problem`)."""
     from ..files import output_problem
 
-    problem = output_problem(path)
+    problem = output_problem(path, stream=stream)
     if problem:
         raise CliError(f"{option}: {problem}")
 

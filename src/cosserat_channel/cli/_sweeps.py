@@ -64,6 +64,8 @@ def _run(args: argparse.Namespace) -> int:
     if output is None:
         output = os.path.splitext(os.path.basename(args.sweep))[0] + ".nc"
     check_not_input(output, [args.sweep], "-o")
+    # A regular file only: the result is renamed onto it from the working store beside it.
+    check_output_path(output, "-o", stream=False)
     if not args.overwrite and _finished_result_kept(output, spec):
         return EXIT_OK
     if args.scheduler is None:

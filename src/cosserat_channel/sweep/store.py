@@ -67,8 +67,9 @@ def partial_dir(output: str) -> str:
 
 
 def check_writable(output: str) -> None:
-    """Raise :class:`SweepError` unless ``output`` (and its store beside it) can be created."""
-    problem = output_problem(output)
+    """Raise :class:`SweepError` unless ``output`` (and its store beside it) can be created: a
+    regular file, since the result is renamed onto it from the store."""
+    problem = output_problem(output, stream=False)
     if problem:
         raise SweepError(problem)
 
@@ -139,7 +140,7 @@ class WorkStore:
             path = os.path.join(d, MANIFEST)
             if rewrite or not os.path.exists(path):
                 text = json.dumps(manifest, indent=1, sort_keys=True).encode()
-                atomic_output(path, lambda tmp: _write_bytes(tmp, text))
+                atomic_output(path, lambda tmp: _write_bytes(tmp, text), stream=False)
             for name in os.listdir(d):
                 if name.endswith(".tmp"):  # left by a killed run; never a finished block
                     os.unlink(os.path.join(d, name))
@@ -198,7 +199,7 @@ class WorkStore:
             return
         arrays = {f: v for f, v in result.items() if f != DIGEST}
         arrays[DIGEST] = np.array(block_digest(self.manifest, k, arrays))
-        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, arrays))
+        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, arrays), stream=False)
 
     def get(self, k: int, triples: np.ndarray | None = None) -> dict:
         """Block ``k``'s result; :class:`BlockDamaged` unless it is complete, its digest matches
@@ -242,7 +243,7 @@ class WorkStore:
         # the output and the next run sweeps it away with the store's other leftovers.
         # A failed write (netCDF4's RuntimeError on a full disk included) is a WriteError; the
         # store stays, so the same command writes the file again without solving anything.
-        netcdf_output(output, write, tmp_dir=self.directory)
+        netcdf_output(output, write, tmp_dir=self.directory, stream=False)
 
     def remove(self) -> None:
         """Delete the store (after the result is in place)."""

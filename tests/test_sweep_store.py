@@ -185,3 +185,80 @@ def test_concurrent_run_on_same_output_refused(tmp_path):
         holder.close()
     run_sweep(spec, out)
     assert os.path.exists(out)
+
+
+def test_run_finished_meanwhile_is_decided_under_the_lock(tmp_path, monkeypatch, capsys):
+    """A run of another sweep to the same -o while the first finishes during the second's solver
+    warm-up: the second is refused (exit 2, one line) and the first's result stays, the same
+    file; a second run of the same sweep keeps it (exit 0, a note, nothing computed)."""
+    first = tmp_path / "first.toml"
+    first.write_text(SMALL)
+    second = tmp_path / "second.toml"
+    second.write_text(SMALL.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
+    out = tmp_path / "out.nc"
+    real_warm_up = engine.warm_up
+    finished = []
+
+    def first_run_finishes():
+        if not finished:  # once: run_sweep warms up too
+            finished.append(True)
+            run_sweep(str(first), str(out), workers=1).close()
+        real_warm_up()
+
+    monkeypatch.setattr(engine, "warm_up", first_run_finishes)
+    for toml, code, words in ((second, 2, ("another sweep", "--overwrite")),
+                              (first, 0, ("already the finished result", "--overwrite"))):
+        finished.clear()
+        out.unlink(missing_ok=True)
+        capsys.readouterr()
+        assert cli.main(["run", str(toml), "-o", str(out), "--workers", "1"]) == code
+        assert finished
+        err = capsys.readouterr().err
+        assert all(w in err for w in words) and not LOG.search(err), err
+        if code:
+            assert len(err.strip().splitlines()) == 1, err
+        ino = out.stat().st_ino  # the first run's file, not replaced since
+        assert not os.path.exists(partial_dir(out))
+        assert_identical(out, run_sweep(str(first), workers=1))
+        assert out.stat().st_ino == ino
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["first.toml", "out.nc", "second.toml"]
+
+
+def test_lock_on_a_store_removed_meanwhile_is_taken_again(tmp_path, monkeypatch):
+    """A run that finishes removes its store: a run whose lock was taken on the removed store's
+    lock file at that moment makes a new store and locks that one."""
+    import fcntl
+    import shutil
+
+    from cosserat_channel.sweep import store as store_module
+
+    out = str(tmp_path / "out.nc")
+    spec = load_sweep_text(tmp_path, SMALL)
+    manifest = engine._manifest(spec, engine.Plan(spec.coords()))
+    removed = []
+
+    class RemovedAfterLocking:
+        LOCK_EX, LOCK_NB = fcntl.LOCK_EX, fcntl.LOCK_NB
+
+        @staticmethod
+        def flock(fd, op):
+            fcntl.flock(fd, op)
+            if not removed:
+                removed.append(True)
+                shutil.rmtree(partial_dir(out))
+
+    monkeypatch.setattr(store_module, "fcntl", RemovedAfterLocking)
+    store = WorkStore.open(out, manifest, given_block_size=False)
+    try:
+        assert removed and store.created
+        lock = os.path.join(partial_dir(out), "lock")
+        assert os.path.samestat(os.fstat(store._lock), os.stat(lock))
+        assert os.path.isfile(os.path.join(partial_dir(out), "manifest.json"))
+    finally:
+        store.remove()
+
+
+def load_sweep_text(tmp_path, text):
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return load_sweep(str(path))

@@ -84,7 +84,8 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                  reduce=args.reduce, block_size=args.block_size).close()
+                  reduce=args.reduce, block_size=args.block_size,
+                  overwrite=args.overwrite).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:
@@ -113,27 +114,23 @@ def _run(args: argparse.Namespace) -> int:
 
 def _finished_result_kept(output: str, spec) -> bool:
     """True (and a note) if ``output`` is already this sweep's result; CliError if it is another
-    file. An unfinished run (``OUT.nc.partial/`` beside it) is resumed, not refused."""
+    file. An unfinished run (``OUT.nc.partial/`` beside it) is resumed, not refused.
+
+    The solver's kernels are loaded only after this answer: a kept result costs nothing. It is
+    a first look; :func:`..sweep.run_sweep` decides again once it holds the store's lock."""
+    from ..sweep.engine import KEPT, finished_result
+    from ..sweep.spec import SweepError
     from ..sweep.store import partial_dir
 
-    if not os.path.exists(output) or os.path.isdir(partial_dir(output)):
+    if os.path.isdir(partial_dir(output)):
         return False
-    sha = None
     try:
-        import netCDF4
-
-        with netCDF4.Dataset(output) as nc:
-            sha = getattr(nc, "sweep_sha256", None)
-    except (OSError, ValueError, RuntimeError):
-        pass
-    if sha == spec.sha256:
-        _note(f"{output} is already the finished result of this sweep; kept (add --overwrite "
-              "to compute it again)")
-        return True
-    what = "the result of another sweep" if sha else "not a result of 'run'"
-    raise CliError(f"{output} exists ({what}); kept: add --overwrite to replace it, or choose "
-                   "another -o")
-
+        kept = finished_result(output, spec)
+    except SweepError as exc:
+        raise CliError(str(exc)) from None
+    if kept:
+        _note(KEPT.format(output=output))
+    return kept
 
 
 # ---------------------------------------------------------------------------------------------

@@ -28,7 +28,9 @@ A store made by another sweep file (or other options, or another package version
 reused or mixed: the run stops with a one-line message saying what to do.
 
 The result goes to a temporary file inside the store and is ``os.replace``'d onto ``OUT.nc`` only
-when complete: an existing ``OUT.nc`` is replaced whole or left alone. Then the store is removed.
+when complete: an existing ``OUT.nc`` is replaced whole or left alone. Then the store is removed,
+and only then its lock let go. A run takes the lock before it decides anything about ``OUT.nc``
+(:meth:`WorkStore.open`), so it sees the result of a run that finished meanwhile.
 """
 
 from __future__ import annotations
@@ -108,60 +110,83 @@ class WorkStore:
     def __init__(self, directory: str | None, manifest: dict):
         self.directory = directory
         self.manifest = manifest
+        self.created = False  # True when this run made the store (nothing to resume)
         self._memory: dict[int, dict] = {}
         self._lock = None
 
     @classmethod
     def open(cls, output: str | None, manifest: dict, given_block_size: bool) -> "WorkStore":
-        """Open (or create) the store for ``output`` with this ``manifest``.
+        """Open (or create) the store for ``output`` with this ``manifest``, and lock it.
 
-        A store whose manifest differs is refused, naming the difference; when the block size
-        was not given explicitly, the existing store's is adopted (the caller re-plans with
-        ``store.manifest["block_size"]``), so a plain rerun always resumes.
+        The lock is taken first and everything else is decided under it. A store whose manifest
+        differs is refused, naming the difference; when the block size was not given explicitly,
+        the existing store's is adopted (the caller re-plans with ``store.manifest["block_size"]``),
+        so a plain rerun always resumes.
         """
         if output is None:
             return cls(None, manifest)
         d = partial_dir(output)
-        rewrite = False
-        if os.path.isdir(d):
-            old = _read_manifest(d)
-            if old is None:
+        store = cls(d, manifest)
+        try:
+            store._take_lock(output)
+            old = None if store.created else _read_manifest(d)
+            if old is not None:
+                store.manifest = _reconcile(old, manifest, output, d, given_block_size)
+            elif not store.created:
                 # Every block is bound to its sweep and plan by its digest (see the module
                 # docstring), so a new manifest cannot let a foreign block through.
                 log.warning("working store %s has no readable %s; writing it anew (blocks that "
                             "check out are kept, the rest are recomputed)", d, MANIFEST)
-                rewrite = True
-            else:
-                manifest = _reconcile(old, manifest, output, d, given_block_size)
-        store = cls(d, manifest)
-        try:
-            os.makedirs(d, exist_ok=True)
-            store._take_lock(output)
-            path = os.path.join(d, MANIFEST)
-            if rewrite or not os.path.exists(path):
+            if old is None:
                 text = json.dumps(manifest, indent=1, sort_keys=True).encode()
-                atomic_output(path, lambda tmp: _write_bytes(tmp, text), stream=False)
+                atomic_output(os.path.join(d, MANIFEST), lambda tmp: _write_bytes(tmp, text),
+                              stream=False)
             for name in os.listdir(d):
                 if name.endswith(".tmp"):  # left by a killed run; never a finished block
                     os.unlink(os.path.join(d, name))
         except OSError as exc:
             store.close()
             raise SweepError(f"cannot use working store {d!r}: {exc.strerror or exc}") from None
+        except BaseException:
+            store.close()
+            raise
         return store
 
     def _take_lock(self, output: str) -> None:
-        fd = os.open(os.path.join(self.directory, LOCK), os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
+        """Create the store if it is missing (``self.created``) and lock it; SweepError if another
+        run holds the lock."""
+        path = os.path.join(self.directory, LOCK)
+        for _ in range(100):
+            try:
+                os.mkdir(self.directory)
+                self.created = True
+            except FileExistsError:
+                self.created = False
+            try:
+                fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            except FileNotFoundError:
+                continue  # the store was removed meanwhile by the run that finished it
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno in (errno.EWOULDBLOCK, errno.EACCES):
+                    raise SweepError(
+                        f"another run is writing {output!r} (its working store {self.directory!r} "
+                        "is locked); wait for it or choose another -o"
+                    ) from None
+                raise
+            # A run that finishes removes its store: the lock taken must still be the store's.
+            try:
+                ours = os.path.samestat(os.fstat(fd), os.stat(path))
+            except FileNotFoundError:
+                ours = False
+            if ours:
+                self._lock = fd
+                return
             os.close(fd)
-            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES):
-                raise SweepError(
-                    f"another run is writing {output!r} (its working store {self.directory!r} is "
-                    "locked); wait for it or choose another -o"
-                ) from None
-            raise
-        self._lock = fd
+        raise SweepError(f"cannot lock working store {self.directory!r}: it keeps being removed "
+                         "by another run; run again")
 
     def close(self) -> None:
         if self._lock is not None:
@@ -246,10 +271,11 @@ class WorkStore:
         netcdf_output(output, write, tmp_dir=self.directory, stream=False)
 
     def remove(self) -> None:
-        """Delete the store (after the result is in place)."""
-        self.close()
+        """Delete the store (after the result is in place), then let its lock go: a run that
+        takes the lock afterwards finds the store gone (see :meth:`_take_lock`)."""
         if self.directory is not None:
             shutil.rmtree(self.directory, ignore_errors=True)
+        self.close()
 
 
 def _read_manifest(d: str) -> dict | None:

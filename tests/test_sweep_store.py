@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -262,3 +263,57 @@ def load_sweep_text(tmp_path, text):
     path = tmp_path / "s.toml"
     path.write_text(text)
     return load_sweep(str(path))
+
+
+def tree(directory) -> dict:
+    """Every entry under ``directory`` (links not followed): its kind and, for files, bytes."""
+    out = {}
+    for root, dirs, names in os.walk(directory):
+        for name in dirs + names:
+            p = Path(root) / name
+            rel = str(p.relative_to(directory))
+            out[rel] = ("link", os.readlink(p)) if p.is_symlink() else \
+                ("dir",) if p.is_dir() else ("file", p.read_bytes())
+    return out
+
+
+def test_a_partial_directory_that_is_not_a_store_is_left_alone(tmp_path, monkeypatch, capsys):
+    """OUT.nc.partial that this program did not make (a directory, empty or not, a symbolic link
+    to one, a file) is refused in one line naming it, before any work and by the API too;
+    nothing in it or behind it changes, no lock file is made."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    out = tmp_path / "out.nc"
+    d = Path(partial_dir(out))
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "thesis.txt").write_text("years of work")
+    (theirs / "draft.tmp").write_text("also theirs")
+    (theirs / "block_00000.npz").write_bytes(b"not a block")
+    (theirs / "manifest.json").write_text("{}")
+
+    def plain():
+        d.mkdir()
+        (d / "thesis.txt").write_text("years of work")
+
+    makers = {"a directory": plain, "an empty directory": d.mkdir,
+              "a link to a directory": lambda: d.symlink_to(theirs),
+              "a link to a store's look-alike": lambda: d.symlink_to(theirs),
+              "a file": lambda: d.write_text("x")}
+    monkeypatch.setattr(engine, "_run", lambda *a, **k: pytest.fail("computed anyway"))
+    for what, make in makers.items():
+        make()
+        before, behind = tree(tmp_path), tree(theirs)
+        assert cli.main(["run", str(toml), "-o", str(out)]) == 2, what
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and str(d) in err, (what, err)
+        with pytest.raises(SweepError, match="left alone"):
+            run_sweep(str(toml), str(out))
+        with pytest.raises(SweepError, match="left alone"):
+            WorkStore.open(str(out), {}, given_block_size=False)
+        assert tree(tmp_path) == before and tree(theirs) == behind, what
+        if d.is_symlink() or d.is_file():
+            d.unlink()
+        else:
+            shutil.rmtree(d)
+

@@ -22,6 +22,8 @@ from typing import Callable
 
 # What output_kind finds at a path (or, for what may not be written, a description of it).
 NEW, FILE, STREAM = "new", "file", "stream"
+# The file that marks a directory as a sweep's working store (see sweep.store).
+STORE_MARKER = "cosserat-channel-store"
 
 
 class WriteError(OSError):

@@ -64,8 +64,12 @@ def _run(args: argparse.Namespace) -> int:
     if output is None:
         output = os.path.splitext(os.path.basename(args.sweep))[0] + ".nc"
     check_not_input(output, [args.sweep], "-o")
-    # A regular file only: the result is renamed onto it from the working store beside it.
-    check_output_path(output, "-o", stream=False)
+    from ..sweep.store import check_writable
+
+    try:
+        check_writable(output)  # before the kernels load; run_sweep checks again
+    except SweepError as exc:
+        raise CliError(f"-o: {exc}") from None
     if not args.overwrite and _finished_result_kept(output, spec):
         return EXIT_OK
     if args.scheduler is None:

@@ -3,6 +3,9 @@
 A run writing ``OUT.nc`` keeps its finished work in ``OUT.nc.partial/``::
 
     OUT.nc.partial/
+      cosserat-channel-store   the marker written when the store is made: only a directory
+                           holding it is ever adopted (resumed, cleaned, deleted); any other
+                           OUT.nc.partial (a user's directory, a symbolic link, a file) is refused
       manifest.json        sweep sha256, grid shape, reduction, block size, plan digest, version
       lock                 flock'ed by the live run: two runs never share a store
       block_00000.npz      one file per finished block: triples, res, steps, one_minus[, profiles],
@@ -42,10 +45,11 @@ import json
 import logging
 import os
 import shutil
+import stat
 
 import numpy as np
 
-from ..files import atomic_output, netcdf_output, output_problem
+from ..files import STORE_MARKER, atomic_output, netcdf_output, output_problem
 from .spec import SweepError
 
 MANIFEST = "manifest.json"
@@ -68,12 +72,45 @@ def partial_dir(output: str) -> str:
     return os.fspath(output) + ".partial"
 
 
+# What the marker holds: a directory is adopted as a store only if its marker says exactly this.
+MARKER_TEXT = b"a working store of cosserat-channel, deleted when its run finishes\n"
+
+
 def check_writable(output: str) -> None:
     """Raise :class:`SweepError` unless ``output`` (and its store beside it) can be created: a
-    regular file, since the result is renamed onto it from the store."""
-    problem = output_problem(output, stream=False)
+    regular file, since the result is renamed onto it from the store, and no ``OUT.nc.partial``
+    beside it but a store (:func:`foreign_store`)."""
+    problem = output_problem(output, stream=False) or foreign_store(partial_dir(output))
     if problem:
         raise SweepError(problem)
+
+
+def foreign_store(d: str) -> str | None:
+    """Why ``d`` may not be used as a working store (one line), or None when it is one (a
+    directory, not a link, holding the marker written when it was made) or does not exist."""
+    if not os.path.lexists(d):
+        return None
+    how = "it is left alone: move it away, or choose another -o"
+    if os.path.islink(d):
+        return f"{d} is a symbolic link, not a working store of cosserat-channel; {how}"
+    if not os.path.isdir(d):
+        return f"{d} exists and is not a working store of cosserat-channel (not a directory); {how}"
+    if not _is_marker(os.path.join(d, STORE_MARKER)):
+        return (f"{d} is a directory that cosserat-channel did not make (it holds no "
+                f"{STORE_MARKER} marker), not a working store; {how}")
+    return None
+
+
+def _is_marker(path: str) -> bool:
+    try:
+        st = os.lstat(path)
+        # A regular file of the right size only: opening a FIFO would wait for ever.
+        if not stat.S_ISREG(st.st_mode) or st.st_size != len(MARKER_TEXT):
+            return False
+        with open(path, "rb") as f:
+            return f.read() == MARKER_TEXT
+    except OSError:
+        return False
 
 
 def _write_bytes(tmp: str, data: bytes) -> None:
@@ -160,8 +197,14 @@ class WorkStore:
             try:
                 os.mkdir(self.directory)
                 self.created = True
+                atomic_output(os.path.join(self.directory, STORE_MARKER),
+                              lambda tmp: _write_bytes(tmp, MARKER_TEXT), stream=False)
             except FileExistsError:
                 self.created = False
+                # Nothing is created in a directory that is not a store: not even the lock file.
+                problem = foreign_store(self.directory)
+                if problem:
+                    raise SweepError(problem) from None
             try:
                 fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
             except FileNotFoundError:

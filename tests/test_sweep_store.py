@@ -317,3 +317,36 @@ def test_a_partial_directory_that_is_not_a_store_is_left_alone(tmp_path, monkeyp
         else:
             shutil.rmtree(d)
 
+
+def test_outputs_inside_a_working_store_are_refused(tmp_path, monkeypatch, capsys):
+    """A store is deleted with all it holds when its run finishes: run, query and plot refuse an
+    output inside one (directly, in a folder of it, or through a link to it); the run then
+    finishes and nothing written anywhere is lost."""
+    first = tmp_path / "first.toml"
+    first.write_text(SMALL)
+    out = tmp_path / "X.nc"
+    leave_partial(monkeypatch, str(first), str(out))
+    store = Path(partial_dir(out))
+    (store / "folder").mkdir()
+    (tmp_path / "link").symlink_to(store)
+    other = tmp_path / "other.toml"
+    other.write_text(SMALL.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
+    result = tmp_path / "done.nc"
+    run_sweep(str(other), str(result), workers=1).close()
+    before = tree(store)
+    for inner in (store / "inner.nc", store / "folder" / "inner.nc", tmp_path / "link" / "i.nc"):
+        for argv in (["run", str(other), "-o", str(inner)],
+                     ["query", str(result), "--sel", "K=0.5", "--format", "csv", "-o",
+                      str(inner)],
+                     ["plot", str(result), "--x", "eps", "--y", "Delta", "--hue", "K", "-o",
+                      str(inner) + ".png"]):
+            assert cli.main(argv) == 2, argv
+            err = capsys.readouterr().err
+            assert len(err.strip().splitlines()) == 1 and "working store" in err, err
+            assert str(store) in err
+        with pytest.raises(SweepError, match="working store"):
+            run_sweep(str(other), str(inner))
+    assert tree(store) == before
+    assert cli.main(["run", str(first), "-o", str(out)]) == 0
+    assert not store.exists()
+    assert_identical(out, run_sweep(str(first)))

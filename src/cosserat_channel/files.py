@@ -22,7 +22,8 @@ from typing import Callable
 
 # What output_kind finds at a path (or, for what may not be written, a description of it).
 NEW, FILE, STREAM = "new", "file", "stream"
-# The file that marks a directory as a sweep's working store (see sweep.store).
+# The file that marks a directory as a sweep's working store (see sweep.store): the run that
+# made it deletes it with all it holds, so no output may be written inside one.
 STORE_MARKER = "cosserat-channel-store"
 
 
@@ -108,12 +109,29 @@ def output_problem(path, stream: bool = True) -> str | None:
         return None
     if kind not in (NEW, FILE):
         return _not_a_file(path, kind)
+    store = working_store_around(path)
+    if store is not None:
+        return (f"cannot write {path!r}: it is inside {store!r}, the working store of a run, "
+                "which is deleted with all it holds when that run finishes; write elsewhere")
     directory = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(directory):
         return f"cannot write {path!r}: directory {directory!r} does not exist"
     if not os.access(directory, os.W_OK | os.X_OK):
         return f"cannot write {path!r}: directory {directory!r} is not writable"
     return None
+
+
+def working_store_around(path) -> str | None:
+    """The working store (a directory holding :data:`STORE_MARKER`) that ``path`` lies inside,
+    symbolic links resolved, or None."""
+    d = os.path.realpath(os.path.dirname(os.path.abspath(os.fspath(path))))
+    while True:
+        if os.path.isfile(os.path.join(d, STORE_MARKER)):
+            return d
+        parent = os.path.dirname(d)
+        if parent == d:
+            return None
+        d = parent
 
 
 def free_space(path) -> int | None:

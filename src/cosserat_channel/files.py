@@ -92,12 +92,14 @@ def _not_a_file(path: str, kind: str) -> str:
     return f"cannot write {path!r}: it is {what}, not a file; give a file name"
 
 
-def output_problem(path, stream: bool = True) -> str | None:
+def output_problem(path, stream: bool = True, overwrite: bool = False) -> str | None:
     """Why a file cannot be written at ``path`` (one line), or None when it can.
 
     ``stream``: whether a character device or a FIFO at ``path`` may receive the file as a
     stream (:func:`atomic_output`); a writer that needs a real file beside others (a sweep's
     result and its working store) passes False and such a path is refused.
+    ``overwrite``: whether a file already at ``path`` (or a symbolic link) may be replaced;
+    without it the file is kept and the output refused.
     """
     path = os.fspath(path)
     if not path.strip():
@@ -109,6 +111,8 @@ def output_problem(path, stream: bool = True) -> str | None:
         return None
     if kind not in (NEW, FILE):
         return _not_a_file(path, kind)
+    if not overwrite and (kind == FILE or os.path.lexists(path)):
+        return f"{path!r} exists; kept: add --overwrite to replace it, or choose another name"
     store = working_store_around(path)
     if store is not None:
         return (f"cannot write {path!r}: it is inside {store!r}, the working store of a run, "

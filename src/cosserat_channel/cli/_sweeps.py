@@ -20,6 +20,7 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     _error,
     _note,
     _read_or_write_failure,
+    add_overwrite_argument,
     check_not_input,
     check_output_path,
     register,
@@ -162,6 +163,7 @@ def _query_arguments(p: argparse.ArgumentParser) -> None:
                    help="rows as table (default), csv or json, or a NetCDF subset (needs -o)")
     o.add_argument("-o", "--output", metavar="FILE",
                    help="write to FILE (atomically) instead of stdout")
+    add_overwrite_argument(o, "FILE")
 
 
 @register("query", "select and filter the points of a result file", _query_arguments)
@@ -169,8 +171,8 @@ def _query(args: argparse.Namespace) -> int:
     if args.format == "netcdf" and args.output is None:
         raise CliError("--format netcdf writes a file: give -o FILE")
     if args.output is not None:
-        check_output_path(args.output, "-o")
         check_not_input(args.output, [args.results], "-o")
+        check_output_path(args.output, "-o", overwrite=args.overwrite)
     from .. import query
 
     def select(ds):

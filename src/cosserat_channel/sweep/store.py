@@ -79,8 +79,10 @@ MARKER_TEXT = b"a working store of cosserat-channel, deleted when its run finish
 def check_writable(output: str) -> None:
     """Raise :class:`SweepError` unless ``output`` (and its store beside it) can be created: a
     regular file, since the result is renamed onto it from the store, and no ``OUT.nc.partial``
-    beside it but a store (:func:`foreign_store`)."""
-    problem = output_problem(output, stream=False) or foreign_store(partial_dir(output))
+    beside it but a store (:func:`foreign_store`). Whether a file already at ``output`` is kept
+    is decided under the store's lock (see :mod:`.engine`)."""
+    problem = output_problem(output, stream=False, overwrite=True) or \
+        foreign_store(partial_dir(output))
     if problem:
         raise SweepError(problem)
 

@@ -199,7 +199,10 @@ def test_cli_atlas_and_regime_map_from_it(tmp_path, capsys, monkeypatch, atlas_f
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     (tmp_path / "cache" / "cosserat-channel").mkdir(parents=True)
     (tmp_path / "cache" / "cosserat-channel" / "atlas.nc").write_bytes(atlas_file.read_bytes())
-    assert main(["plot", str(res), "--regime", "--x", "A", "--y", "N", "-o", str(png)]) == 0
+    assert main(["plot", str(res), "--regime", "--x", "A", "--y", "N", "-o", str(png)]) == 2
+    assert "--overwrite" in capsys.readouterr().err  # the map drawn above is kept
+    assert main(["plot", str(res), "--regime", "--x", "A", "--y", "N", "-o", str(png),
+                 "--overwrite"]) == 0
     assert "cached atlas" in capsys.readouterr().err
     bnd = tmp_path / "b.nc"
     assert main(["boundary", "--A", "0.3,0.4", "--N", "0.85", "--atlas", str(atlas_file),

@@ -316,6 +316,48 @@ def test_boundary_reuses_its_own_file_and_keeps_another(capsys, tmp_path, monkey
     assert cli.main(args("2", "--overwrite")) == 0
 
 
+def test_every_command_keeps_an_existing_file_unless_overwrite(capsys, small_result, tmp_path):
+    """query -o (a finished result too), plot -o, point --plot, phase-plane -o, boundary --plot
+    and atlas -o/--plot: an existing file (or a symbolic link) is kept, exit 2 in one line
+    naming it and --overwrite, before any work; with --overwrite it is replaced."""
+    toml, result = small_result
+    finished = tmp_path / "fin.nc"
+    finished.write_bytes(result.read_bytes())
+    old = tmp_path / "old.png"
+    old.write_bytes(b"a file of the user's")
+    link = tmp_path / "link.png"
+    link.symlink_to(tmp_path / "nowhere")
+    query = ["query", str(result), "--sel", "K=0.5"]
+    plot = ["plot", str(result), "--x", "eps", "--y", "Delta", "--hue", "K"]
+    refused = [
+        [*query, "--format", "csv", "-o", str(finished)],
+        [*query, "--format", "netcdf", "-o", str(finished)],
+        [*query, "-o", str(old)],
+        [*plot, "-o", str(old)],
+        [*plot, "-o", str(link)],
+        [*_point_args(), "--plot", str(old)],
+        ["phase-plane", *FIG2_ARGS[:4], *FIG2_ARGS[6:], "-o", str(old)],
+        ["boundary", "--A", "0.5", "--N", "1", "-o", str(tmp_path / "b.nc"), "--plot", str(old)],
+        ["atlas", "--A", "0.25:0.5", "--N", "0.8:0.9", "-o", str(finished)],
+        ["atlas", "--A", "0.25:0.5", "--N", "0.8:0.9", "-o", str(tmp_path / "a.nc"), "--plot",
+         str(old)],
+    ]
+    before = {p.name: (p.lstat().st_ino, p.read_bytes() if p.is_file() else None)
+              for p in tmp_path.iterdir()}
+    capsys.readouterr()
+    for argv in refused:
+        assert cli.main(argv) == 2, argv
+        out, err = capsys.readouterr()
+        assert len(err.splitlines()) == 1 and "exists" in err and "--overwrite" in err, err
+        assert str(argv[-1]) in err and out == ""
+    assert {p.name: (p.lstat().st_ino, p.read_bytes() if p.is_file() else None)
+            for p in tmp_path.iterdir()} == before
+    assert cli.main([*query, "--format", "csv", "-o", str(finished), "--overwrite"]) == 0
+    assert finished.read_text().startswith("eps,")
+    assert cli.main([*plot, "-o", str(link), "--overwrite"]) == 0
+    assert link.read_bytes()[:8] == PNG_SIGNATURE and not link.is_symlink()
+
+
 def test_plot_at_matches_exactly_and_names_what_to_fix(capsys, small_result, tmp_path):
     """A varying dimension not fixed: exit 2 with a ready --at example; an off-grid --at names the
     nearest values; --nearest takes them and says so; the example as given works."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -185,3 +186,167 @@ def test_concurrent_run_on_same_output_refused(tmp_path):
         holder.close()
     run_sweep(spec, out)
     assert os.path.exists(out)
+
+
+def test_run_finished_meanwhile_is_decided_under_the_lock(tmp_path, monkeypatch, capsys):
+    """A run of another sweep to the same -o while the first finishes during the second's solver
+    warm-up: the second is refused (exit 2, one line) and the first's result stays, the same
+    file; a second run of the same sweep keeps it (exit 0, a note, nothing computed)."""
+    first = tmp_path / "first.toml"
+    first.write_text(SMALL)
+    second = tmp_path / "second.toml"
+    second.write_text(SMALL.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
+    out = tmp_path / "out.nc"
+    real_warm_up = engine.warm_up
+    finished = []
+
+    def first_run_finishes():
+        if not finished:  # once: run_sweep warms up too
+            finished.append(True)
+            run_sweep(str(first), str(out), workers=1).close()
+        real_warm_up()
+
+    monkeypatch.setattr(engine, "warm_up", first_run_finishes)
+    for toml, code, words in ((second, 2, ("another sweep", "--overwrite")),
+                              (first, 0, ("already the finished result", "--overwrite"))):
+        finished.clear()
+        out.unlink(missing_ok=True)
+        capsys.readouterr()
+        assert cli.main(["run", str(toml), "-o", str(out), "--workers", "1"]) == code
+        assert finished
+        err = capsys.readouterr().err
+        assert all(w in err for w in words) and not LOG.search(err), err
+        if code:
+            assert len(err.strip().splitlines()) == 1, err
+        ino = out.stat().st_ino  # the first run's file, not replaced since
+        assert not os.path.exists(partial_dir(out))
+        assert_identical(out, run_sweep(str(first), workers=1))
+        assert out.stat().st_ino == ino
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["first.toml", "out.nc", "second.toml"]
+
+
+def test_lock_on_a_store_removed_meanwhile_is_taken_again(tmp_path, monkeypatch):
+    """A run that finishes removes its store: a run whose lock was taken on the removed store's
+    lock file at that moment makes a new store and locks that one."""
+    import fcntl
+    import shutil
+
+    from cosserat_channel.sweep import store as store_module
+
+    out = str(tmp_path / "out.nc")
+    spec = load_sweep_text(tmp_path, SMALL)
+    manifest = engine._manifest(spec, engine.Plan(spec.coords()))
+    removed = []
+
+    class RemovedAfterLocking:
+        LOCK_EX, LOCK_NB = fcntl.LOCK_EX, fcntl.LOCK_NB
+
+        @staticmethod
+        def flock(fd, op):
+            fcntl.flock(fd, op)
+            if not removed:
+                removed.append(True)
+                shutil.rmtree(partial_dir(out))
+
+    monkeypatch.setattr(store_module, "fcntl", RemovedAfterLocking)
+    store = WorkStore.open(out, manifest, given_block_size=False)
+    try:
+        assert removed and store.created
+        lock = os.path.join(partial_dir(out), "lock")
+        assert os.path.samestat(os.fstat(store._lock), os.stat(lock))
+        assert os.path.isfile(os.path.join(partial_dir(out), "manifest.json"))
+    finally:
+        store.remove()
+
+
+def load_sweep_text(tmp_path, text):
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return load_sweep(str(path))
+
+
+def tree(directory) -> dict:
+    """Every entry under ``directory`` (links not followed): its kind and, for files, bytes."""
+    out = {}
+    for root, dirs, names in os.walk(directory):
+        for name in dirs + names:
+            p = Path(root) / name
+            rel = str(p.relative_to(directory))
+            out[rel] = ("link", os.readlink(p)) if p.is_symlink() else \
+                ("dir",) if p.is_dir() else ("file", p.read_bytes())
+    return out
+
+
+def test_a_partial_directory_that_is_not_a_store_is_left_alone(tmp_path, monkeypatch, capsys):
+    """OUT.nc.partial that this program did not make (a directory, empty or not, a symbolic link
+    to one, a file) is refused in one line naming it, before any work and by the API too;
+    nothing in it or behind it changes, no lock file is made."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    out = tmp_path / "out.nc"
+    d = Path(partial_dir(out))
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "thesis.txt").write_text("years of work")
+    (theirs / "draft.tmp").write_text("also theirs")
+    (theirs / "block_00000.npz").write_bytes(b"not a block")
+    (theirs / "manifest.json").write_text("{}")
+
+    def plain():
+        d.mkdir()
+        (d / "thesis.txt").write_text("years of work")
+
+    makers = {"a directory": plain, "an empty directory": d.mkdir,
+              "a link to a directory": lambda: d.symlink_to(theirs),
+              "a link to a store's look-alike": lambda: d.symlink_to(theirs),
+              "a file": lambda: d.write_text("x")}
+    monkeypatch.setattr(engine, "_run", lambda *a, **k: pytest.fail("computed anyway"))
+    for what, make in makers.items():
+        make()
+        before, behind = tree(tmp_path), tree(theirs)
+        assert cli.main(["run", str(toml), "-o", str(out)]) == 2, what
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and str(d) in err, (what, err)
+        with pytest.raises(SweepError, match="left alone"):
+            run_sweep(str(toml), str(out))
+        with pytest.raises(SweepError, match="left alone"):
+            WorkStore.open(str(out), {}, given_block_size=False)
+        assert tree(tmp_path) == before and tree(theirs) == behind, what
+        if d.is_symlink() or d.is_file():
+            d.unlink()
+        else:
+            shutil.rmtree(d)
+
+
+def test_outputs_inside_a_working_store_are_refused(tmp_path, monkeypatch, capsys):
+    """A store is deleted with all it holds when its run finishes: run, query and plot refuse an
+    output inside one (directly, in a folder of it, or through a link to it); the run then
+    finishes and nothing written anywhere is lost."""
+    first = tmp_path / "first.toml"
+    first.write_text(SMALL)
+    out = tmp_path / "X.nc"
+    leave_partial(monkeypatch, str(first), str(out))
+    store = Path(partial_dir(out))
+    (store / "folder").mkdir()
+    (tmp_path / "link").symlink_to(store)
+    other = tmp_path / "other.toml"
+    other.write_text(SMALL.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
+    result = tmp_path / "done.nc"
+    run_sweep(str(other), str(result), workers=1).close()
+    before = tree(store)
+    for inner in (store / "inner.nc", store / "folder" / "inner.nc", tmp_path / "link" / "i.nc"):
+        for argv in (["run", str(other), "-o", str(inner)],
+                     ["query", str(result), "--sel", "K=0.5", "--format", "csv", "-o",
+                      str(inner)],
+                     ["plot", str(result), "--x", "eps", "--y", "Delta", "--hue", "K", "-o",
+                      str(inner) + ".png"]):
+            assert cli.main(argv) == 2, argv
+            err = capsys.readouterr().err
+            assert len(err.strip().splitlines()) == 1 and "working store" in err, err
+            assert str(store) in err
+        with pytest.raises(SweepError, match="working store"):
+            run_sweep(str(other), str(inner))
+    assert tree(store) == before
+    assert cli.main(["run", str(first), "-o", str(out)]) == 0
+    assert not store.exists()
+    assert_identical(out, run_sweep(str(first)))

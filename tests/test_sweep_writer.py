@@ -272,7 +272,7 @@ def test_a_failed_write_keeps_the_blocks_and_leaves_no_file(tmp_path, monkeypatc
 
     monkeypatch.setattr(writer, "create_variables", fail)
     with pytest.raises(files.WriteError, match="cannot write .*r.nc.*HDF error"):
-        run_sweep(spec, out, workers=2, block_size=2)
+        run_sweep(spec, out, workers=2, block_size=2, overwrite=True)
     assert out.read_bytes() == b"an earlier result"
     store = tmp_path / "r.nc.partial"
     assert not list(store.glob("*.tmp")) and not list(tmp_path.glob(".*.tmp"))

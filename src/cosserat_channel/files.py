@@ -3,6 +3,12 @@
 Every file this package writes (NetCDF results, working-store blocks, figures, query output)
 goes through :func:`atomic_output`, so an existing file is never left half-written, and every
 command checks its output path with :func:`output_problem` before it computes anything.
+
+What is at an output path decides how it is written (:func:`output_kind`, the one place that
+says): nothing or a regular file is written under a temporary name and renamed onto it; a
+character device or a FIFO (``/dev/stdout``, a named pipe) receives the complete file as a
+stream and is never renamed over; anything else (a directory, a socket, a block device) is
+refused in one line.
 """
 
 from __future__ import annotations
@@ -10,7 +16,15 @@ from __future__ import annotations
 import os
 import secrets
 import shutil
+import stat
+import tempfile
 from typing import Callable
+
+# What output_kind finds at a path (or, for what may not be written, a description of it).
+NEW, FILE, STREAM = "new", "file", "stream"
+# The file that marks a directory as a sweep's working store (see sweep.store): the run that
+# made it deletes it with all it holds, so no output may be written inside one.
+STORE_MARKER = "cosserat-channel-store"
 
 
 class WriteError(OSError):
@@ -50,19 +64,78 @@ def format_size(n: int) -> str:
     return f"{n} B"
 
 
-def output_problem(path) -> str | None:
-    """Why a file cannot be created at ``path`` (one line), or None when it can."""
+def output_kind(path) -> str:
+    """What is at ``path``, following symbolic links: :data:`NEW` (nothing, or a dangling link),
+    :data:`FILE` (a regular file), :data:`STREAM` (a character device or a FIFO), or for anything
+    else a description of it ("a directory", "a socket", "a block device")."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        # Missing, or unreachable (a dangling link, a component that is not a directory): the
+        # writer meets the same error and reports it.
+        return NEW
+    if stat.S_ISREG(mode):
+        return FILE
+    if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
+        return STREAM
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    return "not a regular file"
+
+
+def _not_a_file(path: str, kind: str) -> str:
+    what = "a character device or a FIFO" if kind == STREAM else kind
+    return f"cannot write {path!r}: it is {what}, not a file; give a file name"
+
+
+def output_problem(path, stream: bool = True, overwrite: bool = False) -> str | None:
+    """Why a file cannot be written at ``path`` (one line), or None when it can.
+
+    ``stream``: whether a character device or a FIFO at ``path`` may receive the file as a
+    stream (:func:`atomic_output`); a writer that needs a real file beside others (a sweep's
+    result and its working store) passes False and such a path is refused.
+    ``overwrite``: whether a file already at ``path`` (or a symbolic link) may be replaced;
+    without it the file is kept and the output refused.
+    """
     path = os.fspath(path)
     if not path.strip():
         return "the output file name is empty"
+    kind = output_kind(path)
+    if kind == STREAM and stream:
+        if not os.access(path, os.W_OK):
+            return f"cannot write {path!r}: it is not writable"
+        return None
+    if kind not in (NEW, FILE):
+        return _not_a_file(path, kind)
+    if not overwrite and (kind == FILE or os.path.lexists(path)):
+        return f"{path!r} exists; kept: add --overwrite to replace it, or choose another name"
+    store = working_store_around(path)
+    if store is not None:
+        return (f"cannot write {path!r}: it is inside {store!r}, the working store of a run, "
+                "which is deleted with all it holds when that run finishes; write elsewhere")
     directory = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        return f"cannot write {path!r}: it is a directory; give a file name"
     if not os.path.isdir(directory):
         return f"cannot write {path!r}: directory {directory!r} does not exist"
     if not os.access(directory, os.W_OK | os.X_OK):
         return f"cannot write {path!r}: directory {directory!r} is not writable"
     return None
+
+
+def working_store_around(path) -> str | None:
+    """The working store (a directory holding :data:`STORE_MARKER`) that ``path`` lies inside,
+    symbolic links resolved, or None."""
+    d = os.path.realpath(os.path.dirname(os.path.abspath(os.fspath(path))))
+    while True:
+        if os.path.isfile(os.path.join(d, STORE_MARKER)):
+            return d
+        parent = os.path.dirname(d)
+        if parent == d:
+            return None
+        d = parent
 
 
 def free_space(path) -> int | None:
@@ -86,14 +159,25 @@ def space_problem(path, need: int) -> str | None:
             "write elsewhere")
 
 
-def atomic_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
+def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool = True) -> None:
     """Call ``write(tmp)`` for a fresh temporary path, then rename it onto ``path``.
 
     ``tmp`` lies in ``tmp_dir`` (default: the directory of ``path``), which must be on the same
     file system so that ``os.replace`` is atomic. The temporary file is removed if ``write``
     fails or the process is interrupted, and ``path`` keeps whatever it held before.
+
+    A character device or a FIFO at ``path`` (``stream`` True) is not renamed over: the complete
+    file is copied into it (opening a FIFO waits for its reader, as a shell's ``>`` does).
+    Anything else that is not a regular file (a directory, a socket, a block device; a device
+    or a FIFO when ``stream`` is False) is a :class:`WriteError` and nothing is written.
     """
     path = os.fspath(path)
+    kind = output_kind(path)
+    if kind == STREAM and stream:
+        _stream_output(path, write, tmp_dir)
+        return
+    if kind not in (NEW, FILE):
+        raise WriteError(_not_a_file(path, kind))
     directory, name = os.path.split(os.path.abspath(path))
     tmp = os.path.join(tmp_dir or directory, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
@@ -107,7 +191,27 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
         raise
 
 
-def netcdf_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
+def _stream_output(path: str, write: Callable[[str], None], tmp_dir) -> None:
+    """:func:`atomic_output` into a character device or a FIFO: ``write`` a temporary file in a
+    private directory (in ``tmp_dir``, default the system's), then copy it into ``path``."""
+    work = tempfile.mkdtemp(prefix=".cosserat-channel.", suffix=".tmp", dir=tmp_dir)
+    try:
+        tmp = os.path.join(work, os.path.basename(os.path.abspath(path)) or "output")
+        write(tmp)
+        # No O_CREAT: if the device or FIFO went away meanwhile, nothing is created in its place.
+        fd = os.open(path, os.O_WRONLY | os.O_NOCTTY | os.O_CLOEXEC)
+        with open(fd, "wb") as dst:
+            mode = os.fstat(fd).st_mode
+            if not (stat.S_ISCHR(mode) or stat.S_ISFIFO(mode)):  # replaced since it was looked at
+                raise WriteError(f"cannot write {path!r}: it changed while the output was made; "
+                                 "nothing written, run again")
+            with open(tmp, "rb") as src:
+                shutil.copyfileobj(src, dst, 1 << 20)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def netcdf_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool = True) -> None:
     """:func:`atomic_output` for a NetCDF writer: a failure to write is a :class:`WriteError`.
 
     netCDF4 reports a full disk (or any failed write of the HDF5 library) as a plain
@@ -115,7 +219,7 @@ def netcdf_output(path, write: Callable[[str], None], tmp_dir=None) -> None:
     :class:`WriteError` (an ``OSError``) that names the file. Other errors pass unchanged.
     """
     try:
-        atomic_output(path, write, tmp_dir)
+        atomic_output(path, write, tmp_dir, stream)
     except WriteError:
         raise
     except (OSError, RuntimeError) as exc:

@@ -329,11 +329,18 @@ def tolerances_from_args(args: argparse.Namespace) -> dict:
     return {k: getattr(args, k) for k in ("rtol", "atol") if getattr(args, k) is not None}
 
 
-def check_output_path(path: str, option: str) -> None:
-    """Raise CliError unless a file can be created at ``path`` (checked before any work)."""
+def add_overwrite_argument(p: argparse.ArgumentParser, what: str = "the output") -> None:
+    """``--overwrite``: without it no command replaces a file that exists."""
+    p.add_argument("--overwrite", action="store_true",
+                   help=f"replace {what} if it exists (without it an existing file is kept)")
+
+
+def check_output_path(path: str, option: str, *, overwrite: bool, stream: bool = True) -> None:
+    """Raise CliError unless a file can be written at ``path`` (checked before any work; see
+    :func:`files.output_problem`); a file already there is kept unless ``overwrite``."""
     from ..files import output_problem
 
-    problem = output_problem(path)
+    problem = output_problem(path, stream=stream, overwrite=overwrite)
     if problem:
         raise CliError(f"{option}: {problem}")
 
@@ -392,9 +399,9 @@ def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | N
 
 
 
-def _figure_output(path: str, option: str = "-o") -> None:
-    """Check a figure path before any work (writable directory, a format Agg can write)."""
-    check_output_path(path, option)
+def _figure_output(path: str, option: str = "-o", *, overwrite: bool) -> None:
+    """Check a figure path before any work (:func:`check_output_path`, a format Agg can write)."""
+    check_output_path(path, option, overwrite=overwrite)
     from .. import plot
 
     try:

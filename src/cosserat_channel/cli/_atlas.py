@@ -71,7 +71,8 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, metavar="N",
                    help="threads tracing a cell's nodes at once (default: all cores; the atlas "
                    "is the same whatever their number)")
-    p.add_argument("--overwrite", action="store_true", help="replace the output if it exists")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the output (and FILE.png) if it exists")
 
 
 @register("atlas", "sample every edge of solvability in eps L over a box of (A, N), adaptively",
@@ -93,12 +94,10 @@ def _atlas(args: argparse.Namespace) -> int:
     output = atlas_mod.cache_path() if args.cache else args.output
     if args.cache:
         os.makedirs(os.path.dirname(output), exist_ok=True)
-    check_output_path(output, "-o")
+    check_output_path(output, "-o", overwrite=args.overwrite)
     if args.plot is not None:
-        _figure_output(args.plot, "--plot")
         check_not_input(args.plot, [output], "--plot")
-    if os.path.exists(output) and not args.overwrite:
-        raise CliError(f"{output} exists; kept: add --overwrite to replace it, or choose another -o")
+        _figure_output(args.plot, "--plot", overwrite=args.overwrite)
     with Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
         def progress(leaves, queued, traces):
             bar.update(f"{leaves} cells done, {queued} queued, {traces} edges traced")

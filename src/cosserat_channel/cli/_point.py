@@ -20,6 +20,7 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     _figure_output,
     _note,
     add_material_arguments,
+    add_overwrite_argument,
     add_point_arguments,
     check_output_path,
     material_from_args,
@@ -36,6 +37,7 @@ def _point_arguments(p: argparse.ArgumentParser) -> None:
     out.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     out.add_argument("--plot", metavar="FILE.png",
                      help="also plot the profiles against xi to FILE (PNG; written only if solved)")
+    add_overwrite_argument(out, "FILE.png")
 
 
 @register("point", "solve one point (eps, L, K, A, N) and print its outputs", _point_arguments)
@@ -43,13 +45,8 @@ def _point(args: argparse.Namespace) -> int:
     material = material_from_args(args)
     tolerances = tolerances_from_args(args)
     if args.plot is not None:
-        check_output_path(args.plot, "--plot")
+        _figure_output(args.plot, "--plot", overwrite=args.overwrite)
         from .. import plot
-
-        try:
-            plot.figure_format(args.plot)
-        except ValueError as exc:
-            raise CliError(f"--plot: {exc}") from None
 
     import numpy as np
 
@@ -124,6 +121,7 @@ def _phase_plane_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--nu", type=float, help="solids fraction: plot m_bar = nu m as the paper "
                    "(figure 12: 0.603) instead of m_bar/nu")
     p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
+    add_overwrite_argument(p, "FILE.png")
 
 
 @register("phase-plane", "plot the phase plane of eq:a1/eq:a2 (paper figure 12) for any "
@@ -131,7 +129,7 @@ def _phase_plane_arguments(p: argparse.ArgumentParser) -> None:
 def _phase_plane(args: argparse.Namespace) -> int:
     if args.nu is not None and not (0.0 < args.nu < 1.0):
         raise CliError(f"--nu must be in (0, 1); got {args.nu:g}")
-    _figure_output(args.output)
+    _figure_output(args.output, overwrite=args.overwrite)
     from .. import regimes
     from ..plot import regimes as plot_regimes
     try:

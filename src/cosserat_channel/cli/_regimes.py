@@ -18,6 +18,7 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     _figure_output,
     _note,
     _read_or_write_failure,
+    add_overwrite_argument,
     check_not_input,
     check_output_path,
     register,
@@ -75,8 +76,8 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--atlas", metavar="ATLAS.nc",
                    help="draw the edges from this atlas (written by 'atlas') instead of tracing")
     p.add_argument("--overwrite", action="store_true",
-                   help="trace again and replace OUT.nc if it exists (without it an OUT.nc "
-                   "traced with the same arguments is reused, any other is kept)")
+                   help="trace again and replace OUT.nc (and FILE.png) if it exists (without it "
+                   "an OUT.nc traced with the same arguments is reused, any other file is kept)")
 
 
 @register("boundary", "trace eta_max(A, N), the largest eps L with a solution, by bisection",
@@ -102,18 +103,17 @@ def _boundary(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     if not 2 <= args.coarse <= MAX_COARSE:
         raise CliError(f"--coarse must be in [2, {MAX_COARSE}]; got {args.coarse}")
-    check_output_path(args.output, "-o")
+    # An existing OUT.nc may be reused (below); FILE.png is kept unless --overwrite.
+    check_output_path(args.output, "-o", overwrite=True)
     if args.plot is not None:
-        _figure_output(args.plot, "--plot")
         check_not_input(args.plot, [args.output], "--plot")
+        _figure_output(args.plot, "--plot", overwrite=args.overwrite)
     from .. import regimes
     from ..status import Status
 
     if args.atlas is not None:
         check_not_input(args.output, [args.atlas], "-o")
-        if os.path.exists(args.output) and not args.overwrite:
-            raise CliError(f"{args.output} exists; kept: add --overwrite to replace it, or "
-                           "choose another -o")
+        check_output_path(args.output, "-o", overwrite=args.overwrite)
         ds = _boundary_from_atlas(args.atlas, A, N, lo, hi)
     else:
         ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
@@ -171,7 +171,9 @@ def _boundary_from_atlas(path, A, N, lo, hi):
 def _same_boundary(path, A, N, lo, hi, coarse):
     """The Dataset in ``path`` if it was traced with these arguments (note: reused), None if there
     is no file; CliError if it is another file (kept unless --overwrite)."""
-    if not os.path.exists(path):
+    from ..files import FILE, output_kind
+
+    if output_kind(path) != FILE:  # nothing there, or a stream to write into
         return None
     import numpy as np
     import xarray as xr
@@ -218,6 +220,7 @@ def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-asymptote", dest="asymptote", action="store_false",
                    help="do not overlay the Appendix C asymptotics (N = 1)")
     p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
+    add_overwrite_argument(p, "FILE.png")
 
 
 def parse_at(text: str | None) -> dict:
@@ -301,8 +304,8 @@ def _plot(args: argparse.Namespace) -> int:
         raise CliError("--atlas and --boundary are two sources of the same edge: give one")
     if args.regime and args.hue is not None:
         raise CliError("--hue does not go with --regime")
-    _figure_output(args.output)
     check_not_input(args.output, [args.results, args.boundary, args.atlas], "-o")
+    _figure_output(args.output, overwrite=args.overwrite)
     from ..plot import regimes as plot_regimes
     ds = _open_whole(args.results)
     try:

@@ -20,6 +20,7 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     _error,
     _note,
     _read_or_write_failure,
+    add_overwrite_argument,
     check_not_input,
     check_output_path,
     register,
@@ -64,6 +65,12 @@ def _run(args: argparse.Namespace) -> int:
     if output is None:
         output = os.path.splitext(os.path.basename(args.sweep))[0] + ".nc"
     check_not_input(output, [args.sweep], "-o")
+    from ..sweep.store import check_writable
+
+    try:
+        check_writable(output)  # before the kernels load; run_sweep checks again
+    except SweepError as exc:
+        raise CliError(f"-o: {exc}") from None
     if not args.overwrite and _finished_result_kept(output, spec):
         return EXIT_OK
     if args.scheduler is None:
@@ -82,7 +89,8 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                  reduce=args.reduce, block_size=args.block_size).close()
+                  reduce=args.reduce, block_size=args.block_size,
+                  overwrite=args.overwrite).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:
@@ -111,27 +119,23 @@ def _run(args: argparse.Namespace) -> int:
 
 def _finished_result_kept(output: str, spec) -> bool:
     """True (and a note) if ``output`` is already this sweep's result; CliError if it is another
-    file. An unfinished run (``OUT.nc.partial/`` beside it) is resumed, not refused."""
+    file. An unfinished run (``OUT.nc.partial/`` beside it) is resumed, not refused.
+
+    The solver's kernels are loaded only after this answer: a kept result costs nothing. It is
+    a first look; :func:`..sweep.run_sweep` decides again once it holds the store's lock."""
+    from ..sweep.engine import KEPT, finished_result
+    from ..sweep.spec import SweepError
     from ..sweep.store import partial_dir
 
-    if not os.path.exists(output) or os.path.isdir(partial_dir(output)):
+    if os.path.isdir(partial_dir(output)):
         return False
-    sha = None
     try:
-        import netCDF4
-
-        with netCDF4.Dataset(output) as nc:
-            sha = getattr(nc, "sweep_sha256", None)
-    except (OSError, ValueError, RuntimeError):
-        pass
-    if sha == spec.sha256:
-        _note(f"{output} is already the finished result of this sweep; kept (add --overwrite "
-              "to compute it again)")
-        return True
-    what = "the result of another sweep" if sha else "not a result of 'run'"
-    raise CliError(f"{output} exists ({what}); kept: add --overwrite to replace it, or choose "
-                   "another -o")
-
+        kept = finished_result(output, spec)
+    except SweepError as exc:
+        raise CliError(str(exc)) from None
+    if kept:
+        _note(KEPT.format(output=output))
+    return kept
 
 
 # ---------------------------------------------------------------------------------------------
@@ -159,6 +163,7 @@ def _query_arguments(p: argparse.ArgumentParser) -> None:
                    help="rows as table (default), csv or json, or a NetCDF subset (needs -o)")
     o.add_argument("-o", "--output", metavar="FILE",
                    help="write to FILE (atomically) instead of stdout")
+    add_overwrite_argument(o, "FILE")
 
 
 @register("query", "select and filter the points of a result file", _query_arguments)
@@ -166,8 +171,8 @@ def _query(args: argparse.Namespace) -> int:
     if args.format == "netcdf" and args.output is None:
         raise CliError("--format netcdf writes a file: give -o FILE")
     if args.output is not None:
-        check_output_path(args.output, "-o")
         check_not_input(args.output, [args.results], "-o")
+        check_output_path(args.output, "-o", overwrite=args.overwrite)
     from ..results import light, render, selection
 
     def select(ds):

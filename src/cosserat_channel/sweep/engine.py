@@ -36,7 +36,7 @@ from ..integrate import stepping
 from .. import outputs as out_
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
-from ..files import space_problem
+from ..files import FILE, output_kind, space_problem
 from .dataset import build_dataset
 from .plan import BlockInputs, Plan
 from .spec import SweepError, SweepSpec, load_sweep
@@ -55,7 +55,7 @@ log = logging.getLogger("cosserat_channel.sweep")
 
 
 def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, reduce=True,
-              block_size=None, progress=None, compress=True):
+              block_size=None, progress=None, compress=True, overwrite=False):
     """Solve every point of a sweep and return the labelled result (and write it to NetCDF).
 
     Parameters
@@ -80,6 +80,10 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     compress : bool or str
         Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level -1),
         ``"zlib"`` (level 1, for readers without netCDF-C's zstd filter), or False.
+    overwrite : bool
+        Compute again and replace ``output`` when it is a file already. Without it a finished
+        result of this sweep is kept and returned (nothing computed), any other file is refused;
+        an unfinished run of this sweep (its working store) is resumed either way.
 
     Returns
     -------
@@ -89,8 +93,9 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     Raises
     ------
     SweepError
-        (a ``ValueError``) for an invalid sweep, an unwritable output, or a working store of a
-        different sweep in the way; nothing has been computed then.
+        (a ``ValueError``) for an invalid sweep, an unwritable output, another file at the output
+        (without ``overwrite``), or a working store of a different sweep in the way; nothing has
+        been computed then.
     """
     t_start = time.perf_counter()
     spec = path_or_mapping
@@ -122,6 +127,12 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         store = WorkStore.open(output, _manifest(spec, plan),
                                given_block_size=block_size is not None)
         try:
+            # Decided under the store's lock: a run of the same output that finished meanwhile
+            # put its result in place before it let the lock go.
+            if store.created and not overwrite and _kept(output, spec, store):
+                import xarray as xr
+
+                return xr.open_dataset(output, chunks={})
             ds, times = _run(spec, plan, store, xi, output, client, n_workers, reduce,
                              progress, compress)
         finally:
@@ -138,6 +149,46 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
 
         return xr.open_dataset(output, chunks={})
     return ds
+
+
+KEPT = ("{output} is already the finished result of this sweep; kept (add --overwrite to compute "
+        "it again)")
+
+
+def finished_result(output: str, spec: SweepSpec) -> bool:
+    """True if ``output`` is already the finished result of ``spec``, False if there is no file
+    there; :class:`SweepError` (the file kept) if it is another file.
+
+    Whether a working store beside it makes it a run to resume is for the caller to decide."""
+    if output_kind(output) != FILE:
+        return False
+    sha = None
+    try:
+        import netCDF4
+
+        with netCDF4.Dataset(output) as nc:
+            sha = getattr(nc, "sweep_sha256", None)
+    except (OSError, ValueError, RuntimeError):
+        pass
+    if sha == spec.sha256:
+        return True
+    what = "the result of another sweep" if sha else "not a result of 'run'"
+    raise SweepError(f"{output} exists ({what}); kept: add --overwrite to replace it, or choose "
+                     "another -o")
+
+
+def _kept(output, spec, store) -> bool:
+    """:func:`finished_result` for a run that has just made its store: True (and the store, empty,
+    removed) if the finished result is kept; SweepError (the store removed) if another file is."""
+    try:
+        kept = finished_result(output, spec)
+    except SweepError:
+        store.remove()
+        raise
+    if kept:
+        store.remove()
+        log.info(KEPT.format(output=output))
+    return kept
 
 
 def _tile(spec, xi, output):

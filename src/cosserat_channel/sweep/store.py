@@ -3,6 +3,9 @@
 A run writing ``OUT.nc`` keeps its finished work in ``OUT.nc.partial/``::
 
     OUT.nc.partial/
+      cosserat-channel-store   the marker written when the store is made: only a directory
+                           holding it is ever adopted (resumed, cleaned, deleted); any other
+                           OUT.nc.partial (a user's directory, a symbolic link, a file) is refused
       manifest.json        sweep sha256, grid shape, reduction, block size, plan digest, version
       lock                 flock'ed by the live run: two runs never share a store
       block_00000.npz      one file per finished block: triples, res, steps, one_minus[, profiles],
@@ -28,7 +31,9 @@ A store made by another sweep file (or other options, or another package version
 reused or mixed: the run stops with a one-line message saying what to do.
 
 The result goes to a temporary file inside the store and is ``os.replace``'d onto ``OUT.nc`` only
-when complete: an existing ``OUT.nc`` is replaced whole or left alone. Then the store is removed.
+when complete: an existing ``OUT.nc`` is replaced whole or left alone. Then the store is removed,
+and only then its lock let go. A run takes the lock before it decides anything about ``OUT.nc``
+(:meth:`WorkStore.open`), so it sees the result of a run that finished meanwhile.
 """
 
 from __future__ import annotations
@@ -40,10 +45,11 @@ import json
 import logging
 import os
 import shutil
+import stat
 
 import numpy as np
 
-from ..files import atomic_output, netcdf_output, output_problem
+from ..files import STORE_MARKER, atomic_output, netcdf_output, output_problem
 from .spec import SweepError
 
 MANIFEST = "manifest.json"
@@ -66,11 +72,47 @@ def partial_dir(output: str) -> str:
     return os.fspath(output) + ".partial"
 
 
+# What the marker holds: a directory is adopted as a store only if its marker says exactly this.
+MARKER_TEXT = b"a working store of cosserat-channel, deleted when its run finishes\n"
+
+
 def check_writable(output: str) -> None:
-    """Raise :class:`SweepError` unless ``output`` (and its store beside it) can be created."""
-    problem = output_problem(output)
+    """Raise :class:`SweepError` unless ``output`` (and its store beside it) can be created: a
+    regular file, since the result is renamed onto it from the store, and no ``OUT.nc.partial``
+    beside it but a store (:func:`foreign_store`). Whether a file already at ``output`` is kept
+    is decided under the store's lock (see :mod:`.engine`)."""
+    problem = output_problem(output, stream=False, overwrite=True) or \
+        foreign_store(partial_dir(output))
     if problem:
         raise SweepError(problem)
+
+
+def foreign_store(d: str) -> str | None:
+    """Why ``d`` may not be used as a working store (one line), or None when it is one (a
+    directory, not a link, holding the marker written when it was made) or does not exist."""
+    if not os.path.lexists(d):
+        return None
+    how = "it is left alone: move it away, or choose another -o"
+    if os.path.islink(d):
+        return f"{d} is a symbolic link, not a working store of cosserat-channel; {how}"
+    if not os.path.isdir(d):
+        return f"{d} exists and is not a working store of cosserat-channel (not a directory); {how}"
+    if not _is_marker(os.path.join(d, STORE_MARKER)):
+        return (f"{d} is a directory that cosserat-channel did not make (it holds no "
+                f"{STORE_MARKER} marker), not a working store; {how}")
+    return None
+
+
+def _is_marker(path: str) -> bool:
+    try:
+        st = os.lstat(path)
+        # A regular file of the right size only: opening a FIFO would wait for ever.
+        if not stat.S_ISREG(st.st_mode) or st.st_size != len(MARKER_TEXT):
+            return False
+        with open(path, "rb") as f:
+            return f.read() == MARKER_TEXT
+    except OSError:
+        return False
 
 
 def _write_bytes(tmp: str, data: bytes) -> None:
@@ -107,60 +149,89 @@ class WorkStore:
     def __init__(self, directory: str | None, manifest: dict):
         self.directory = directory
         self.manifest = manifest
+        self.created = False  # True when this run made the store (nothing to resume)
         self._memory: dict[int, dict] = {}
         self._lock = None
 
     @classmethod
     def open(cls, output: str | None, manifest: dict, given_block_size: bool) -> "WorkStore":
-        """Open (or create) the store for ``output`` with this ``manifest``.
+        """Open (or create) the store for ``output`` with this ``manifest``, and lock it.
 
-        A store whose manifest differs is refused, naming the difference; when the block size
-        was not given explicitly, the existing store's is adopted (the caller re-plans with
-        ``store.manifest["block_size"]``), so a plain rerun always resumes.
+        The lock is taken first and everything else is decided under it. A store whose manifest
+        differs is refused, naming the difference; when the block size was not given explicitly,
+        the existing store's is adopted (the caller re-plans with ``store.manifest["block_size"]``),
+        so a plain rerun always resumes.
         """
         if output is None:
             return cls(None, manifest)
         d = partial_dir(output)
-        rewrite = False
-        if os.path.isdir(d):
-            old = _read_manifest(d)
-            if old is None:
+        store = cls(d, manifest)
+        try:
+            store._take_lock(output)
+            old = None if store.created else _read_manifest(d)
+            if old is not None:
+                store.manifest = _reconcile(old, manifest, output, d, given_block_size)
+            elif not store.created:
                 # Every block is bound to its sweep and plan by its digest (see the module
                 # docstring), so a new manifest cannot let a foreign block through.
                 log.warning("working store %s has no readable %s; writing it anew (blocks that "
                             "check out are kept, the rest are recomputed)", d, MANIFEST)
-                rewrite = True
-            else:
-                manifest = _reconcile(old, manifest, output, d, given_block_size)
-        store = cls(d, manifest)
-        try:
-            os.makedirs(d, exist_ok=True)
-            store._take_lock(output)
-            path = os.path.join(d, MANIFEST)
-            if rewrite or not os.path.exists(path):
+            if old is None:
                 text = json.dumps(manifest, indent=1, sort_keys=True).encode()
-                atomic_output(path, lambda tmp: _write_bytes(tmp, text))
+                atomic_output(os.path.join(d, MANIFEST), lambda tmp: _write_bytes(tmp, text),
+                              stream=False)
             for name in os.listdir(d):
                 if name.endswith(".tmp"):  # left by a killed run; never a finished block
                     os.unlink(os.path.join(d, name))
         except OSError as exc:
             store.close()
             raise SweepError(f"cannot use working store {d!r}: {exc.strerror or exc}") from None
+        except BaseException:
+            store.close()
+            raise
         return store
 
     def _take_lock(self, output: str) -> None:
-        fd = os.open(os.path.join(self.directory, LOCK), os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
+        """Create the store if it is missing (``self.created``) and lock it; SweepError if another
+        run holds the lock."""
+        path = os.path.join(self.directory, LOCK)
+        for _ in range(100):
+            try:
+                os.mkdir(self.directory)
+                self.created = True
+                atomic_output(os.path.join(self.directory, STORE_MARKER),
+                              lambda tmp: _write_bytes(tmp, MARKER_TEXT), stream=False)
+            except FileExistsError:
+                self.created = False
+                # Nothing is created in a directory that is not a store: not even the lock file.
+                problem = foreign_store(self.directory)
+                if problem:
+                    raise SweepError(problem) from None
+            try:
+                fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            except FileNotFoundError:
+                continue  # the store was removed meanwhile by the run that finished it
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                if exc.errno in (errno.EWOULDBLOCK, errno.EACCES):
+                    raise SweepError(
+                        f"another run is writing {output!r} (its working store {self.directory!r} "
+                        "is locked); wait for it or choose another -o"
+                    ) from None
+                raise
+            # A run that finishes removes its store: the lock taken must still be the store's.
+            try:
+                ours = os.path.samestat(os.fstat(fd), os.stat(path))
+            except FileNotFoundError:
+                ours = False
+            if ours:
+                self._lock = fd
+                return
             os.close(fd)
-            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES):
-                raise SweepError(
-                    f"another run is writing {output!r} (its working store {self.directory!r} is "
-                    "locked); wait for it or choose another -o"
-                ) from None
-            raise
-        self._lock = fd
+        raise SweepError(f"cannot lock working store {self.directory!r}: it keeps being removed "
+                         "by another run; run again")
 
     def close(self) -> None:
         if self._lock is not None:
@@ -198,7 +269,7 @@ class WorkStore:
             return
         arrays = {f: v for f, v in result.items() if f != DIGEST}
         arrays[DIGEST] = np.array(block_digest(self.manifest, k, arrays))
-        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, arrays))
+        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, arrays), stream=False)
 
     def get(self, k: int, triples: np.ndarray | None = None) -> dict:
         """Block ``k``'s result; :class:`BlockDamaged` unless it is complete, its digest matches
@@ -242,13 +313,14 @@ class WorkStore:
         # the output and the next run sweeps it away with the store's other leftovers.
         # A failed write (netCDF4's RuntimeError on a full disk included) is a WriteError; the
         # store stays, so the same command writes the file again without solving anything.
-        netcdf_output(output, write, tmp_dir=self.directory)
+        netcdf_output(output, write, tmp_dir=self.directory, stream=False)
 
     def remove(self) -> None:
-        """Delete the store (after the result is in place)."""
-        self.close()
+        """Delete the store (after the result is in place), then let its lock go: a run that
+        takes the lock afterwards finds the store gone (see :meth:`_take_lock`)."""
         if self.directory is not None:
             shutil.rmtree(self.directory, ignore_errors=True)
+        self.close()
 
 
 def _read_manifest(d: str) -> dict | None:

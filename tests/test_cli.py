@@ -378,6 +378,44 @@ def test_plot_at_matches_exactly_and_names_what_to_fix(capsys, small_result, tmp
     assert capsys.readouterr().err == "" and os.path.exists(png)
 
 
+def test_plot_at_refuses_nan_and_a_dimension_given_twice(capsys, small_result, tmp_path):
+    """--at L=nan said "nearest grid value: " with nothing after it; --at N=1,N=1 was taken
+    silently (the last won). Both exit 2 in one line, no figure written."""
+    _, out = small_result
+    png = tmp_path / "d.png"
+    base = ["plot", str(out), "--x", "eps", "--y", "Delta", "-o", str(png), "--at"]
+    capsys.readouterr()
+    for at, words in (("K=nan", "K: the value must be finite; got nan"),
+                      ("K=-inf", "K: the value must be finite"),
+                      ("K=0.5,K=0.5", "--at K: given twice"),
+                      ("K=0.5, K = 5", "--at K: given twice")):
+        assert cli.main(base + [at]) == 2, at
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1 and "nearest grid value: ;" not in err, err
+    for at in ("K=nan", "K=0.5,K=0.5"):  # --nearest does not make them usable
+        assert cli.main(base + [at, "--nearest"]) == 2
+        capsys.readouterr()
+    assert not png.exists()
+
+
+@pytest.mark.parametrize("flag, value", [("--A", "-1e4"), ("--K", "-1E-3"), ("--N", "-inf"),
+                                         ("--eps", "-.5e-2")])
+def test_negative_value_after_a_space_says_how_to_give_it(capsys, flag, value):
+    """argparse takes '-1e4' for an option ("expected one argument"): the line says to write
+    --A=-1e4, and that spelling reaches the parameter check (exit 2 naming the parameter, each
+    value here being outside its range)."""
+    args = _point_args(**{flag: None})
+    assert cli.main(args + [flag, value]) == 2
+    err = capsys.readouterr().err
+    assert f"expected one argument (a negative value goes after '=': {flag}={value})" in err
+    assert err.count("\n") == 1
+    assert cli.main(args + [f"{flag}={value}"]) == 2
+    err = capsys.readouterr().err
+    assert "expected one argument" not in err and flag[2:] in err and err.count("\n") == 1
+    assert cli.main(args + [flag, "-x"]) == 2  # not a number: no hint
+    assert "goes after '='" not in capsys.readouterr().err
+
+
 def test_bench_exit_code_says_whether_the_targets_were_met(capsys, tmp_path, monkeypatch):
     """A full report with a missed required target exits 1 (FAIL printed, report written); an
     informative miss or a --quick run exits 0, --quick marking its lines as no verdict."""

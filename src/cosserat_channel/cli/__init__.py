@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import sys
 from dataclasses import dataclass
 from typing import Callable
@@ -74,13 +75,38 @@ class _Parser(argparse.ArgumentParser):
     and ``main`` returning the code, which the tests (and callers embedding ``main``) rely on.
     """
 
+    def parse_known_args(self, args=None, namespace=None):
+        self._argv = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
     def error(self, message):
-        raise CliError(message, EXIT_USAGE)
+        raise CliError(message + _negative_value_hint(message, getattr(self, "_argv", ())),
+                       EXIT_USAGE)
 
     def exit(self, status=0, message=None):
         if message:
             sys.stderr.write(message)
         raise _ParserExit(status)
+
+
+def _negative_value_hint(message: str, argv) -> str:
+    """What to type when argparse took a negative number for an option (``--A -1e3``).
+
+    argparse reads ``-1e3`` (and ``-inf``, ``-.5e-3``) as an option, since only plain negative
+    integers and decimals look like numbers to it; ``--A=-1e3`` reaches the option whole.
+    """
+    m = re.match(r"argument (\S+): expected one argument", message)
+    if not m:
+        return ""
+    flags = m.group(1).split("/")
+    for flag, value in zip(argv, argv[1:]):
+        if flag in flags and value.startswith("-"):
+            try:
+                float(value)
+            except ValueError:
+                continue
+            return f" (a negative value goes after '=': {flag}={value})"
+    return ""
 
 
 # ---------------------------------------------------------------------------------------------

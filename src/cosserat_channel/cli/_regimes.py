@@ -233,9 +233,14 @@ def parse_at(text: str | None) -> dict:
         try:
             if not sep:
                 raise ValueError
-            out[name.strip()] = float(value)
+            x = float(value)
         except ValueError:
             raise CliError(f"--at: expected NAME=VALUE[,NAME=VALUE]; got {text!r}") from None
+        name = name.strip()
+        if name in out:
+            raise CliError(f"--at {name}: given twice ({name}={out[name]:.10g} and "
+                           f"{name}={x:.10g}); give each dimension once")
+        out[name] = x
     return out
 
 

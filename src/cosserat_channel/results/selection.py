@@ -259,6 +259,8 @@ def match_coordinate(values, value: float, name: str, option: str = "--sel",
     ``nearest`` a value between grid values raises :class:`QueryError` naming the nearest grid
     values below and above it; with ``nearest`` the index is that of the nearest value.
     """
+    if not math.isfinite(value):  # NaN has no nearest value, and no grid value is infinite
+        raise QueryError(f"{option} {name}: the value must be finite; got {value!r}")
     c = np.asarray(values, dtype=float).reshape(-1)
     if c.size == 0:
         raise QueryError(f"{option} {name}: the coordinate {name} is empty")

@@ -30,9 +30,10 @@ test-quick: $(STAMP)
 	$(PY) -m pytest -q -m "not slow"
 
 # Installs JupyterLab into .venv (the `notebooks` extra) and opens notebooks/ in the browser.
+# Jupyter refuses to start as root without --allow-root (a container, a CI machine).
 notebooks: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[notebooks]'
-	$(VENV)/bin/jupyter lab notebooks/
+	$(VENV)/bin/jupyter lab notebooks/$(if $(filter 0,$(shell id -u)), --allow-root)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_point.py

@@ -507,3 +507,74 @@ def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
     assert code == 0
     assert capsys.readouterr().err == ""
     assert seen == ["1/2 edges traced", "2/2 edges traced"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Typos, misplaced files and spellings
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("args, named", [
+    (["point", "--esp", "0.1", "--L", "10", "--K", "0.5", "--A", "0.3", "--N", "1"],
+     "unrecognized option --esp; did you mean --eps?"),
+    (_point_args() + ["--jsn"], "unrecognized option --jsn; did you mean --json?"),
+    (["--verison"], "did you mean --version?"),
+    (_point_args() + ["--zzzz", "3"], "unrecognized option --zzzz; see 'cosserat-channel point"),
+])
+def test_unknown_option_is_named_with_the_closest_spelling(capsys, args, named):
+    """A mistyped option is named (not the required option it leaves out), with a suggestion."""
+    assert cli.main(args) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.splitlines()) == 1 and named in err, err
+
+
+def test_run_of_a_result_file_says_it_is_one(capsys, small_result):
+    """``run OUT.nc``: a result is not a sweep file; one line that says so, the file kept."""
+    _, out = small_result
+    before = out.read_bytes()
+    capsys.readouterr()
+    assert cli.main(["run", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "is a NetCDF file" in err and "info" in err and "UTF-8" not in err
+    assert out.read_bytes() == before
+
+
+def test_plot_unknown_variable_is_quoted_whole(capsys, small_result, tmp_path):
+    """The name a user mistyped is shown as typed, quotes on both sides."""
+    _, out = small_result
+    capsys.readouterr()
+    code = cli.main(["plot", str(out), "--x", "eps", "--y", "Delat", "--at", "K=0.5", "-o",
+                     str(tmp_path / "d.png")])
+    err = capsys.readouterr().err
+    assert code == 2 and "got 'Delat'" in err, err
+
+
+def test_stability_takes_o_output_and_the_older_output_dir():
+    """-o/--output as every command; --output-dir still parses, unlisted in --help."""
+    parser = cli.build_parser()
+    for flag in ("-o", "--output", "--output-dir"):
+        assert parser.parse_args(["stability", flag, "d"]).output_dir == "d"
+    assert parser.parse_args(["stability"]).output_dir == "stability_report"
+    sub = parser._subparsers._group_actions[0].choices["stability"]
+    assert "--output-dir" not in sub.format_help() and "--output" in sub.format_help()
+
+
+def test_example_lists_prints_and_copies_the_shipped_sweeps(capsys, tmp_path):
+    """example: the list, one printed, one copied (kept unless --overwrite), an unknown name."""
+    from cosserat_channel.sweep.spec import examples, load_sweep
+
+    shipped = examples()
+    assert cli.main(["example"]) == 0
+    listed = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in listed] == list(shipped) and "quickstart" in shipped
+    assert cli.main(["example", "quickstart"]) == 0
+    assert capsys.readouterr().out == shipped["quickstart"]
+    target = tmp_path / "q.toml"
+    assert cli.main(["example", "quickstart", "-o", str(target)]) == 0
+    assert target.read_text() == shipped["quickstart"] and load_sweep(target).size == 576
+    target.write_text("# mine\n")
+    assert cli.main(["example", "large_5d", "-o", str(target)]) == 2
+    assert "--overwrite" in capsys.readouterr().err and target.read_text() == "# mine\n"
+    assert cli.main(["example", "large_5d.toml", "-o", str(target), "--overwrite"]) == 0
+    assert target.read_text() == shipped["large_5d"]
+    capsys.readouterr()
+    assert cli.main(["example", "nope"]) == 2
+    assert "quickstart" in capsys.readouterr().err

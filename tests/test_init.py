@@ -150,3 +150,23 @@ def test_temporary_directory_others_can_write_is_refused(tmp_path):
     assert not _usable(link / "numba-key", private=True)
     (tmp_path / "a-file").write_text("")
     assert not _usable(tmp_path / "a-file" / "numba-key", private=False)
+
+
+def test_the_same_sources_elsewhere_load_the_cached_kernels(tree, tmp_path):
+    """A second copy of the same sources at another path (another clone, another environment)
+    loads the kernels the first compiled: the cache is keyed on the sources, not on where they
+    are."""
+    cache = tmp_path / "cache"
+    first, _ = _run(tree, NUMBA_CACHE_DIR=str(cache))
+    assert (first["value"], first["hits"]) == (1.0, 0)
+    other = tmp_path / "elsewhere" / "deeper"
+    shutil.copytree(tree, other, symlinks=True)
+    again, _ = _run(other, NUMBA_CACHE_DIR=str(cache))
+    assert (again["value"], again["hits"]) == (1.0, 1)
+    # One keyed directory, the kernels filed under the package's own layout.
+    keyed = list((cache / "cosserat-channel").iterdir())
+    assert len(keyed) == 1
+    assert {p.parent.name for p in _cached_files(keyed[0])} == {"cosserat_channel"}
+    # An edit is still seen through the shared cache.
+    _edit_inner(other, 5.0)
+    assert _run(other, NUMBA_CACHE_DIR=str(cache))[0]["value"] == 5.0

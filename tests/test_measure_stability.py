@@ -117,7 +117,7 @@ def test_unwritable_directory_is_one_line_exit_2(tmp_path, capsys):
     code = cli.main(["stability", "--quick", "-o", str(blocker / "sub")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
-    assert len(err) == 1 and err[0].startswith("cosserat-channel: error: -o/--output-dir")
+    assert len(err) == 1 and err[0].startswith("cosserat-channel: error: -o/--output")
     code = cli.main(["stability", "--quick", "-o", str(blocker)])
     assert code == 2 and "not a directory" in capsys.readouterr().err
 

@@ -130,3 +130,20 @@ def test_readme_python_blocks_run(scratch):
                               text=True, timeout=600,
                               env=dict(os.environ, PYTHONPATH=str(ROOT / "src")))
         assert proc.returncode == 0, f"{code}\n{proc.stderr[-3000:]}"
+
+
+def test_make_notebooks_allows_root_only_as_root(tmp_path):
+    """Jupyter refuses root without --allow-root: ``make notebooks`` passes it as root, only then.
+
+    ``make -n`` prints the recipe without running it, in a copy of the Makefile, with the venv
+    stamp taken as made (``-o``): nothing is installed.
+    """
+    if shutil.which("make") is None:
+        pytest.skip("make is not installed")
+    for name in ("Makefile", "pyproject.toml"):
+        shutil.copy(ROOT / name, tmp_path / name)
+    proc = subprocess.run(["make", "-n", "-o", ".venv/.installed", "notebooks"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    line = next(w for w in proc.stdout.splitlines() if "jupyter lab" in w)
+    assert ("--allow-root" in line) == (os.geteuid() == 0), line

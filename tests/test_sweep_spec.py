@@ -229,6 +229,29 @@ def test_missing_and_binary_files(tmp_path):
         load_sweep(p)
     with pytest.raises(SweepError, match="path or a mapping"):
         load_sweep(42)
+    for signature in (b"\x89HDF\r\n\x1a\n", b"CDF\x01"):  # NetCDF-4 and classic
+        p.write_bytes(signature + bytes(64))
+        with pytest.raises(SweepError, match="is a NetCDF file .* not a sweep file"):
+            load_sweep(p)
+
+
+@pytest.mark.parametrize("grid, hinted", [
+    # values where exponents belong: eps from 10**0.001 = 1.002 on is outside (0, 1] ...
+    (dict(eps={"logspace": [0.001, 0.1, 12]}), "logspace = [-3, -1, num]"),
+    # ... and L up to 1e30 puts eps L outside the solver's range
+    (dict(L={"logspace": [1, 30, 4]}), "logspace = [0, 1.47712, num]"),
+    # a linspace or exponents that are simply out of range get no hint
+    (dict(eps={"linspace": [0.5, 2, 3]}), None),
+    (dict(eps={"logspace": [-3, 1, 3]}), None),
+])
+def test_logspace_given_values_hints_at_exponents(grid, hinted):
+    mapping = {"grid": {**dict(eps=0.01, L=10, K=0.5, A=0.3, N=1.0), **grid}}
+    with pytest.raises(SweepError) as info:
+        load_sweep(mapping)
+    message = str(info.value)
+    assert ("exponents of 10" in message) == (hinted is not None), message
+    if hinted:
+        assert hinted in message
 
 
 @pytest.mark.parametrize("path", SWEEPS, ids=[p.name for p in SWEEPS])
@@ -238,6 +261,13 @@ def test_shipped_sweeps_load(path):
     assert spec.size >= 1
     assert spec.text.startswith("#")
     assert spec.output_path and spec.output_path.endswith(".nc")
+
+
+def test_shipped_sweeps_are_the_package_data():
+    """sweeps/ of a clone and the package's examples are one set of files, the same texts."""
+    from cosserat_channel.sweep.spec import examples
+
+    assert examples() == {p.stem: p.read_text() for p in SWEEPS}
 
 
 def test_shipped_sweeps_content():

@@ -1,4 +1,4 @@
-"""The one set of Numba compile options of the package's kernels.
+"""The one set of Numba compile options of the package's kernels, and where their cache lives.
 
 ``error_model="numpy"``: a division by zero gives inf/NaN, which the integrators handle as a
 non-finite trial step, instead of a branch and a Python exception around every division.
@@ -8,9 +8,67 @@ avoid the reference-count updates of a call (see :mod:`cosserat_channel.solver.s
 inlined kernel is compiled with the error model of the caller it is inlined into.
 ``cache`` is off only where no directory keyed on the sources is writable (see
 :func:`cosserat_channel._numba_cache_enabled`).
+
+Numba files a cached kernel under a hash of its source file's absolute directory, so the same
+sources installed at another path (a second clone, a wheel in another environment) would compile
+again. :class:`SourcesLocator` files them under the module's path inside the package instead:
+the cache directory is already keyed on a hash of every source file, so the same sources share
+one cache wherever they are installed.
 """
+
+import hashlib
+import os
+from functools import lru_cache
+from pathlib import Path
 
 from . import _numba_cache_enabled
 
-JIT = dict(nogil=True, cache=_numba_cache_enabled(), error_model="numpy")
+PACKAGE = Path(__file__).resolve().parent
+
+
+def _install_locator() -> None:
+    from numba.core import caching, config
+
+    # Numba 0.60 dropped the underscore of both names.
+    base = getattr(caching, "UserProvidedCacheLocator", None) or caching._UserProvidedCacheLocator
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+
+    class SourcesLocator(base):
+        """Numba's locator for ``NUMBA_CACHE_DIR``, with paths relative to the package.
+
+        The cache path is ``NUMBA_CACHE_DIR/cosserat_channel/<subpackage>`` and the source
+        stamp the file's SHA-256 (what recent Numba uses too; older ones used its mtime, which
+        a copy changes). Functions outside the package are left to Numba's own locators.
+        """
+
+        def __init__(self, py_func, py_file):
+            super().__init__(py_func, py_file)
+            inside = Path(py_file).resolve().parent.relative_to(PACKAGE)
+            self._cache_path = os.path.join(config.CACHE_DIR, PACKAGE.name, *inside.parts)
+
+        def get_source_stamp(self):
+            return _sha256(os.path.realpath(self._py_file))
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not Path(py_file).resolve().is_relative_to(PACKAGE):
+                return None
+            return super().from_function(py_func, py_file)
+
+    locators = impl._locator_classes
+    if not any(c.__name__ == "SourcesLocator" for c in locators):
+        locators.insert(0, SourcesLocator)
+
+
+@lru_cache(maxsize=None)
+def _sha256(path: str) -> str:
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+_CACHE = _numba_cache_enabled()
+if _CACHE:
+    _install_locator()
+
+JIT = dict(nogil=True, cache=_CACHE, error_model="numpy")
 JIT_INLINE = dict(JIT, inline="always")

@@ -73,15 +73,37 @@ class _Parser(argparse.ArgumentParser):
 
     argparse's own ``error`` prints the usage block too; the contract here is one line on stderr
     and ``main`` returning the code, which the tests (and callers embedding ``main``) rely on.
+    An option this parser does not know is named first, with the closest known spelling
+    (``--esp``: did you mean ``--eps``?), since argparse would report the required option it
+    then misses instead.
     """
 
     def parse_known_args(self, args=None, namespace=None):
-        self._argv = list(sys.argv[1:] if args is None else args)
-        return super().parse_known_args(args, namespace)
+        self._given = list(sys.argv[1:] if args is None else args)
+        namespace, extras = super().parse_known_args(args, namespace)
+        if any(word.startswith("--") for word in extras):
+            self.error("unrecognized arguments: " + " ".join(extras))  # named by this parser
+        return namespace, extras
 
     def error(self, message):
-        raise CliError(message + _negative_value_hint(message, getattr(self, "_argv", ())),
+        typo = self._unknown_option()
+        raise CliError(typo or message + _negative_value_hint(message, getattr(self, "_given", ())),
                        EXIT_USAGE)
+
+    def _unknown_option(self) -> str | None:
+        import difflib
+
+        known = [s for s in self._option_string_actions if s.startswith("--")]
+        for word in getattr(self, "_given", ()):
+            if word == "--":
+                break
+            flag = word.split("=", 1)[0]
+            if not flag.startswith("--") or flag in self._option_string_actions:
+                continue
+            close = difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
+            hint = f"; did you mean {close[0]}?" if close else f"; see '{self.prog} --help'"
+            return f"unrecognized option {flag}{hint}"
+        return None
 
     def exit(self, status=0, message=None):
         if message:

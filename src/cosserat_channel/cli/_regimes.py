@@ -356,7 +356,9 @@ def _plot(args: argparse.Namespace) -> int:
                     plot_lines.line_plot(ds, args.x, args.y, args.hue, at,
                                          asymptote=args.asymptote, path=args.output)
         except (ValueError, KeyError) as exc:
-            raise CliError(str(exc).strip("'\"")) from None
+            # A KeyError's str() is the repr of its message; its argument is the message.
+            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+            raise CliError(str(message)) from None
         except OSError as exc:
             raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
     finally:

@@ -20,9 +20,12 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
 # stability (issue 4)
 # ---------------------------------------------------------------------------------------------
 def _stability_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("-o", "--output-dir", dest="output_dir", default="stability_report",
+    p.add_argument("-o", "--output", dest="output_dir", default="stability_report",
                    metavar="DIR", help="where stability.md and stability.png go "
                    "(default: stability_report/, created if missing)")
+    # The older spelling still works, unlisted: -o/--output is every other command's.
+    p.add_argument("--output-dir", dest="output_dir", default=argparse.SUPPRESS,
+                   help=argparse.SUPPRESS)
     p.add_argument("--quick", action="store_true",
                    help="a small version (one (A, N) series, few points, one timing repeat)")
     p.add_argument("--repeats", type=int, default=5, metavar="R",
@@ -38,7 +41,7 @@ def _stability(args: argparse.Namespace) -> int:
 
     problem = directory_problem(args.output_dir)
     if problem:
-        raise CliError(f"-o/--output-dir: {problem}")
+        raise CliError(f"-o/--output: {problem}")
 
     repeats = 1 if args.quick else args.repeats
     try:

@@ -139,6 +139,56 @@ def _finished_result_kept(output: str, spec) -> bool:
 
 
 # ---------------------------------------------------------------------------------------------
+# example (the sweep files that come with the package)
+# ---------------------------------------------------------------------------------------------
+def _example_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("name", nargs="?", metavar="NAME",
+                   help="an example's name (without NAME: list them)")
+    p.add_argument("-o", "--output", metavar="SWEEP.toml",
+                   help="copy it to this file (default: print it)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing SWEEP.toml")
+
+
+@register("example", "list the example sweep files that come with the package, print or copy one",
+          _example_arguments)
+def _example(args: argparse.Namespace) -> int:
+    from ..sweep.spec import examples
+
+    shipped = examples()
+    if args.name is None:
+        if args.output is not None:
+            raise CliError("-o needs an example's NAME")
+        width = max(map(len, shipped))
+        for name, text in shipped.items():
+            first = next((line.lstrip("# ").strip() for line in text.splitlines()
+                          if line.startswith("#")), "")
+            print(f"{name:<{width}}  {first}")
+        return EXIT_OK
+    name = args.name[:-5] if args.name.endswith(".toml") else args.name
+    if name not in shipped:
+        raise CliError(f"no example {args.name!r}; the examples are {', '.join(shipped)}")
+    if args.output is None:
+        sys.stdout.write(shipped[name])
+        return EXIT_OK
+    check_output_path(args.output, "-o")
+    if os.path.lexists(args.output) and not args.overwrite:
+        raise CliError(f"-o: {args.output} exists; kept (add --overwrite to replace it)")
+    from ..files import atomic_output
+
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(shipped[name])
+
+    try:
+        atomic_output(args.output, write)
+    except OSError as exc:
+        raise CliError(f"-o: cannot write {args.output!r}: {exc.strerror or exc}",
+                       EXIT_FAILURE) from None
+    _note(f"wrote {args.output}; run it with: {PROG} run {args.output}")
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------------------------------------
 # query, info (result files; the parsing, rendering and describing live in results/)
 # ---------------------------------------------------------------------------------------------
 _QUERY_FORMATS = ("table", "csv", "json", "netcdf")

@@ -231,11 +231,15 @@ def stage1_start(ax, rtol1):
     return xi1, model.w_axis_series(xi1, ax)
 
 
-@njit(**_JIT)
-def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res, max_step=0.0):
+@njit(**_JIT_INLINE)
+def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res, max_step):
     """Stage 1 marched again at a tighter ``rtol1``, from where the axis series is good to it
     (:func:`stage1_start`, which moves closer to the axis); records that start in ``res[R_XI1]``.
-    Returns what :func:`_stage1_pass` does (``max_step`` as there)."""
+    Returns what :func:`_stage1_pass` does (``max_step`` as there).
+
+    Inlined, and every call passes ``max_step``: a kernel of its own, or a default left out,
+    is one more specialisation whose compilation re-optimises all of stage 1's inlined
+    integrators that it links (about 4 s of the first run's compilation)."""
     xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
     return _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step)
@@ -249,7 +253,7 @@ def _add_stats(stats, more):
 
 
 @njit(**_JIT)
-def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step=0.0):
+def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step):
     """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
     ``max_step > 0`` caps each step at that fraction of the stretch it marches.
 
@@ -416,7 +420,7 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     stiff = (use_stiff_path(eta, A, N, ax, xi1, rtol1) if method == METHOD_AUTO
              else method == METHOD_STIFF)
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
-    s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1)
+    s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, 0.0)
     if s1 == stepping.EVENT and rtol1 > STAGE1_RTOL_FLOOR:
         # Where the path meets D = 0, D often falls to zero nearly tangentially (D ~ (xi_stop -
         # xi)^2 over the last percent), so xi_stop moves by ~sqrt(the error of D): 2.6e-4 at
@@ -424,7 +428,8 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         # starts on the axis series. The status is certain; for xi_stop, march again 1000x tighter.
         rtol1 = max(STAGE1_RTOL_FLOOR, 1e-3 * rtol1)
         atol1[0] = atol * min(1.0, rtol1 / rtol)
-        s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res)
+        s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res,
+                                         0.0)
     if s1 == stepping.SUCCESS:
         delta_wall = _delta_wall(T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)

@@ -69,6 +69,22 @@ TABLES = ("grid", "material", "solver", "output")
 SOLVER_KEYS = ("rtol", "atol")
 OUTPUT_KEYS = ("path", "variables", "profile_points")
 GRID_FORMS = ("linspace", "logspace")
+# The first bytes of a NetCDF-4 (HDF5) and a classic NetCDF file: a result given where a sweep
+# file belongs.
+NETCDF_SIGNATURES = (b"\x89HDF\r\n\x1a\n", b"CDF\x01", b"CDF\x02", b"CDF\x05")
+
+
+def examples() -> dict[str, str]:
+    """The sweep files that come with the package: ``{name: text}``, by name.
+
+    They are package data (``cosserat_channel/examples/*.toml``, also ``sweeps/`` in a clone),
+    so an installed package without a clone has them too (``cosserat-channel example``).
+    """
+    from importlib import resources
+
+    here = resources.files("cosserat_channel") / "examples"
+    return {f.name[:-5]: f.read_text(encoding="utf-8")
+            for f in sorted(here.iterdir(), key=lambda f: f.name) if f.name.endswith(".toml")}
 
 
 
@@ -199,7 +215,7 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
         try:
             check_values(d, values)
         except ParameterError as exc:
-            raise SweepError(f"{key}: {exc}") from None
+            raise SweepError(f"{key}: {exc}{_logspace_hint(grid[d])}") from None
         uniq, counts_ = np.unique(values, return_counts=True)
         if np.any(counts_ > 1):
             dup = ", ".join(f"{v!r}" for v in uniq[counts_ > 1][:5].tolist())
@@ -211,8 +227,24 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
         for pick in (np.min, np.max):
             check_eta(float(pick(axes["eps"])), float(pick(axes["L"])), label="grid: eps L")
     except ParameterError as exc:
-        raise SweepError(str(exc)) from None
+        hint = _logspace_hint(grid["L"]) or _logspace_hint(grid["eps"])
+        raise SweepError(f"{exc}{hint}") from None
     return axes
+
+
+def _logspace_hint(value) -> str:
+    """For an axis that failed its range check: a hint when it is a ``logspace`` with two
+    positive ends (values where exponents of 10 belong, e.g. ``[0.001, 0.1, 12]`` for eps, or
+    ``[1, 30, 5]`` for L), else ''."""
+    if not (isinstance(value, Mapping) and "logspace" in value):
+        return ""
+    start, stop = (float(x) for x in value["logspace"][:2])
+    if not (start > 0 and stop > 0):
+        return ""
+    return (f" (logspace takes exponents of 10: [{start:g}, {stop:g}] gives "
+            f"{10 ** min(start, 300):.3g} to {10 ** min(stop, 300):.3g}; for values from "
+            f"{start:g} to {stop:g} write {{logspace = [{math.log10(start):.6g}, "
+            f"{math.log10(stop):.6g}, num]}})")
 
 
 def _axis_count(value, key: str) -> int:
@@ -377,11 +409,16 @@ def _read_text(path: str) -> str:
         with open(path, "rb") as f:
             raw = f.read()
     except FileNotFoundError:
-        raise SweepError(f"{path}: no such sweep file") from None
+        raise SweepError(f"{path}: no such sweep file ('cosserat-channel example' lists and copies "
+                         "the ones that come with the package)") from None
     except IsADirectoryError:
         raise SweepError(f"{path}: is a directory, not a sweep file") from None
     except OSError as exc:
         raise SweepError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if raw.startswith(NETCDF_SIGNATURES):
+        raise SweepError(f"{path}: is a NetCDF file (a result?), not a sweep file; "
+                         f"'cosserat-channel info {path}' describes a result, 'cosserat-channel "
+                         "example' lists the sweep files that come with the package")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from cosserat_channel import status as st
-from cosserat_channel.integrate import dop853, rk45
+from cosserat_channel.integrate import dop853, stepping
 from cosserat_channel.parameters import DEFAULT_ATOL, DEFAULT_RTOL
 from cosserat_channel.physics import model
 from cosserat_channel.solver import layout, stage1, stage2
@@ -74,7 +74,7 @@ def solve(eta, A, N, rtol, atol):
     """Both stages for each triple (no plug-edge root): ``(res, stats)`` of solve_batch."""
     n = eta.size
     res = np.empty((n, layout.N_R))
-    stats = np.zeros((n, 2, rk45.N_STATS), np.int64)
+    stats = np.zeros((n, 2, stepping.N_STATS), np.int64)
     solve_batch(np.ascontiguousarray(eta, dtype=float), np.ascontiguousarray(A, dtype=float),
                 np.ascontiguousarray(N, dtype=float), np.zeros(n), np.zeros(n + 1, np.int64), rtol,
                 atol, stage1.MAX_STEPS_STAGE1, stage2.MAX_STEPS_STAGE2, res, stats, np.empty(0),
@@ -102,15 +102,15 @@ class Tally:
             ref, _ = solve(eta[bad], A[bad], N[bad], REF_RTOL, atol)
             ok_ref[bad] = ref[:, layout.R_STATUS] == st.OK
             for j, i in enumerate(bad):
-                row = (eta[i], A[i], N[i], int(stats[i, 1, rk45.STAT_ACCEPTED]),
-                       int(stats[i, 1, rk45.STAT_REJECTED]), ref[j, layout.R_J_AXIS])
+                row = (eta[i], A[i], N[i], int(stats[i, 1, stepping.STAT_ACCEPTED]),
+                       int(stats[i, 1, stepping.STAT_REJECTED]), ref[j, layout.R_J_AXIS])
                 (self.failed if ok_ref[i] else self.failed_tight).append(row)
         keep = np.flatnonzero((code == st.OK) | ok_ref)[:room]
         self.inside += keep.size
-        rej = stats[keep, 1, rk45.STAT_REJECTED]
+        rej = stats[keep, 1, stepping.STAT_REJECTED]
         self.rejections.append(rej)
         for i in keep[rej >= MANY_REJECTIONS]:
-            self.worst.append((int(stats[i, 1, rk45.STAT_REJECTED]), eta[i], A[i], N[i],
+            self.worst.append((int(stats[i, 1, stepping.STAT_REJECTED]), eta[i], A[i], N[i],
                                res[i, layout.R_J_AXIS]))
         return keep.size
 
@@ -252,7 +252,7 @@ def main(argv=None) -> int:
         band_failed = np.flatnonzero((code == st.INTEGRATION_FAILED) & (code_ref == st.OK))
         J = np.abs(res[ok, layout.R_J_AXIS] / ref[ok, layout.R_J_AXIS] - 1.0)
         m = np.abs(res[ok, layout.R_MU_WALL] / ref[ok, layout.R_MU_WALL] - 1.0)
-        rej = stats[:, 1, rk45.STAT_REJECTED]
+        rej = stats[:, 1, stepping.STAT_REJECTED]
         print(f"\n## part 2, bands: {args.lines} lines in eta, {eta.size} points where the first "
               f"DOP853 trial sits on a zero of its error estimate "
               f"({time.process_time() - t0:.0f} s CPU)")
@@ -262,7 +262,7 @@ def main(argv=None) -> int:
         print(f"integration_failed where rtol {REF_RTOL:g} is ok: {band_failed.size} (target 0)")
         for i in band_failed[:TOP]:
             print(f"  eta = {eta[i]!r}, A = {A[i]!r}, N = {N[i]!r}: stage 2 "
-                  f"{stats[i, 1, rk45.STAT_ACCEPTED]} accepted, {rej[i]} rejected")
+                  f"{stats[i, 1, stepping.STAT_ACCEPTED]} accepted, {rej[i]} rejected")
         if ok.any():
             print(f"ok at both: {int(ok.sum())}; rel. diff to rtol {REF_RTOL:g}: J(0) median "
                   f"{np.median(J):.1e}, max {J.max():.1e}; m_wall max {m.max():.1e}")

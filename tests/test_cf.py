@@ -50,11 +50,12 @@ def test_every_declared_unit_is_udunits():
     """The units of every parameter, material input, output, counter and profile parse."""
     units = [p.units for p in PARAMETERS.values()] + [m.units for m in MATERIAL.values()]
     units += [o.units for o in outputs.OUTPUTS.values()]
-    units += [u for u, *_ in outputs.COUNTERS.values()] + [u for u, _ in outputs.PROFILES.values()]
+    units += [c.units for c in outputs.COUNTERS.values()] + [q.units for q in outputs.PROFILES.values()]
+    units += [outputs.XI.units] + [s.units for s in outputs.SCALES.values()]
     for u in units:
         udunits(u)
     assert udunits(outputs.OUTPUTS["Delta"].units) == cf_units.Unit("1")
-    assert "particle diameters" in outputs.OUTPUTS["Delta"].long_name
+    assert "particle diameters" in outputs.OUTPUTS["Delta"].description
     assert udunits("Pa").is_convertible(cf_units.Unit("kg m-1 s-2"))
 
 
@@ -100,3 +101,56 @@ def test_cf_xarray_sees_the_coordinates(result):
     for d in ("eps", "L", "K", "A", "N", "xi"):
         assert d in result.coords and result[d].attrs.get("long_name")
     assert "Coordinates" in repr(result.cf)
+
+
+# xarray's own label: "long_name [units]", wrapped at this many characters.
+XARRAY_WRAP = 30
+
+
+def test_long_names_are_axis_labels_and_the_sentence_is_the_description(result):
+    """Every variable and coordinate of a result has a long_name that plain xarray prints on one
+    line with its units, and the sentence it used to carry as its description."""
+    for name, v in result.variables.items():
+        text = f"{v.attrs['long_name']} [{v.attrs.get('units', '1')}]"
+        assert len(text) <= XARRAY_WRAP, (name, text)
+        if name != "status":
+            q = outputs.definition(name)
+            assert v.attrs["description"] == q.description and q.description, name
+            assert len(q.description) > len(q.long_name), name
+    assert result["xi"].attrs["axis"] == "X"
+    assert result["status"].attrs["standard_name"] == "status_flag"
+    assert result.attrs["Conventions"] == "CF-1.8"
+
+
+def test_plain_xarray_plots_keep_their_labels_inside_the_figure(result):
+    """``ds.Delta.sel(...).plot()`` with xarray alone: the y label of every output is one line
+    and lies inside the figure (a sentence as long_name was wrapped and clipped at the edge)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    for name in [*outputs.OUTPUTS, "u_over_u0", "m"]:
+        da = result[name].isel({d: 0 for d in result[name].dims if d not in ("eps", "xi")})
+        if "xi" in da.dims:
+            da = da.isel(eps=0)
+        fig, ax = plt.subplots()
+        try:
+            da.plot(ax=ax)
+            fig.canvas.draw()
+            label = ax.yaxis.label
+            box = label.get_window_extent(fig.canvas.get_renderer())
+            assert "\n" not in label.get_text(), (name, label.get_text())
+            assert box.x0 >= 0 and box.y0 >= 0 and box.y1 <= fig.bbox.height, (name, box)
+        finally:
+            plt.close(fig)
+
+
+def test_every_file_of_the_tool_carries_conventions(boundary, tmp_path):
+    """Boundary files (traced, or drawn from an atlas) and atlas files say which CF version."""
+    from cosserat_channel import atlas
+
+    assert boundary.attrs["Conventions"] == "CF-1.8"
+    a = atlas.build_atlas((0.25, 0.5), (0.8, 0.9), tol=1e-3, degree=2, max_depth=0)
+    assert a.to_dataset().attrs["Conventions"] == "CF-1.8"
+    assert a.boundary([0.3], [1.0]).attrs["Conventions"] == "CF-1.8"

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from cosserat_channel import plot
+from cosserat_channel import outputs, plot, run_sweep
+from cosserat_channel.parameters import PARAMETERS
 from cosserat_channel.solver.point import solve_point
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -73,7 +74,59 @@ def test_shear_stress_panel_has_legend_for_both(fig):
 def test_xi_axis_labelled(fig):
     """The bottom panels carry the xi = x/W label."""
     labels = [ax.get_xlabel() for ax in fig.axes]
-    assert labels.count(r"$\xi = x/W$") >= 2
+    assert labels.count(outputs.XI.label) >= 2 and r"$\xi = x/W$" in outputs.XI.label
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    """Every output over eps (and the profiles), with a material: a small sweep."""
+    return run_sweep({"grid": {"eps": [0.02, 1 / 30, 0.05], "L": 10.0, "K": 0.5,
+                               "A": 1 / 3, "N": 1.0},
+                      "material": {"d_p": 0.002, "rho_p": 2940.0, "phi": 25.0},
+                      "output": {"variables": list(outputs.OUTPUTS), "profile_points": 5}},
+                     workers=1, progress=False)
+
+
+@pytest.mark.parametrize("name", list(outputs.OUTPUTS))
+def test_every_output_is_labelled_by_its_own_definition(sweep, name):
+    """The y label of an output against eps is its long name, symbol and unit; the x label is
+    eps's (both from their definitions: no table of labels beside them)."""
+    from cosserat_channel.plot.lines import line_plot
+
+    ax = line_plot(sweep, "eps", name, asymptote=False).axes[0]
+    o = outputs.OUTPUTS[name]
+    assert ax.get_ylabel() == o.label
+    assert o.long_name in ax.get_ylabel() and o.symbol in ax.get_ylabel()
+    assert ax.get_xlabel() == PARAMETERS["eps"].label
+
+
+def test_an_output_registered_at_run_time_reaches_the_figure_label(sweep):
+    """Adding one Output is all it takes: the sweep file and the figure both carry its label."""
+    from cosserat_channel.plot.lines import line_plot
+
+    new = outputs.Output("Delta_per_L", "1", "thickness per length",
+                         lambda x: x.get("Delta") / x.L, plug_edge=True, symbol=r"$\Delta/L$",
+                         description="shear-layer thickness over the Cosserat length (test only)")
+    with outputs.registered(new):
+        ds = run_sweep({"grid": {"eps": [0.02, 1 / 30], "L": 10.0, "K": 0.5, "A": 1 / 3,
+                                 "N": 1.0}, "output": {"variables": ["Delta_per_L"]}},
+                       workers=1, progress=False)
+        assert ds["Delta_per_L"].attrs["long_name"] == "thickness per length"
+        ax = line_plot(ds, "eps", "Delta_per_L").axes[0]
+        assert ax.get_ylabel() == r"thickness per length $\Delta/L$"
+    # Once unregistered, a variable of a file is labelled from the file's own attributes.
+    ax = line_plot(ds, "eps", "Delta_per_L").axes[0]
+    assert ax.get_ylabel() == "thickness per length"
+
+
+def test_profile_labels_come_from_the_profiles(sweep):
+    """Profiles against xi: y label from outputs.PROFILES, x label from outputs.XI."""
+    from cosserat_channel.plot.lines import line_plot
+
+    for name in ("u_over_u0", "omega_hat", "m", "sigma_yx"):
+        ax = line_plot(sweep, "xi", name, at={"eps": 0.02}, asymptote=False).axes[0]
+        assert ax.get_ylabel() == outputs.PROFILES[name].label
+        assert ax.get_xlabel() == outputs.XI.label
 
 
 def test_plug_edge_line_at_xi_p(fig, result):

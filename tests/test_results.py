@@ -44,8 +44,7 @@ def make_results() -> xr.Dataset:
     delta = np.where(status == st.OK, 1000 * eps + L + K, np.nan)
 
     def out(name, data):
-        unit, text = OUTPUTS[name].units, OUTPUTS[name].long_name
-        return DIMS, data, {"units": unit, "long_name": text}
+        return DIMS, data, OUTPUTS[name].attrs
 
     profile = np.broadcast_to(1.0 - XI**2, shape + XI.shape).copy()
     ds = xr.Dataset(
@@ -385,6 +384,46 @@ def test_info_counts_match_data(capsys, results):
     assert eps_line.split()[1:4] == ["3", "0.001", ".."]
     assert "particle diameters" in out and "shear-layer thickness" in out
     assert "0" * 64 in out and "# test sweep" in out and "1e-08" in out
+
+
+@pytest.fixture(scope="module")
+def tool_files(tmp_path_factory):
+    """An atlas, a traced boundary and a boundary drawn from the atlas, written by the commands."""
+    d = tmp_path_factory.mktemp("tool_files")
+    paths = {k: str(d / f"{k}.nc") for k in ("atlas", "traced", "drawn")}
+    assert cli.main(["atlas", "-o", paths["atlas"], "--A", "0.25:0.5", "--N", "0.8:0.9",
+                     "--tol", "1e-3", "--degree", "2", "--max-depth", "0", "--workers", "1"]) == 0
+    assert cli.main(["boundary", "--A", "0.3,0.4", "--N", "0.85", "--coarse", "8",
+                     "-o", paths["traced"]]) == 0
+    assert cli.main(["boundary", "--A", "0.3,0.4,0.45", "--N", "0.85", "--atlas", paths["atlas"],
+                     "-o", paths["drawn"]]) == 0
+    return paths
+
+
+@pytest.mark.parametrize("which, kind, pairs", [("traced", "boundary", 2), ("drawn", "boundary", 3),
+                                               ("atlas", "atlas", None)])
+def test_info_describes_boundary_and_atlas_files(capsys, tool_files, which, kind, pairs):
+    """info reads every file the tool writes: its kind, its variables with their text, the flag
+    counts of a boundary (one per (A, N) pair) or the cells of an atlas, and CF-1.8."""
+    capsys.readouterr()
+    code, out, err = run(capsys, "info", tool_files[which])
+    assert code == 0 and err == "", err
+    lines = out.splitlines()
+    assert lines[1].startswith(f"kind  {kind}")
+    assert any(l.split()[:2] == ["Conventions", "CF-1.8"] for l in lines)
+    with xr.open_dataset(tool_files[which]) as ds:
+        for v in ds.data_vars:
+            assert any(l.split()[:1] == [v] for l in lines), v
+        if kind == "boundary":
+            assert f"edges ({pairs} (A, N) pairs)" in out
+            start = lines.index(f"edges ({pairs} (A, N) pairs)")
+            counts = {l.split()[0]: int(l.split()[1]) for l in lines[start + 1:start + 4]}
+            kinds = ds["edge_kind"].values.ravel().tolist()
+            assert counts == {n: kinds.count(i) for i, n in
+                              enumerate(ds["edge_kind"].attrs["flag_meanings"].split())}
+        else:
+            n_leaf = ds.sizes["leaf"]
+            assert f"cells ({n_leaf} leaves, {int((ds['leaf_n'] < 0).sum())} unresolved; " in out
 
 
 # ---------------------------------------------------------------------------------------------

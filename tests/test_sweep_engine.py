@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cosserat_channel import outputs
+from cosserat_channel.parameters import PARAMETERS
 from cosserat_channel.solver import batch, point as solve
 from cosserat_channel import status as st
 from cosserat_channel.sweep import run_sweep
@@ -149,7 +150,8 @@ def test_netcdf_file_is_cf_and_plain_readable(tmp_path):
         for name, var in nc.variables.items():
             assert "units" in var.ncattrs(), name
             assert "long_name" in var.ncattrs(), name
-        assert nc["eps"].long_name == "particle diameter / channel half-width, d_p/W"
+        assert nc["eps"].long_name == PARAMETERS["eps"].long_name
+        assert nc["eps"].description == "particle diameter / channel half-width, d_p/W"
         assert nc["Delta"].units == outputs.OUTPUTS["Delta"].units
         assert same(nc["Delta"][:].filled(np.nan), ds.Delta.values)
         assert same(nc["status"][:], ds.status.values)

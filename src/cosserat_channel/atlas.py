@@ -403,7 +403,7 @@ class Atlas:
             },
             coords={d: (d, v, {"long_name": PARAMETERS[d].long_name, "units": "1"})
                     for d, v in (("A", A), ("N", N))},
-            attrs={"title": "cosserat-channel boundary drawn from a solvability atlas",
+            attrs={"title": "cosserat-channel boundary drawn from a solvability atlas", "Conventions": st.CONVENTIONS,
                    "eta_search_min": float(lo), "eta_search_max": float(hi),
                    "atlas_tol": float(self.tol), "cosserat_channel_version": __version__},
         )
@@ -447,7 +447,7 @@ class Atlas:
                 "leaf_band": ("leaf", self.leaf_band, {
                     "long_name": "largest noise band of the traces at the leaf's nodes"}),
             },
-            attrs={"title": "cosserat-channel solvability atlas", "format": FORMAT,
+            attrs={"title": "cosserat-channel solvability atlas", "format": FORMAT, "Conventions": st.CONVENTIONS,
                    "A_min": self.box[0], "A_max": self.box[1], "N_min": self.box[2],
                    "N_max": self.box[3], "roots_A": self.roots[0], "roots_N": self.roots[1],
                    "degree": self.degree, "max_depth": self.max_depth, "tol": self.tol,

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 from functools import cached_property
 from typing import Callable
 
@@ -24,9 +24,12 @@ import numpy as np
 
 from .physics import closure
 from . import status as st
+from .parameters import MATERIAL, PARAMETERS, Described
 
-__all__ = ["Output", "Inputs", "OUTPUTS", "COUNTERS", "PROFILES", "register", "registered",
-           "derive", "derive_profiles", "material_outputs", "needs_plug_edge", "needs_stage2"]
+__all__ = ["Output", "Quantity", "Counter", "Scale", "Inputs", "OUTPUTS", "COUNTERS", "PROFILES",
+           "SCALES", "XI", "definition", "register", "registered", "derive", "derive_profiles",
+           "material_outputs",
+           "needs_plug_edge", "needs_stage2"]
 
 STAGE_NONE = 0  # needs no integration (material only)
 STAGE_STRESS = 1  # stage 1: stresses, axis -> wall
@@ -34,7 +37,52 @@ STAGE_VELOCITY = 2  # stage 2: velocities, wall -> axis
 
 
 @dataclass(frozen=True)
-class Output:
+class Scale:
+    """What turns a scaled, dimensionless value into SI units with a material.
+
+    Attributes
+    ----------
+    label : str
+        The scale in the paper's symbols, as figures print it (``$\\rho_p g W$``).
+    units : str
+        The SI unit of a scaled value times :meth:`factor` (UDUNITS).
+    factor : callable
+        ``factor(x)`` with ``x`` an :class:`Inputs` with a material: the scale, broadcastable.
+    """
+
+    label: str
+    units: str
+    factor: Callable[["Inputs"], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Quantity(Described):
+    """A named quantity with no formula here: a profile over ``xi``, or the ``xi`` axis itself.
+
+    Attributes
+    ----------
+    name, units, long_name
+        As for :class:`Output`.
+    symbol, description, unit_label, standard_name, axis : str
+        As for :class:`Output`; ``axis`` is the CF axis (``X``) of a coordinate.
+    scale : str
+        Key of :data:`SCALES` that makes it dimensional, or empty.
+    """
+
+    name: str
+    units: str
+    long_name: str
+    _: KW_ONLY
+    symbol: str = ""
+    description: str = ""
+    unit_label: str = ""
+    standard_name: str = ""
+    axis: str = ""
+    scale: str = ""
+
+
+@dataclass(frozen=True)
+class Output(Quantity):
     """One scalar output per point.
 
     Attributes
@@ -44,7 +92,8 @@ class Output:
     units : str
         UDUNITS-parsable unit (``"1"`` when dimensionless).
     long_name : str
-        What it is, in words (CF ``long_name``).
+        What it is, in a few words: the CF ``long_name`` and a figure's axis label, short enough
+        that plain xarray draws ``long_name [units]`` on one line (30 characters).
     compute : callable
         ``compute(x)`` with ``x`` an :class:`Inputs`: the value, broadcast over the inputs' shape,
         NaN where the point has none.
@@ -54,15 +103,29 @@ class Output:
         Needs the plug edge ``1 - xi_p`` of eq:13 (a root search per ``eps K``).
     material : bool
         Needs a material (``nu`` and the stresses in Pa).
+    symbol : str
+        The paper's symbol in mathtext, for figures (``$\\Delta$``).
+    description : str
+        What it is, in a sentence (the ``description`` attribute in files, ``point``'s table).
+    unit_label : str
+        What figures print as its unit when that is not ``units``: the scale of a scaled value.
+    standard_name : str
+        CF standard name, where the CF table has one.
+    scale : str
+        Key of :data:`SCALES` that makes a scaled value dimensional, or empty.
     """
 
-    name: str
-    units: str
-    long_name: str
     compute: Callable[["Inputs"], np.ndarray]
     stage: int = STAGE_VELOCITY
     plug_edge: bool = False
     material: bool = False
+
+
+@dataclass(frozen=True)
+class Counter(Quantity):
+    """A per-point work counter (stored in a sweep only on request); ``stage`` as for :class:`Output`."""
+
+    stage: int = STAGE_VELOCITY
 
 
 class Inputs:
@@ -151,46 +214,89 @@ def _xi_stop(x: Inputs):
     return np.where(x.status == st.EPS_TOO_LARGE_PATH, value, np.nan)
 
 
+# The scales of the paper's dimensionless stresses (eq:54's bars), divided by nu as the outputs
+# are: a value times the factor is in SI units.
+SCALES = {
+    "stress": Scale(r"$\rho_p g W$", "Pa", lambda x: x.stress_scale_Pa),
+    "couple": Scale(r"$\rho_p g W d_p$", "Pa m", lambda x: x.stress_scale_Pa * x.material["d_p"]),
+}
+
 # Table order is the order of the command line's table, of a sweep's default variables and of the
 # variables in a file.
 OUTPUTS: dict[str, Output] = {o.name: o for o in (
-    Output("Delta", "1", "shear-layer thickness (1 - xi_p)/eps, in particle diameters",
-           lambda x: x.one_minus / x.eps, plug_edge=True),
-    Output("xi_p", "1", "plug edge, u(xi_p) = 0.95 u(0) (eq:13)",
-           lambda x: 1.0 - x.one_minus, plug_edge=True),
-    Output("slip", "1", "wall slip u(1)/u(0)", lambda x: x.eps_K / x.get("u_axis")),
-    Output("u_axis", "1", "centre-line velocity u(0)/omega_w", lambda x: x.eps_K + x.raw("J_axis")),
-    Output("m_wall", "1", "wall couple stress m(1)/nu (rho_p g W d_p units)",
-           lambda x: x.L * x.raw("mu_wall"), stage=STAGE_STRESS),
-    Output("sigma_yx_wall", "1", "wall shear stress sigma_yx(1)/nu (rho_p g W units)",
-           lambda x: x.raw("sigma_yx_wall"), stage=STAGE_STRESS),
-    Output("xi_stop", "1", "where the stress path met D = 0", _xi_stop, stage=STAGE_STRESS),
-    Output("nu", "1", "solids fraction (eq:35)", lambda x: x.nu, stage=STAGE_NONE, material=True),
-    Output("sigma_xx_wall_Pa", "Pa", "wall normal stress sigma_xx, compressive positive",
-           lambda x: x.stress_scale_Pa / x.tan_delta, stage=STAGE_NONE, material=True),
-    Output("sigma_xy_wall_Pa", "Pa", "wall shear stress sigma_xy",
-           lambda x: -x.stress_scale_Pa, stage=STAGE_NONE, material=True),
-    Output("sigma_yx_wall_Pa", "Pa", "wall shear stress sigma_yx",
-           lambda x: np.where(x.ok, x.stress_scale_Pa * x.get("sigma_yx_wall"), np.nan),
-           stage=STAGE_STRESS, material=True),
-    Output("m_wall_Pa_m", "Pa m", "wall couple stress m",
-           lambda x: np.where(x.ok, x.stress_scale_Pa * x.material["d_p"] * x.get("m_wall"), np.nan),
-           stage=STAGE_STRESS, material=True),
+    Output("Delta", "1", "shear-layer thickness", lambda x: x.one_minus / x.eps, plug_edge=True,
+           symbol=r"$\Delta$", unit_label="particle diameters",
+           description="shear-layer thickness (1 - xi_p)/eps, in particle diameters"),
+    Output("xi_p", "1", "plug edge", lambda x: 1.0 - x.one_minus, plug_edge=True,
+           symbol=r"$\xi_p$", description="plug edge, u(xi_p) = 0.95 u(0) (eq:13)"),
+    Output("slip", "1", "wall slip", lambda x: x.eps_K / x.get("u_axis"),
+           symbol="$u(1)/u(0)$", description="wall slip u(1)/u(0)"),
+    Output("u_axis", "1", "centre-line velocity", lambda x: x.eps_K + x.raw("J_axis"),
+           symbol=r"$u(0)/\bar\omega_w$", description="centre-line velocity u(0)/omega_w"),
+    Output("m_wall", "1", "wall couple stress", lambda x: x.L * x.raw("mu_wall"),
+           stage=STAGE_STRESS, symbol=r"$\bar m(1)/\nu$", unit_label=r"$\rho_p g W d_p$",
+           scale="couple", description="wall couple stress m(1)/nu (rho_p g W d_p units)"),
+    Output("sigma_yx_wall", "1", "wall shear stress, yx", lambda x: x.raw("sigma_yx_wall"),
+           stage=STAGE_STRESS, symbol=r"$\bar\sigma_{yx}(1)/\nu$", unit_label=r"$\rho_p g W$",
+           scale="stress", description="wall shear stress sigma_yx(1)/nu (rho_p g W units)"),
+    Output("xi_stop", "1", "end of the stress path", _xi_stop, stage=STAGE_STRESS,
+           symbol=r"$\xi_{\mathrm{stop}}$", description="where the stress path met D = 0"),
+    Output("nu", "1", "solids fraction", lambda x: x.nu, stage=STAGE_NONE, material=True,
+           symbol=r"$\nu$", description="solids fraction (eq:35)"),
+    Output("sigma_xx_wall_Pa", "Pa", "wall normal stress",
+           lambda x: x.stress_scale_Pa / x.tan_delta, stage=STAGE_NONE, material=True,
+           symbol=r"$\sigma_{xx}(1)$",
+           description="wall normal stress sigma_xx, compressive positive"),
+    Output("sigma_xy_wall_Pa", "Pa", "wall shear stress, xy",
+           lambda x: -x.stress_scale_Pa, stage=STAGE_NONE, material=True,
+           symbol=r"$\sigma_{xy}(1)$", description="wall shear stress sigma_xy"),
+    Output("sigma_yx_wall_Pa", "Pa", "wall shear stress, yx",
+           lambda x: np.where(x.ok, SCALES["stress"].factor(x) * x.get("sigma_yx_wall"), np.nan),
+           stage=STAGE_STRESS, material=True, symbol=r"$\sigma_{yx}(1)$",
+           description="wall shear stress sigma_yx"),
+    Output("m_wall_Pa_m", "Pa m", "wall couple stress",
+           lambda x: np.where(x.ok, SCALES["couple"].factor(x) * x.get("m_wall"), np.nan),
+           stage=STAGE_STRESS, material=True, symbol="$m(1)$", description="wall couple stress m"),
 )}
 
-# Per-point work counters, stored in a sweep only on request: (units, long_name, stage).
-COUNTERS = {
-    "stage1_steps": ("1", "accepted steps of the stage-1 integration (0 where none ran)", STAGE_STRESS),
-    "stage2_steps": ("1", "accepted panels of the stage-2 quadrature (0 where none ran)", STAGE_VELOCITY),
-}
+# Per-point work counters, stored in a sweep only on request.
+COUNTERS: dict[str, Counter] = {c.name: c for c in (
+    Counter("stage1_steps", "1", "stage-1 steps", stage=STAGE_STRESS,
+            description="accepted steps of the stage-1 integration (0 where none ran)"),
+    Counter("stage2_steps", "1", "stage-2 panels", stage=STAGE_VELOCITY,
+            description="accepted panels of the stage-2 quadrature (0 where none ran)"),
+)}
 
-# Profiles over xi (sweeps with ``profile_points``): (units, long_name).
-PROFILES = {
-    "u_over_u0": ("1", "velocity profile u(xi)/u(0)"),
-    "omega_hat": ("1", "spin profile omega(xi)/omega_w"),
-    "m": ("1", "couple-stress profile m(xi)/nu (rho_p g W d_p units)"),
-    "sigma_yx": ("1", "shear-stress profile sigma_yx(xi)/nu (rho_p g W units)"),
-}
+# The profile coordinate.
+XI = Quantity("xi", "1", "cross-channel position", symbol=r"$\xi = x/W$", axis="X",
+              description="distance from the centre line / channel half-width")
+
+# Profiles over xi: those of solve_point's ``profile``. A sweep with ``profile_points`` writes
+# all but sigma_xy, which is -xi everywhere.
+PROFILES: dict[str, Quantity] = {q.name: q for q in (
+    Quantity("u_over_u0", "1", "velocity", symbol="$u/u(0)$",
+             description="velocity profile u(xi)/u(0)"),
+    Quantity("omega_hat", "1", "angular velocity", symbol=r"$\hat\omega=\bar\omega/\bar\omega_w$",
+             description="spin profile omega(xi)/omega_w"),
+    Quantity("m", "1", "couple stress", symbol=r"$\bar m/\nu$", unit_label=r"$\rho_p g W d_p$",
+             scale="couple", description="couple-stress profile m(xi)/nu (rho_p g W d_p units)"),
+    Quantity("sigma_xy", "1", "shear stress, xy", symbol=r"$\bar\sigma_{xy}/\nu$",
+             unit_label=r"$\rho_p g W$", scale="stress",
+             description="shear-stress profile sigma_xy(xi)/nu = -xi (rho_p g W units)"),
+    Quantity("sigma_yx", "1", "shear stress, yx", symbol=r"$\bar\sigma_{yx}/\nu$",
+             unit_label=r"$\rho_p g W$", scale="stress",
+             description="shear-stress profile sigma_yx(xi)/nu (rho_p g W units)"),
+)}
+
+
+def definition(name: str):
+    """The definition behind a variable name, with its ``long_name``, ``symbol``, ``units``,
+    ``label`` ...: an output, profile, counter, parameter, material input or ``xi``; None for
+    any other name. Looked up at each call, so an output registered at run time is found."""
+    for table in (OUTPUTS, PROFILES, COUNTERS, PARAMETERS, MATERIAL):
+        if name in table:
+            return table[name]
+    return XI if name == XI.name else None
 
 
 def derive_profiles(J, omega_hat, delta, sigma_yx, J_axis, eps_K, L, N) -> dict:
@@ -240,7 +346,7 @@ def needs_plug_edge(names) -> bool:
 def needs_stage2(names) -> bool:
     """Whether any of ``names`` (outputs or counters) needs the velocity stage."""
     stages = [OUTPUTS[n].stage for n in names if n in OUTPUTS]
-    stages += [COUNTERS[n][2] for n in names if n in COUNTERS]
+    stages += [COUNTERS[n].stage for n in names if n in COUNTERS]
     return needs_plug_edge(names) or any(s >= STAGE_VELOCITY for s in stages)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 __all__ = [
     "DIMS",
+    "Described",
     "Parameter",
     "PARAMETERS",
     "MATERIAL",
@@ -43,8 +44,43 @@ class ParameterError(ValueError):
     """A parameter outside the model's or the solver's domain; the message names it and its range."""
 
 
+class Described:
+    """What files and figures say of a named quantity, from its fields alone.
+
+    A mixin for the dataclasses that define the quantities (:class:`Parameter`,
+    :class:`cosserat_channel.outputs.Output` ...). They carry ``name``, ``units``, a short
+    ``long_name`` (a good axis label: plain xarray wraps a label at 30 characters, so a
+    ``long_name`` and its ``[units]`` stay within that), ``symbol`` (mathtext for figures),
+    ``description`` (the sentence), ``unit_label`` (what a figure prints as the unit of a scaled
+    value, e.g. ``particle diameters``) and, where the CF conventions have them,
+    ``standard_name`` and ``axis``. Files take :attr:`attrs`, figures :attr:`label`.
+    """
+
+    @property
+    def sentence(self) -> str:
+        """The description, or the long name where there is none."""
+        return self.description or self.long_name
+
+    @property
+    def attrs(self) -> dict:
+        """The CF attributes of a variable holding this quantity (empty ones left out)."""
+        attrs = {"units": self.units, "long_name": self.long_name}
+        for key in ("standard_name", "axis", "description"):
+            if getattr(self, key, ""):
+                attrs[key] = getattr(self, key)
+        return attrs
+
+    @property
+    def label(self) -> str:
+        """The axis label of a figure: long name, symbol and unit, e.g.
+        ``shear-layer thickness $\\Delta$ (particle diameters)``."""
+        text = f"{self.long_name} {self.symbol}" if self.symbol else self.long_name
+        unit = self.unit_label or ("" if self.units == "1" else self.units)
+        return f"{text} ({unit})" if unit else text
+
+
 @dataclass(frozen=True)
-class Parameter:
+class Parameter(Described):
     """One parameter: its name, meaning, unit and allowed interval.
 
     Attributes
@@ -52,13 +88,19 @@ class Parameter:
     name : str
         The paper's symbol in ASCII (``eps``, ``L`` ...).
     long_name : str
-        What it is, in words (also the CF ``long_name`` of its coordinate).
+        What it is, in a few words (the CF ``long_name`` of its coordinate, an axis label).
     units : str
         UDUNITS-parsable unit (``"1"`` when dimensionless).
     lo, hi : float
         Bounds of the allowed interval; ``lo_closed`` / ``hi_closed`` say whether each is allowed.
     default : float or None
         Value used when the parameter is not given (material closure constants only).
+    symbol : str
+        The paper's symbol in mathtext, for figures (``$\\varepsilon$``).
+    description : str
+        What it is, in a sentence (error messages, ``--help``, the ``description`` attribute).
+    unit_label : str
+        What figures print as its unit when that is not ``units`` (``particle diameters``).
     """
 
     name: str
@@ -69,6 +111,9 @@ class Parameter:
     lo_closed: bool = False
     hi_closed: bool = False
     default: float | None = None
+    symbol: str = ""
+    description: str = ""
+    unit_label: str = ""
 
     @property
     def interval(self) -> str:
@@ -90,7 +135,7 @@ class Parameter:
         accept them: ``True`` is not a length and ``"1"`` is not a number.
         """
         label = label or self.name
-        what = f"a number in {self.interval} ({self.long_name})"
+        what = f"a number in {self.interval} ({self.sentence})"
         if isinstance(value, (bool, np.bool_, str, bytes)) or not _is_real(value):
             raise ParameterError(f"{label} must be {what}; got {value!r}")
         try:
@@ -99,7 +144,8 @@ class Parameter:
             raise ParameterError(f"{label} must be {what}; got {value!r}") from None
         if not self.contains(x):
             raise ParameterError(
-                f"{label} = {value!r} is outside the allowed range {self.interval} ({self.long_name})"
+                f"{label} = {value!r} is outside the allowed range {self.interval} "
+                f"({self.sentence})"
             )
         return x
 
@@ -113,14 +159,21 @@ def _is_real(value) -> bool:
 # The point's parameters. The ranges are the solver's domain; model.md says which values the paper
 # studies and what each status means outside the region with a solution.
 PARAMETERS = {
-    "eps": Parameter("eps", "particle diameter / channel half-width, d_p/W", "1", 0.0, 1.0, False, True),
-    "L": Parameter("L", "Cosserat length in particle diameters", "1", 0.0, math.inf),
-    "K": Parameter("K", "wall roughness in u = eps K omega at the wall", "1", 0.0, math.inf, True),
+    "eps": Parameter("eps", "relative particle size", "1", 0.0, 1.0, False, True,
+                     symbol=r"$\varepsilon$",
+                     description="particle diameter / channel half-width, d_p/W"),
+    "L": Parameter("L", "Cosserat length", "1", 0.0, math.inf, symbol="$L$",
+                   description="Cosserat length in particle diameters",
+                   unit_label="particle diameters"),
+    "K": Parameter("K", "wall roughness", "1", 0.0, math.inf, True, symbol="$K$",
+                   description="wall roughness in u = eps K omega at the wall"),
     # |A| <= 1e3 and N <= 1e6: beyond them the kernels overflow (N^2, A^2 in D) and divided by
     # zero or ran out of steps (issue 13: fuzzing found ZeroDivisionError from N ~ 1e140 and
     # integration_failed from |A| ~ 1e3.5); within them 15,000 random points never failed.
-    "A": Parameter("A", "yield-surface constant a2/a1", "1", -1e3, 1e3, True, True),
-    "N": Parameter("N", "sin(phi)/tan(delta)", "1", 0.0, 1e6, False, True),
+    "A": Parameter("A", "yield-surface constant", "1", -1e3, 1e3, True, True, symbol="$A$",
+                   description="yield-surface constant a2/a1"),
+    "N": Parameter("N", "wall friction ratio", "1", 0.0, 1e6, False, True, symbol="$N$",
+                   description="wall friction ratio sin(phi)/tan(delta)"),
 }
 
 # The material, for nu and the dimensional stresses: the particle (required) and the
@@ -131,19 +184,26 @@ PARAMETERS = {
 # d_p = 1e308 overflowed the scale and the stresses in Pa went silently missing, and subnormal
 # values made the closure take the logarithm of 0 (issue 13).
 MATERIAL = {
-    "d_p": Parameter("d_p", "particle diameter d_p in m", "m", 1e-9, 10.0, True, True),
-    "rho_p": Parameter("rho_p", "particle density rho_p in kg/m^3", "kg m-3", 1e-3, 1e5, True,
-                       True),
-    "phi": Parameter("phi", "angle of internal friction phi in degrees", "degree", 1e-3, 90.0,
-                     True),
-    "g": Parameter("g", "gravity g in m/s^2", "m s-2", 1e-6, 1e4, True, True, default=9.81),
+    "d_p": Parameter("d_p", "particle diameter", "m", 1e-9, 10.0, True, True, symbol="$d_p$",
+                     description="particle diameter d_p in m"),
+    "rho_p": Parameter("rho_p", "particle density", "kg m-3", 1e-3, 1e5, True, True,
+                       symbol=r"$\rho_p$", description="particle density rho_p in kg/m^3"),
+    "phi": Parameter("phi", "internal friction angle", "degree", 1e-3, 90.0, True,
+                     symbol=r"$\phi$",
+                     description="angle of internal friction phi in degrees"),
+    "g": Parameter("g", "gravity", "m s-2", 1e-6, 1e4, True, True, default=9.81, symbol="$g$",
+                   description="gravity g in m/s^2"),
     # Lambda is a stress in pascals: that reproduces the paper's nu = 0.60 and 0.59 (model.md).
-    "Lambda": Parameter("Lambda", "closure constant Lambda in Pa (eq:24)", "Pa", 1e-9, 1e12,
-                        True, True, default=817.0),
-    "nu_min": Parameter("nu_min", "closure nu_min (eq:24)", "1", 0.0, 1.0, True, default=0.5),
-    "nu_max": Parameter("nu_max", "closure nu_max (eq:24)", "1", 0.0, 1.0, default=0.65),
-    "p": Parameter("p", "closure exponent p (eq:24)", "1", 1.0, math.inf, True, default=2.5),
-    "q": Parameter("q", "closure exponent q (eq:24)", "1", 0.0, math.inf, True, default=2.2),
+    "Lambda": Parameter("Lambda", "closure stress", "Pa", 1e-9, 1e12, True, True, default=817.0,
+                        symbol=r"$\Lambda$", description="closure constant Lambda in Pa (eq:24)"),
+    "nu_min": Parameter("nu_min", "loosest solids fraction", "1", 0.0, 1.0, True, default=0.5,
+                        symbol=r"$\nu_{\min}$", description="closure nu_min (eq:24)"),
+    "nu_max": Parameter("nu_max", "densest solids fraction", "1", 0.0, 1.0, default=0.65,
+                        symbol=r"$\nu_{\max}$", description="closure nu_max (eq:24)"),
+    "p": Parameter("p", "closure exponent p", "1", 1.0, math.inf, True, default=2.5,
+                   symbol="$p$", description="closure exponent p (eq:24)"),
+    "q": Parameter("q", "closure exponent q", "1", 0.0, math.inf, True, default=2.2,
+                   symbol="$q$", description="closure exponent q (eq:24)"),
 }
 MATERIAL_REQUIRED = ("d_p", "rho_p", "phi")
 
@@ -171,9 +231,9 @@ DEFAULT_ATOL = 1e-12
 # 1e-3. atol below 1e-30 buys nothing and at 5e-324 its scaled copy underflows to 0.
 TOLERANCES = {
     "rtol": Parameter("rtol", "relative tolerance", "1", 1e-13, 1e-3, True, True,
-                      default=DEFAULT_RTOL),
+                      default=DEFAULT_RTOL, description="relative tolerance"),
     "atol": Parameter("atol", "absolute tolerance", "1", 1e-30, 1e-6, True, True,
-                      default=DEFAULT_ATOL),
+                      default=DEFAULT_ATOL, description="absolute tolerance"),
 }
 
 

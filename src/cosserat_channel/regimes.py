@@ -949,7 +949,7 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
         coords={d: (d, v, {"long_name": PARAMETERS[d].long_name, "units": PARAMETERS[d].units})
                 for d, v in (("A", A), ("N", N))},
         attrs={
-            "title": "cosserat-channel boundary: edge of solvability in eta = eps L",
+            "title": "cosserat-channel boundary: edge of solvability in eta = eps L", "Conventions": st.CONVENTIONS,
             "eta_search_min": float(eta_range[0]), "eta_search_max": float(eta_range[1]),
             "n_coarse": int(n_coarse), "xtol_relative": float(xtol), "rtol": float(rtol),
             "atol": float(atol), "cosserat_channel_version": __version__,

@@ -48,6 +48,10 @@ class Status(IntEnum):
         return member
 
 
+# The version of the CF conventions every NetCDF file the tool writes follows (result, boundary
+# and atlas files alike).
+CONVENTIONS = "CF-1.8"
+
 # Plain integers for Numba kernels.
 OK = int(Status.ok)
 WALL_INADMISSIBLE = int(Status.wall_inadmissible)
@@ -63,4 +67,6 @@ def cf_flag_attrs() -> dict:
         "flag_values": np.array([s.value for s in Status], dtype=np.int8),
         "flag_meanings": " ".join(s.name for s in Status),
         "long_name": "solution status",
+        "standard_name": "status_flag",
+        "description": "why the point has, or has no, solution (one flag per status)",
     }

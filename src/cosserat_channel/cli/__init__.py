@@ -335,9 +335,9 @@ _SOLVING = "solving " + _FIRST_RUN
 # ---------------------------------------------------------------------------------------------
 # Numbers are parsed with float() only: nan and inf must reach parameters.check_point, whose message
 # names the parameter and its range (one message for the API and the command line).
-_POINT_ARGS = tuple((f"--{d}", d, f"{PARAMETERS[d].long_name}, in {PARAMETERS[d].interval}")
+_POINT_ARGS = tuple((f"--{d}", d, f"{PARAMETERS[d].sentence}, in {PARAMETERS[d].interval}")
                     for d in DIMS)
-_MATERIAL_ARGS = tuple(("--" + k.replace("_", "-"), k, MATERIAL[k].long_name) for k in MATERIAL_REQUIRED)
+_MATERIAL_ARGS = tuple(("--" + k.replace("_", "-"), k, MATERIAL[k].sentence) for k in MATERIAL_REQUIRED)
 
 
 def add_point_arguments(p: argparse.ArgumentParser) -> None:
@@ -348,7 +348,7 @@ def add_point_arguments(p: argparse.ArgumentParser) -> None:
     t = p.add_argument_group("tolerances")
     for name, param in TOLERANCES.items():
         t.add_argument(f"--{name}", type=float,
-                       help=f"{param.long_name} of both integrations, in {param.interval} "
+                       help=f"{param.sentence} of both integrations, in {param.interval} "
                        f"(default {param.default:g})")
 
 

@@ -101,7 +101,7 @@ def format_point_table(result, tolerances: dict, material: dict | None) -> str:
                               text.rsplit(" in ", 1)[0]))
     lines.append(f"status  {result.status.name}: {result.status.message}")
     outputs = [
-        _row(name, float(getattr(result, name)), o.units, o.long_name)
+        _row(name, float(getattr(result, name)), o.units, o.sentence)
         for name, o in OUTPUTS.items()
         if math.isfinite(getattr(result, name))
     ]

@@ -273,14 +273,19 @@ def _query(args: argparse.Namespace) -> int:
 
 
 def _info_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
+    p.add_argument("results", metavar="FILE.nc",
+                   help="a file written by 'run' (or 'query --format netcdf'), 'boundary' or 'atlas'")
 
 
-@register("info", "describe a result file: dimensions, variables, status counts, provenance",
-          _info_arguments)
+@register("info", "describe a file of the tool (result, boundary or atlas): dimensions, variables, "
+          "status counts, provenance", _info_arguments)
 def _info(args: argparse.Namespace) -> int:
     from ..results import describe
-    ds = open_results(args.results)
+
+    try:
+        ds = describe.open_described(args.results)
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
     try:
         try:
             text = describe.describe(ds, args.results)

@@ -17,20 +17,16 @@ import os
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as _MplFigure
 
+from .. import outputs
 from ..files import atomic_output
+from ..parameters import DIMS, PARAMETERS
 
 DPI = 120
 FIGSIZE = (10.0, 7.0)
 
-# Axis labels in the paper's symbols (bars: the paper's scaled variables).
-XI_LABEL = r"$\xi = x/W$"
-LABELS = {
-    "u_over_u0": r"$u/u(0)$",
-    "omega_hat": r"$\hat\omega=\bar\omega/\bar\omega_w$",
-    "sigma_xy": r"$\bar\sigma_{xy}/\nu$",
-    "sigma_yx": r"$\bar\sigma_{yx}/\nu$",
-    "m": r"$\bar m/\nu$",
-}
+# Axis labels of what is neither an output, a profile nor a parameter (those carry their own:
+# :func:`axis_label`).
+EXTRA_LABELS = {"W_over_d_p": r"channel half-width $W/d_p$"}
 
 
 class Figure(_MplFigure):
@@ -57,15 +53,41 @@ def new_figure(figsize=FIGSIZE) -> Figure:
     return fig
 
 
+def axis_label(name: str, da=None) -> str:
+    """The axis label of variable ``name``: the ``label`` of its definition
+    (:func:`cosserat_channel.outputs.definition`: long name, symbol, unit), so an output
+    registered at run time is labelled like the rest.
+
+    A name with no definition takes the ``long_name`` and ``units`` attributes of ``da`` (a
+    DataArray) when given, else the name itself.
+    """
+    q = outputs.definition(name)
+    if q is not None:
+        return q.label
+    if name in EXTRA_LABELS:
+        return EXTRA_LABELS[name]
+    attrs = getattr(da, "attrs", {})
+    if "long_name" in attrs:
+        units = attrs.get("units", "1")
+        return attrs["long_name"] + ("" if units == "1" else f" ({units})")
+    return name
+
+
 def parameter_title(eps=None, L=None, K=None, A=None, N=None) -> str:
     """``"ε = …, L = …, K = …, A = …, N = …"`` in mathtext, leaving out parameters given as None.
 
     Parameters are in the project's order (eps, L, K, A, N); a figure over one axis of a sweep
     passes only the fixed ones.
     """
-    symbols = (r"$\varepsilon$", "$L$", "$K$", "$A$", "$N$")
-    parts = [f"{s} = {v:.6g}" for s, v in zip(symbols, (eps, L, K, A, N)) if v is not None]
+    values = (eps, L, K, A, N)
+    parts = [f"{PARAMETERS[d].symbol} = {v:.6g}" for d, v in zip(DIMS, values) if v is not None]
     return ", ".join(parts)
+
+
+def shear_stress_label() -> str:
+    """The label of a panel with both shear stresses, from their two profile definitions."""
+    xy, yx = outputs.PROFILES["sigma_xy"], outputs.PROFILES["sigma_yx"]
+    return f"shear stresses {xy.symbol}, {yx.symbol} ({yx.unit_label})"
 
 
 def figure_format(path) -> str:
@@ -143,15 +165,16 @@ def point_profiles(result, path=None) -> Figure:
     axes = fig.subplots(2, 2, sharex=True)
     ax_u, ax_w, ax_s, ax_m = axes.flat
 
+    profiles = outputs.PROFILES
     ax_u.plot(xi, prof["u_over_u0"], color="C0")
-    ax_u.set_ylabel(LABELS["u_over_u0"])
+    ax_u.set_ylabel(axis_label("u_over_u0"))
     ax_w.plot(xi, prof["omega_hat"], color="C1")
-    ax_w.set_ylabel(LABELS["omega_hat"])
-    ax_s.plot(xi, prof["sigma_xy"], color="C2", label=LABELS["sigma_xy"])
-    ax_s.plot(xi, prof["sigma_yx"], color="C3", ls="-.", label=LABELS["sigma_yx"])
-    ax_s.set_ylabel(LABELS["sigma_xy"] + ", " + LABELS["sigma_yx"])
+    ax_w.set_ylabel(axis_label("omega_hat"))
+    ax_s.plot(xi, prof["sigma_xy"], color="C2", label=profiles["sigma_xy"].symbol)
+    ax_s.plot(xi, prof["sigma_yx"], color="C3", ls="-.", label=profiles["sigma_yx"].symbol)
+    ax_s.set_ylabel(shear_stress_label())
     ax_m.plot(xi, prof["m"], color="C4")
-    ax_m.set_ylabel(LABELS["m"])
+    ax_m.set_ylabel(axis_label("m"))
 
     plug_label = rf"plug edge $\xi_p$ ($\Delta$ = {result.Delta:.3g} $d_p$)"
     for i, ax in enumerate(axes.flat):
@@ -160,7 +183,7 @@ def point_profiles(result, path=None) -> Figure:
         ax.set_xlim(0.0, 1.0)
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
-        ax.set_xlabel(XI_LABEL)
+        ax.set_xlabel(axis_label("xi"))
     ax_u.legend(loc="best")
     ax_s.legend(loc="best")
     title = parameter_title(result.eps, result.L, result.K, result.A, result.N)

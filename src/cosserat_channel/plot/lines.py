@@ -9,27 +9,14 @@ import numpy as np
 
 from matplotlib import colormaps
 
+from .. import outputs
+from ..parameters import PARAMETERS
 from ..physics import asymptotics
-from . import LABELS, new_figure, parameter_title, save_figure
-from .regimes import DIM_LABELS, DIMS, select_slice
+from . import axis_label, new_figure, parameter_title, save_figure, shear_stress_label
+from .regimes import DIMS, select_slice
 
-Y_LABELS = {
-    "Delta": r"$\Delta = (1-\xi_p)\,W/d_p$ (particle diameters)",
-    "xi_p": r"$\xi_p$ (-)",
-    "slip": r"$u(1)/u(0)$ (-)",
-    "u_axis": r"$u(0)/\bar\omega_w$ (-)",
-    "m_wall": r"$\bar m(1)/\nu$ ($\rho_p g W d_p$)",
-    "sigma_yx_wall": r"$\bar\sigma_{yx}(1)/\nu$ ($\rho_p g W$)",
-    "nu": r"$\nu$ (-)",
-    "sigma_xx_wall_Pa": r"$\sigma_{xx}(1)$ (Pa)",
-    "sigma_yx_wall_Pa": r"$\sigma_{yx}(1)$ (Pa)",
-    "u_over_u0": LABELS["u_over_u0"] + " (-)",
-    "omega_hat": LABELS["omega_hat"] + " (-)",
-    "m": LABELS["m"] + r" ($\rho_p g W d_p$)",
-    "sigma_yx": LABELS["sigma_yx"] + r" ($\rho_p g W$)",
-}
+# The profiles a sweep writes (sigma_xy = -xi is solve_point's alone).
 PROFILE_VARIABLES = ("u_over_u0", "omega_hat", "m", "sigma_yx")
-SYMBOLS = {"eps": r"$\varepsilon$", "L": "$L$", "K": "$K$", "A": "$A$", "N": "$N$"}
 ASYMPTOTIC_LABEL = r"asymptotic, $N = 1$ (Appendix C)"
 # With several lines, one legend entry stands for the circles of every line: drawn in a neutral
 # colour and saying that each line's circles share its colour (not the first line's alone).
@@ -86,7 +73,7 @@ def line_plot(ds, x, y="Delta", hue=None, at=None, *, asymptote=True, path=None)
         ys = line[y].values.astype(float).reshape(-1)
         xplot = 1.0 / xs if x == "W_over_d_p" else xs
         color = f"C{k % 10}"
-        label = f"{SYMBOLS[hue]} = {float(hv):.4g}" if hue else "numerical"
+        label = f"{PARAMETERS[hue].symbol} = {float(hv):.4g}" if hue else "numerical"
         if len(hues) > MAX_LEGEND_HUES and 0 < k < len(hues) - 1:
             label = None  # a long hue axis: the legend names its first and last line only
         if len(hues) > 10:
@@ -115,8 +102,8 @@ def line_plot(ds, x, y="Delta", hue=None, at=None, *, asymptote=True, path=None)
         ax.set_xscale("log")
     if x == "K" and xs.size > 1 and xs.min() > 0 and xs.max() / xs.min() > 100:
         ax.set_xscale("log")
-    ax.set_xlabel(DIM_LABELS[x])
-    ax.set_ylabel(Y_LABELS.get(y, y))
+    ax.set_xlabel(axis_label(x))
+    ax.set_ylabel(axis_label(y, ds[y]))
     ax.grid(alpha=0.3)
     ax.legend(loc="best")
     ax.set_title(parameter_title(**{d: fixed.get(d) for d in DIMS}))
@@ -152,7 +139,7 @@ def profiles_figure(results, *, asymptotic=True, path=None):
         pr = r.profile
         xi = pr["xi"]
         color = f"C{k % 10}"
-        label = ", ".join(f"{SYMBOLS[d]} = {getattr(r, d):.4g}" for d in varying) or "numerical"
+        label = ", ".join(f"{PARAMETERS[d].symbol} = {getattr(r, d):.4g}" for d in varying) or "numerical"
         ax_u.plot(xi, pr["u_over_u0"], color=color, lw=2, label=label)
         ax_w.plot(xi, pr["omega_hat"], color=color, lw=2)
         ax_s.plot(xi, pr["sigma_yx"], color=color, lw=2, ls="-.")
@@ -171,17 +158,17 @@ def profiles_figure(results, *, asymptotic=True, path=None):
     if drawn_asym and len(results) > 1:
         ax_u.plot([], [], label=ASYMPTOTIC_EACH_LABEL, **ASYMPTOTIC_PROXY)
     ax_s.plot(results[0].profile["xi"], results[0].profile["sigma_xy"], color="k", lw=1.5,
-              label=LABELS["sigma_xy"] + r" $= -\xi$")
-    ax_s.plot([], [], color="0.4", ls="-.", lw=2, label=LABELS["sigma_yx"])
-    ax_u.set_ylabel(Y_LABELS["u_over_u0"])
-    ax_w.set_ylabel(Y_LABELS["omega_hat"])
-    ax_s.set_ylabel(LABELS["sigma_xy"] + ", " + LABELS["sigma_yx"] + r" ($\rho_p g W$)")
-    ax_m.set_ylabel(Y_LABELS["m"])
+              label=outputs.PROFILES["sigma_xy"].symbol + r" $= -\xi$")
+    ax_s.plot([], [], color="0.4", ls="-.", lw=2, label=outputs.PROFILES["sigma_yx"].symbol)
+    ax_u.set_ylabel(axis_label("u_over_u0"))
+    ax_w.set_ylabel(axis_label("omega_hat"))
+    ax_s.set_ylabel(shear_stress_label())
+    ax_m.set_ylabel(axis_label("m"))
     for ax in axes.flat:
         ax.set_xlim(0.0, 1.0)
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
-        ax.set_xlabel(DIM_LABELS["xi"])
+        ax.set_xlabel(axis_label("xi"))
     ax_u.legend(loc="lower left", fontsize="small")
     ax_s.legend(loc="lower left", fontsize="small")
     fig.suptitle("Profiles: " + parameter_title(**{d: fixed.get(d) for d in DIMS}))

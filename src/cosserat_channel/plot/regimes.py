@@ -15,22 +15,12 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from .. import outputs
 from ..physics import analytic
 from .. import regime_codes as rc
 from .. import status as st
 from ..parameters import DIMS
-from . import new_figure, parameter_title, save_figure
-
-# Axis labels: symbol and unit ("-" for dimensionless).
-DIM_LABELS = {
-    "eps": r"$\varepsilon = d_p/W$ (-)",
-    "W_over_d_p": r"$W/d_p$ (-)",
-    "L": r"$L$ (particle diameters)",
-    "K": r"$K$ (-)",
-    "A": r"$A = a_2/a_1$ (-)",
-    "N": r"$N = \sin\phi/\tan\delta$ (-)",
-    "xi": r"$\xi = x/W$ (-)",
-}
+from . import axis_label, new_figure, parameter_title, save_figure
 # The traced edges are wide translucent bands drawn under the thin analytic lines: where the
 # traced edge is the axis condition (or the wall line) both stay visible, the line inside the band.
 BOUNDARY_STYLES = {
@@ -109,9 +99,9 @@ def phase_plane_figure(pp, nu=None, path=None):
         handles.append(h)
     ax.set_xlim(0.0, 1.0)
     ax.set_ylim(scale * pp.m[0], scale * pp.m[-1])
-    ax.set_xlabel(DIM_LABELS["xi"])
-    ax.set_ylabel(r"$\bar m$ ($\rho_p g W d_p$)" if nu is not None
-                  else r"$\bar m/\nu$ ($\rho_p g W d_p$)")
+    ax.set_xlabel(axis_label("xi"))
+    m = outputs.PROFILES["m"]
+    ax.set_ylabel(rf"{m.long_name} $\bar m$ ({m.unit_label})" if nu is not None else m.label)
     # Below the plane, in two columns: beside it the long trajectory labels took 40 % of the width.
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncols=2,
               fontsize="small", frameon=False)
@@ -311,8 +301,8 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, path=None):
                                   **{k: v for k, v in style.items() if k != "zorder"}))
     ax.set_xlim(_edges(xv)[[0, -1]])
     ax.set_ylim(_edges(yv)[[0, -1]])
-    ax.set_xlabel(DIM_LABELS[x])
-    ax.set_ylabel(DIM_LABELS[y])
+    ax.set_xlabel(axis_label(x))
+    ax.set_ylabel(axis_label(y))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
               title="status / boundary")
     ax.set_title("Solution status: " + parameter_title(**fixed))
@@ -342,7 +332,7 @@ def boundary_figure(bds, path=None):
             flagged = True
     ax.plot([], [], "--", color="0.4", lw=1, label=r"axis condition $\eta = 2(A+1)N/(1-A)$")
     ax.set_yscale("log")
-    ax.set_xlabel(DIM_LABELS["A"])
+    ax.set_xlabel(axis_label("A"))
     ax.set_ylabel(r"$\eta_{\max} = (\varepsilon L)_{\max}$ (-)")
     ax.set_title(r"Edge of solvability: largest $\eta = \varepsilon L$ with a solution "
                  rf"(searched in [{bds.attrs.get('eta_search_min', 0):g}, {top:g}])")
@@ -425,13 +415,13 @@ def solvable_region_figure(bds, path=None):
                 handles.append(ax.axvline(value, label=label, **style))
         ax.set_xlim(A.min(), A.max())
         ax.set_ylim(N.min(), N.max())
-        ax.set_xlabel(DIM_LABELS["A"])
+        ax.set_xlabel(axis_label("A"))
         ax.set_title(f"{name}" + (r": largest $\varepsilon L$ with a solution" if ax is axes[0]
                                   else r": smallest $\varepsilon L$ with a solution (where > "
                                   rf"{lo:g})"))
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=2,
                   fontsize="small", frameon=False)
-    axes[0].set_ylabel(DIM_LABELS["N"])
+    axes[0].set_ylabel(axis_label("N"))
     fig.colorbar(mesh, ax=axes, label=r"$\eta = \varepsilon L$ (-)", shrink=0.9)
     tol = bds.attrs.get("atlas_tol")
     fig.suptitle("Solvable region in (A, N)" + (f" (atlas, tolerance {tol:g})" if tol else ""))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..outputs import OUTPUTS
 from . import new_figure, save_figure  # noqa: F401  (save_figure re-exported for the report)
 
 TIME_LABEL = r"time per point [$\mu$s] (one core)"
@@ -27,7 +28,11 @@ STYLES = {
     "numbalsoda-DOP853": ("C6", "X", "-."),
 }
 QUANTITY_STYLES = {"Delta": ("C0", "o"), "m_wall": ("C1", "s"), "slip": ("C2", "^")}
-QUANTITY_LABELS = {"Delta": r"$\Delta$", "m_wall": r"$m_w$", "slip": "slip"}
+
+
+def _symbol(q: str) -> str:
+    """A measured quantity's symbol: its output's, else its name."""
+    return OUTPUTS[q].symbol if q in OUTPUTS and OUTPUTS[q].symbol else q
 
 
 def _finite(x, y):
@@ -82,12 +87,13 @@ def work_precision_figure(ours_both, stage1_curves, comparisons=(), *, title: st
     ax = axes[0]
     x, y = _finite(ours_both.time_us, ours_both.worst_median())
     ax.plot(x, y, color="k", marker="o", lw=2.2, ls="-",
-            label="ours, both stages (worst of $\\Delta$, $m_w$, slip)" + _unanswered(ours_both))
+            label="ours, both stages (worst of " + ", ".join(_symbol(q) for q in ("Delta", "m_wall", "slip"))
+            + ")" + _unanswered(ours_both))
     for c in stage1_curves:
         colour, marker, ls = STYLES.get(c.method, ("0.5", ".", ":"))
-        label = f"{c.method}, stage 1 ($m_w$)"
+        label = f"{c.method}, stage 1 ({_symbol('m_wall')})"
         if c.method == "ours" and c.points == "subsample":
-            label = f"ours, stage 1 ($m_w$), on the scipy subsample ({c.n_attempted} points)"
+            label = f"ours, stage 1 ({_symbol('m_wall')}), on the scipy subsample ({c.n_attempted} points)"
             ls = ":"
         elif c.method.startswith("scipy"):
             label += f", Python loop, {c.n_attempted} points"
@@ -108,8 +114,8 @@ def work_precision_figure(ours_both, stage1_curves, comparisons=(), *, title: st
             ax2.plot(x, y, color=STYLES["ours"][0], marker=marker, ls="-", lw=1.5, ms=6,
                      mfc="none", label=f"ours on the same {c.ours_solved.n_attempted} points "
                      f"(marker of {c.peer.method})")
-        _style_axes(ax2, "stage 1 ($m_w$): each peer on the points it solved at every rtol, "
-                    "ours on the same points")
+        _style_axes(ax2, f"stage 1 ({_symbol('m_wall')}): each peer on the points it solved at every "
+                    "rtol, ours on the same points")
     if title:
         fig.suptitle(title)
     return fig
@@ -129,10 +135,10 @@ def tolerance_figure(ours_both, *, factor: float = 100.0, title: str = "") -> Fi
     for q in ours_both.median:
         colour, marker = QUANTITY_STYLES.get(q, ("0.5", "."))
         x, y = _finite(rtol, ours_both.median[q])
-        ax.plot(x, y, color=colour, marker=marker, ls="-", label=f"{QUANTITY_LABELS.get(q, q)}, median")
+        ax.plot(x, y, color=colour, marker=marker, ls="-", label=f"{_symbol(q)}, median")
         x, y = _finite(rtol, ours_both.max[q])
         ax.plot(x, y, color=colour, marker=marker, ls=":", mfc="none",
-                label=f"{QUANTITY_LABELS.get(q, q)}, max")
+                label=f"{_symbol(q)}, max")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlim(lo, hi)

@@ -1,7 +1,14 @@
-"""What ``info`` says of a result file: its grid, variables, statuses and provenance."""
+"""What ``info`` says of a file the tool wrote: its grid, variables, flags and provenance.
+
+Three kinds of file: a result of ``run`` (or a NetCDF subset of one from ``query``), a traced
+edge of solvability (``boundary``, from :func:`cosserat_channel.regimes.trace_boundary` or drawn
+from an atlas) and a solvability atlas (``atlas``). Each is recognised by its variables, so
+reading one imports neither the solver nor the module that wrote it.
+"""
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -11,30 +18,70 @@ if TYPE_CHECKING:  # imported where used: a small query never imports xarray (Li
     import xarray as xr
 
 from .render import _python, _text
-from .selection import _show, flag_names
+from .selection import QueryError, _is_flag, _show, flag_names, is_result, open_netcdf
 
 SWEEP_TEXT_LINES = 12
 PROVENANCE = ("cosserat_channel_version", "created", "rtol", "atol", "sweep_sha256", "Conventions")
+KINDS = ("result", "boundary", "atlas")
+
+
+def file_kind(ds: xr.Dataset) -> str | None:
+    """``"result"``, ``"boundary"`` or ``"atlas"`` by the variables of ``ds``; None for any
+    other file."""
+    if is_result(ds):
+        return "result"
+    if "eta_max" in ds.data_vars and "edge_kind" in ds.data_vars and _is_flag(ds["edge_kind"]):
+        return "boundary"
+    if "leaf_coefficients" in ds.data_vars and "sample_A" in ds.data_vars:
+        return "atlas"
+    return None
+
+
+def open_described(path) -> xr.Dataset:
+    """Open any file the tool writes (:data:`KINDS`) lazily; QueryError (one line) for others."""
+    ds = open_netcdf(path)
+    if file_kind(ds) is None:
+        ds.close()
+        raise QueryError(f"{os.fspath(path)}: not a cosserat-channel result file (nor a "
+                         "boundary or atlas file of the tool)")
+    return ds
+
 
 # ---------------------------------------------------------------------------------------------
 # info
 # ---------------------------------------------------------------------------------------------
-def status_counts(ds: xr.Dataset) -> dict[str, int]:
-    """Points per status name (lazy reduction; codes outside the flags count as 'other')."""
+def flag_counts(da: xr.DataArray) -> dict[str, int]:
+    """Points per flag name of a CF flag variable (lazy reduction; values outside the flags
+    count as 'other')."""
     import xarray as xr
 
-    flags = flag_names(ds["status"])
-    sums = xr.Dataset({n: (ds["status"] == v).sum() for n, v in flags.items()}).compute()
+    flags = flag_names(da)
+    sums = xr.Dataset({n: (da == v).sum() for n, v in flags.items()}).compute()
     counts = {n: int(sums[n]) for n in flags}
-    other = int(ds["status"].size) - sum(counts.values())
+    other = int(da.size) - sum(counts.values())
     if other:
         counts["other"] = other
     return counts
 
 
+def status_counts(ds: xr.Dataset) -> dict[str, int]:
+    """Points per status name of a result (:func:`flag_counts` of its ``status``)."""
+    return flag_counts(ds["status"])
+
+
+def _counts(title: str, counts: dict[str, int], total: int) -> list[str]:
+    lines = [title]
+    for name, n in counts.items():
+        lines.append(f"  {name:<22} {n:>12}  {100.0 * n / max(1, total):6.2f} %")
+    return lines
+
+
 def describe(ds: xr.Dataset, path: str = "") -> str:
-    """The ``info`` report: dimensions, variables, status counts, provenance."""
+    """The ``info`` report: kind, dimensions, variables, flag counts, provenance."""
+    kind = file_kind(ds)
     lines = [f"file  {path}"] if path else []
+    if kind is not None:
+        lines.append(f"kind  {kind}" + (f": {ds.attrs['title']}" if "title" in ds.attrs else ""))
     lines.append("dimensions")
     for d in ds.dims:
         n = ds.sizes[d]
@@ -45,7 +92,7 @@ def describe(ds: xr.Dataset, path: str = "") -> str:
                 rng = f"{np.min(c):.10g} .. {np.max(c):.10g}"
             else:  # not a file of ours, but describe what is there (strings, dates, ...)
                 rng = _show(c[0]) + (f" .. {_show(c[-1])}" if n > 1 else "")
-            text = ds[d].attrs.get("long_name", "")
+            text = _text_of(ds[d])
             lines.append(f"  {d:<8} {n:>8}  {rng:<30} {unit:<10} {text}".rstrip())
         else:
             lines.append(f"  {d:<8} {n:>8}")
@@ -53,20 +100,28 @@ def describe(ds: xr.Dataset, path: str = "") -> str:
     for v in ds.data_vars:
         da = ds[v]
         unit = da.attrs.get("units", "")
-        text = da.attrs.get("long_name", "")
         dims = "(" + ", ".join(da.dims) + ")"
-        lines.append(f"  {v:<18} {str(da.dtype):<8} {unit:<18} {text}  {dims}".rstrip())
-    counts = status_counts(ds)
-    total = max(1, int(ds["status"].size))
-    lines.append(f"status ({int(ds['status'].size)} points)")
-    for name, n in counts.items():
-        lines.append(f"  {name:<22} {n:>12}  {100.0 * n / total:6.2f} %")
+        lines.append(f"  {v:<18} {str(da.dtype):<8} {unit:<18} {_text_of(da)}  {dims}".rstrip())
+    if kind == "result" or (kind is None and "status" in ds):
+        total = int(ds["status"].size)
+        lines += _counts(f"status ({total} points)", status_counts(ds), total)
+    elif kind == "boundary":
+        total = int(ds["edge_kind"].size)
+        lines += _counts(f"edges ({total} (A, N) pairs)", flag_counts(ds["edge_kind"]), total)
+        if "resolved" in ds:
+            lines.append(f"  {'decided by the atlas':<22} {int(ds['resolved'].sum()):>12}")
+    elif kind == "atlas":
+        n_leaf = int(ds.sizes.get("leaf", 0))
+        unresolved = int((ds["leaf_n"] < 0).sum()) if "leaf_n" in ds else 0
+        lines.append(f"cells ({n_leaf} leaves, {unresolved} unresolved; "
+                     f"{int(ds.sizes.get('sample', 0))} traced edges)")
     lines.append("provenance")
     a = ds.attrs
-    for key in PROVENANCE:
+    keys = PROVENANCE if kind == "result" else [k for k in a if k != "title"]
+    for key in keys:
         if key in a:
             lines.append(f"  {key:<24} {_text(_python(a[key]))}")
-    if "query" in a:
+    if "query" in a and "query" not in keys:
         lines.append(f"  {'query':<24} {a['query']}")
     text = str(a.get("sweep_toml", ""))
     if text:
@@ -77,3 +132,6 @@ def describe(ds: xr.Dataset, path: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
+def _text_of(da) -> str:
+    """What a variable is, in words: its description, else its long name."""
+    return str(da.attrs.get("description") or da.attrs.get("long_name", ""))

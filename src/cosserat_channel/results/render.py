@@ -156,7 +156,8 @@ def subset_dataset(selection: Selection) -> xr.Dataset:
             ds["selected"] = m.astype(np.int8).assign_attrs(
                 flag_values=np.array([0, 1], dtype=np.int8),
                 flag_meanings="no yes",
-                long_name="point matches the query's --where clauses",
+                long_name="selected by the query",
+                description="point matches the query's --where clauses",
             )
     ds.attrs = dict(selection.ds.attrs)
     if selection.description:

@@ -77,8 +77,8 @@ class QueryError(ParameterError):
 # ---------------------------------------------------------------------------------------------
 # Opening
 # ---------------------------------------------------------------------------------------------
-def open_results(path) -> xr.Dataset:
-    """Open a result file lazily (dask-backed); QueryError unless it is one of our result files."""
+def open_netcdf(path) -> xr.Dataset:
+    """Open any NetCDF file lazily (dask-backed); QueryError (one line) when it cannot be."""
     path = os.fspath(path)
     if not os.path.exists(path):
         raise QueryError(f"{path}: no such file")
@@ -87,18 +87,33 @@ def open_results(path) -> xr.Dataset:
     import xarray as xr
 
     try:
-        ds = xr.open_dataset(path, chunks={})
+        return xr.open_dataset(path, chunks={})
     # Any file can arrive here; the backends raise several types for "not NetCDF".
     except (OSError, ValueError, RuntimeError, TypeError, KeyError) as exc:
         reason = (isinstance(exc, OSError) and exc.strerror) or (
             "damaged, or not NetCDF" if type(exc) is RuntimeError else "not NetCDF")
         raise QueryError(f"{path}: cannot open as a NetCDF result file ({reason})") from None
-    if "status" not in ds.data_vars or not _is_flag(ds["status"]):
+
+
+def is_result(ds) -> bool:
+    """Whether ``ds`` is a result of ``run`` (or a subset of one): a CF flag ``status``."""
+    return "status" in ds.data_vars and _is_flag(ds["status"])
+
+
+def open_results(path) -> xr.Dataset:
+    """Open a result file lazily (dask-backed); QueryError unless it is one of our result files.
+
+    The Dataset has the ``cosserat`` accessor (:mod:`.accessor`).
+    """
+    ds = open_netcdf(path)
+    if not is_result(ds):
         ds.close()
         raise QueryError(
-            f"{path}: not a cosserat-channel result file (no 'status' variable with "
+            f"{os.fspath(path)}: not a cosserat-channel result file (no 'status' variable with "
             "flag_values/flag_meanings)"
         )
+    from . import accessor  # noqa: F401 (registers ds.cosserat)
+
     return ds
 
 

@@ -15,11 +15,11 @@ import xarray as xr
 
 from .. import __version__
 from .. import outputs as out_
+from ..results import accessor  # noqa: F401 (registers ds.cosserat on every result Dataset)
 from ..solver import layout
 from .. import status as st
 from ..parameters import DIMS, PARAMETERS
 
-XI_LONG_NAME = "distance from the centre line / channel half-width"
 # Uncompressed bytes of one chunk of a result variable: 1 MiB, the HDF5 chunk cache's default
 # size, so one chunk is decompressed once per read however the read crosses it.
 CHUNK_BYTES = 1 << 20
@@ -85,11 +85,11 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
             value = inputs.get(name)
             if value.shape != inputs.shape:
                 value = out_.derive([name], inputs)[name]
-            data_vars[name] = (DIMS, value, {"units": o.units, "long_name": o.long_name})
+            data_vars[name] = (DIMS, value, o.attrs)
         elif name in out_.COUNTERS:
-            units, text, stage = out_.COUNTERS[name]
-            value = grid.to_grid(per_triple["steps"][:, stage - 1].astype(np.int32))
-            data_vars[name] = (DIMS, value, {"units": units, "long_name": text})
+            c = out_.COUNTERS[name]
+            value = grid.to_grid(per_triple["steps"][:, c.stage - 1].astype(np.int32))
+            data_vars[name] = (DIMS, value, c.attrs)
     data_vars["status"] = (DIMS, status, {**st.cf_flag_attrs(), "units": "1"})
     if profiles is not None:
         data_vars.update(_profiles(grid, res, profiles))
@@ -98,11 +98,10 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
 
 def coordinates(spec, xi=None) -> dict:
     """The coordinate variables of a result: the five axes (and ``xi`` with profiles)."""
-    coords = {d: (d, np.asarray(v, dtype=np.float64),
-                  {"units": PARAMETERS[d].units, "long_name": PARAMETERS[d].long_name})
+    coords = {d: (d, np.asarray(v, dtype=np.float64), PARAMETERS[d].attrs)
               for d, v in spec.coords().items()}
     if xi is not None:
-        coords["xi"] = ("xi", xi, {"units": "1", "long_name": XI_LONG_NAME})
+        coords["xi"] = ("xi", xi, out_.XI.attrs)
     return coords
 
 
@@ -117,14 +116,14 @@ def _profiles(grid, res, profiles) -> dict:
             ("sigma_yx", layout.P_SIGMA_YX))}
     out = out_.derive_profiles(**row, J_axis=grid.to_grid(res[:, layout.R_J_AXIS])[..., None],
                                eps_K=eps_K, L=L, N=N)
-    return {k: (dims, v, dict(zip(("units", "long_name"), out_.PROFILES[k]))) for k, v in out.items()}
+    return {k: (dims, v, out_.PROFILES[k].attrs) for k, v in out.items()}
 
 
 def global_attrs(spec, reduced: bool) -> dict:
     """Provenance: what was solved, how, by which version, from which sweep file."""
     return {
         "title": "cosserat-channel sweep" + (f" {spec.source}" if spec.source else ""),
-        "Conventions": "CF-1.8",
+        "Conventions": st.CONVENTIONS,
         "source": "cosserat-channel run",
         "cosserat_channel_version": __version__,
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),

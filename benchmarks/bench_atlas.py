@@ -1,4 +1,4 @@
-"""The solvability atlas against its targets (issue 14): accuracy, classification, cost, speed.
+"""The solvability atlas against its targets: accuracy, classification, cost, speed.
 
 On one box of ``(A, N)`` (default A in [-0.5, 0.5], N in [1, 1.5]: one edge eta_max, steep
 towards A = -1):
@@ -34,7 +34,7 @@ towards A = -1):
 always built or read). The uniform grid's traces are the expensive part (129 x 129 by default:
 about 140 s on one core); the 200 reference bisections serve the atlas, the uniform grids and the learner alike.
 
-The targets of issue 14 are printed with PASS/FAIL at the end.
+The targets are printed with PASS/FAIL at the end.
 
 Run: ``PYTHONPATH=src .venv/bin/python benchmarks/bench_atlas.py --atlas-out atlas.nc``.
 """
@@ -181,7 +181,7 @@ def main():
         classify(args, atlas, A_rng, N_rng, rng, ws, summary)
     if "plot" in parts:
         plot(atlas, A_rng, N_rng, summary)
-    log("targets (issue 14):")
+    log("targets:")
     for line in summary:
         log("  " + line)
 

@@ -1,4 +1,4 @@
-"""The whole parameter domain of issue 4, its boundaries and its extremes.
+"""The whole parameter domain, its boundaries and its extremes.
 
 Domain: eps in [1e-7, 0.5], L in [0.5, 100], K in [0, 1e4], A in [-3, 5], N in [0.3, 10]. Every
 point must come back either within tolerance of an independent solver or with a status that says
@@ -122,7 +122,7 @@ def test_domain_agrees_with_radau_reference(eps, L, K, A, N):
     elif ref["status"] == "eps_too_large_path" and math.isfinite(r.xi_stop):
         # xi_stop sits on a sqrt kink of the right-hand side (not one of the 1e-6 outputs); next
         # to A = -1 the whole path runs at a relative margin ~(A+1) above D = 0 and the location
-        # is good to ~1e-3 only (see docs/performance.md, issue 4).
+        # is good to ~1e-3 only (see docs/performance.md).
         tol = 1e-4 if A + 1 > 1e-2 else 1e-2
         assert r.xi_stop == pytest.approx(ref["xi_stop"], rel=tol)
 
@@ -155,7 +155,7 @@ def test_domain_A_minus_one_against_closed_form(eps, L, K, N):
 
 
 # --------------------------------------------------------------------------------------------
-# A = -1: the closed form checks the stage-2 machinery at huge beta (issue 4)
+# A = -1: the closed form checks the stage-2 machinery at huge beta
 # --------------------------------------------------------------------------------------------
 C_VALUES = [10.0, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7]
 

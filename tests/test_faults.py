@@ -1,4 +1,4 @@
-"""Faults made on purpose (issue 13): every run ends identical to an uninterrupted one, or with one
+"""Faults made on purpose: every run ends identical to an uninterrupted one, or with one
 line on stderr, a non-zero exit and nothing finished lost.
 
 * kill -9 (and SIGTERM) at several moments: right after the store is opened, after some blocks,
@@ -10,7 +10,7 @@ line on stderr, a non-zero exit and nothing finished lost.
   from another sweep, empty) and a damaged manifest, found on resume or only at assembly;
 * a damaged result file (flipped bytes in one variable's chunk);
 * every dask.distributed worker lost (and replaced), the scheduler lost, a bad scheduler address;
-* the bad input of issue 13 (items 4 and 8-12).
+* bad input.
 
 Subprocess runs pause at a named point of the pipeline through ``HARNESS`` (a wrapper around
 ``cli.main`` that patches one method), so every kill lands where it is meant to, not by timing.
@@ -440,7 +440,7 @@ def test_bad_scheduler_is_one_line_before_any_store(tmp_path, sweep_file, capsys
 
 
 # ---------------------------------------------------------------------------------------------
-# Bad input (issue 13, items 4 and 8-12)
+# Bad input
 # ---------------------------------------------------------------------------------------------
 FIG2 = (1 / 30, 10.0, 0.5, 1 / 3, 1.0)
 

@@ -1,4 +1,4 @@
-"""What a reader of each figure needs, checked on its artists (issue 12, item 9).
+"""What a reader of each figure needs, checked on its artists.
 
 Legend entries that say what they stand for, lines that stay visible where they coincide,
 legends that cover no data, the same counts in both panels, and units a user can use.

@@ -1,4 +1,4 @@
-"""The stability report (issue 4): `cosserat-channel stability --quick`, its table and figure.
+"""The stability report: `cosserat-channel stability --quick`, its table and figure.
 
 Timings are not checked (the machine is shared); files, table columns, statuses, paths, the
 verdict and the figure's artists are.

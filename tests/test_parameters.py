@@ -87,7 +87,7 @@ TIGHT = dict(rtol=1e-10, atol=1e-12)
 
 def _tolerance_points(corner: bool):
     """Random points of the tested domain (model.md), plus the near-edge ones; ``corner``: only
-    those with N < 1 < A and eps L < 1e-5, where issue 13 item 6 lives, else only the others."""
+    those with N < 1 < A and eps L < 1e-5, where the closure once took the logarithm of 0, else only the others."""
     rng = np.random.default_rng(13)
     points = []
     while len(points) < 60:

@@ -229,7 +229,7 @@ def test_K_costs_no_integration():
 def test_A_minus_one_closed_form(eps, L, K, N):
     """A = -1 follows Appendix A's closed form (independent implementation in asymptotics).
 
-    Since issue 4, A = -1 runs through the stage-2 integrator (B = c/xi, h = 2) like every other
+    A = -1 runs through the stage-2 integrator (B = c/xi, h = 2) like every other
     A instead of short-cutting to the closed form, so agreement is to the integration tolerance
     (measured <= 1.3e-7 at rtol 1e-8), not to 1e-12; tests/test_domain.py takes c up to 1e7.
     """

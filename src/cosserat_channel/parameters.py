@@ -168,7 +168,7 @@ PARAMETERS = {
     "K": Parameter("K", "wall roughness", "1", 0.0, math.inf, True, symbol="$K$",
                    description="wall roughness in u = eps K omega at the wall"),
     # |A| <= 1e3 and N <= 1e6: beyond them the kernels overflow (N^2, A^2 in D) and divided by
-    # zero or ran out of steps (issue 13: fuzzing found ZeroDivisionError from N ~ 1e140 and
+    # zero or ran out of steps (fuzzing found ZeroDivisionError from N ~ 1e140 and
     # integration_failed from |A| ~ 1e3.5); within them 15,000 random points never failed.
     "A": Parameter("A", "yield-surface constant", "1", -1e3, 1e3, True, True, symbol="$A$",
                    description="yield-surface constant a2/a1"),
@@ -182,7 +182,7 @@ PARAMETERS = {
 # friction angle of at least 0.001 degree): they keep the stress scale rho_p g W = rho_p g d_p /
 # eps and tan(delta) Lambda finite, non-zero doubles for every eps and N the solver accepts. Unbounded,
 # d_p = 1e308 overflowed the scale and the stresses in Pa went silently missing, and subnormal
-# values made the closure take the logarithm of 0 (issue 13).
+# values made the closure take the logarithm of 0.
 MATERIAL = {
     "d_p": Parameter("d_p", "particle diameter", "m", 1e-9, 10.0, True, True, symbol="$d_p$",
                      description="particle diameter d_p in m"),

@@ -17,7 +17,7 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     register,
 )
 # ---------------------------------------------------------------------------------------------
-# stability (issue 4)
+# stability: the stability report
 # ---------------------------------------------------------------------------------------------
 def _stability_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", dest="output_dir", default="stability_report",

@@ -27,7 +27,7 @@ CSV_COLUMNS = ("method", "stages", "rtol", "quantity", "n_points", "time_per_poi
 TOLERANCE_RANGE = (1e-10, 1e-4)  # rtol range of the proportionality target
 TOLERANCE_FACTOR = 100.0
 RK45_TARGET = 300.0
-# Matched median errors over which the two-stage target is judged (issue 9: "from 1e-4 to 1e-10");
+# Matched median errors over which the two-stage target is judged ("from 1e-4 to 1e-10");
 # the ratios outside are reported, not judged.
 BOTH_STAGES_RANGE = (1e-10, 1e-4)
 

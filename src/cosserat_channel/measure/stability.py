@@ -1,4 +1,4 @@
-"""The stability report of issue 4: cost and accuracy of one point from eps L = 1e-8 to the edge.
+"""The stability report: cost and accuracy of one point from eps L = 1e-8 to the edge.
 
 For each ``(A, N)`` series, ``eta = eps L`` runs log-spaced from 1e-8 to the largest feasible value
 (:func:`feasible_eta_max`, by bisection on the status), plus points next to each regime boundary
@@ -293,7 +293,7 @@ def _fmt(value, col):
 def markdown(rep: Report) -> str:
     """The report as markdown: parameters, table, verdict."""
     lines = [
-        "# Stability report (issue 4)",
+        "# Stability report",
         "",
         f"L = {L_REPORT:g} (2 eta above eta = 5, so that eps <= 0.5), K = {K_REPORT:g}, eps = eta/L, "
         f"rtol = {rep.rtol:g}, atol = {ATOL:g}; "

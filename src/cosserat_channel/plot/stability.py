@@ -1,4 +1,4 @@
-"""The figure of the stability report (issue 4): work and error of one point against eps L."""
+"""The figure of the stability report: work and error of one point against eps L."""
 
 from __future__ import annotations
 

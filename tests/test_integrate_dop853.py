@@ -26,7 +26,6 @@ def growth(t, y, args, out):
 
 
 @njit(cache=True)
-@njit(cache=True)
 def linear(t, y, args, out):
     out[0] = args[0] * y[0]
 

@@ -78,12 +78,17 @@ def output_kind(path) -> str:
         return FILE
     if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
         return STREAM
-    if stat.S_ISDIR(mode):
-        return "a directory"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    if stat.S_ISBLK(mode):
-        return "a block device"
+    return describe(mode)
+
+
+def describe(mode: int) -> str:
+    """What a file of mode ``mode`` (``os.lstat(...).st_mode``) is, for a message."""
+    for test, what in ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a directory"),
+                       (stat.S_ISLNK, "a symbolic link"), (stat.S_ISFIFO, "a FIFO"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISBLK, "a block device")):
+        if test(mode):
+            return what
     return "not a regular file"
 
 

@@ -53,6 +53,7 @@ from ..files import (
     STORE_MARKER,
     atomic_output,
     describe,
+    name_problem,
     netcdf_output,
     output_problem,
 )
@@ -88,7 +89,7 @@ def check_writable(output: str) -> None:
     beside it but a store (:func:`foreign_store`). Whether a file already at ``output`` is kept
     is decided under the store's lock (see :mod:`.engine`)."""
     problem = output_problem(output, stream=False, overwrite=True) or \
-        foreign_store(partial_dir(output))
+        name_problem(partial_dir(output)) or foreign_store(partial_dir(output))
     if problem:
         raise SweepError(problem)
 

@@ -39,6 +39,7 @@ import numpy as np
 
 from .. import outputs as out_
 from .. import stages
+from ..files import temp_path as _temp_path
 from ..files import write_failure
 from ..parameters import DIMS
 from .dataset import chunk_shape, coordinates, global_attrs, grid_values, variable_encoding
@@ -418,5 +419,4 @@ class StreamWriter:
 def temp_path(directory: str, output: str) -> str:
     """A fresh temporary file name for ``output`` inside ``directory`` (the store, whose opening
     deletes ``*.tmp`` leftovers of a killed run)."""
-    name = os.path.basename(os.path.abspath(output))
-    return os.path.join(directory, f".{name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
+    return _temp_path(directory, output)

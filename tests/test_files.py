@@ -207,3 +207,38 @@ def test_run_refuses_a_fifo_or_character_device(result, tmp_path, capsys):
         one_line_error(capsys, str(target), "not a file")
         assert identity(target) == before
     assert sorted(os.listdir(tmp_path)) == ["null.nc", "pipe.nc"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Long names
+# ---------------------------------------------------------------------------------------------
+def test_long_output_names_are_written_or_refused_before_any_work(result, tmp_path, capsys,
+                                                                    monkeypatch):
+    """A name the file system holds is written, however long (the temporary name is not much
+    longer than a short one's); a longer one, or one whose working store's name would be, is
+    refused in one line before any work."""
+    from cosserat_channel.solver import point as solve
+    from cosserat_channel.sweep import engine
+
+    fits = tmp_path / ("q" * 251 + ".csv")  # 255 bytes, NAME_MAX on common file systems
+    assert cli.main(["query", str(result), *QUERY, "-o", str(fits)]) == 0
+    png = tmp_path / ("p" * 251 + ".png")
+    assert cli.main(["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.333",
+                     "--N", "1", "--plot", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(os.listdir(tmp_path)) == sorted([fits.name, png.name])
+    capsys.readouterr()
+
+    monkeypatch.setattr(solve, "solve_point", lambda *a, **k: pytest.fail("solved anyway"))
+    monkeypatch.setattr(engine, "warm_up", lambda *a, **k: pytest.fail("loaded the solver"))
+    too_long = str(tmp_path / ("x" * 252 + ".csv"))
+    store_too_long = str(tmp_path / ("r" * 245 + ".nc"))  # its store: 256 bytes
+    for argv, name in (
+            (["query", str(result), *QUERY, "-o", too_long], too_long),
+            (["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.333", "--N", "1",
+              "--plot", too_long + ".png"], too_long + ".png"),
+            (["run", str(result.with_name("s.toml")), "-o", store_too_long],
+             store_too_long + ".partial")):
+        assert cli.main(argv) == 2
+        one_line_error(capsys, name, "bytes long")
+    assert sorted(os.listdir(tmp_path)) == sorted([fits.name, png.name])

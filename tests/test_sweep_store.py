@@ -6,8 +6,10 @@ import os
 import re
 import shutil
 import signal
+import stat
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -272,8 +274,9 @@ def tree(directory) -> dict:
         for name in dirs + names:
             p = Path(root) / name
             rel = str(p.relative_to(directory))
-            out[rel] = ("link", os.readlink(p)) if p.is_symlink() else \
-                ("dir",) if p.is_dir() else ("file", p.read_bytes())
+            mode = p.lstat().st_mode
+            out[rel] = ("link", os.readlink(p)) if stat.S_ISLNK(mode) else \
+                ("file", p.read_bytes()) if stat.S_ISREG(mode) else (stat.S_IFMT(mode), p.lstat().st_rdev)
     return out
 
 
@@ -350,3 +353,69 @@ def test_outputs_inside_a_working_store_are_refused(tmp_path, monkeypatch, capsy
     assert cli.main(["run", str(first), "-o", str(out)]) == 0
     assert not store.exists()
     assert_identical(out, run_sweep(str(first)))
+
+
+def main_or_unblock(argv, fifos=(), seconds=60.0):
+    """``cli.main(argv)`` in a thread; if it has not returned within ``seconds`` (reading a FIFO
+    waits for a writer), the FIFOs are opened and closed so that it ends, and the test fails."""
+    code = []
+    thread = threading.Thread(target=lambda: code.append(cli.main(argv)), daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        for fifo in fifos:
+            try:
+                os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+            except OSError:
+                pass
+        thread.join(30)
+        pytest.fail(f"{argv} hung on a FIFO")
+    return code[0]
+
+
+def test_what_is_not_a_store_file_is_named_and_left_alone(tmp_path, monkeypatch, capsys):
+    """A FIFO, a directory with a file in it, a device node or a link at a block's name, or a
+    FIFO as the manifest: the run ends at once, exit 2, one line naming that entry, which is left
+    as it was; once it is moved away the same command finishes, the other blocks reused."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    out = tmp_path / "out.nc"
+    leave_partial(monkeypatch, str(toml), str(out))
+    store = Path(partial_dir(out))
+    n_blocks = len(list(store.glob("block_*.npz")))
+    block, manifest = store / "block_00001.npz", store / "manifest.json"
+    saved = manifest.read_bytes()
+    block.unlink()
+
+    def directory(p):
+        p.mkdir()
+        (p / "notes.txt").write_text("not a block")
+
+    def device(p):
+        try:
+            os.mknod(p, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+        except PermissionError:
+            pytest.skip("making a device node needs root")
+
+    cases = [(block, os.mkfifo), (block, directory), (block, lambda p: p.symlink_to(toml)),
+             (manifest, os.mkfifo), (block, device)]
+    for path, make in cases:
+        if path == manifest:
+            manifest.unlink()
+        make(path)
+        before = tree(store)
+        argv = ["run", str(toml), "-o", str(out), "--workers", "1"]
+        assert main_or_unblock(argv, [path]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and str(path) in err and "move it" in err, err
+        assert tree(store) == before
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+        if path == manifest:
+            manifest.write_bytes(saved)
+    assert cli.main(["run", str(toml), "-o", str(out), "--workers", "1"]) == 0
+    before, todo = map(int, LOG.search(capsys.readouterr().err).groups())
+    assert (before, todo) == (n_blocks - 1, 1)
+    assert_identical(out, run_sweep(str(toml)))

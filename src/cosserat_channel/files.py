@@ -22,6 +22,9 @@ from typing import Callable
 
 # What output_kind finds at a path (or, for what may not be written, a description of it).
 NEW, FILE, STREAM = "new", "file", "stream"
+# Bytes of an output's name kept in its temporary name: with the pid and a random tag that stays
+# far below NAME_MAX (255 on every common file system), however long the output's own name.
+TMP_STEM = 64
 # The file that marks a directory as a sweep's working store (see sweep.store): the run that
 # made it deletes it with all it holds, so no output may be written inside one.
 STORE_MARKER = "cosserat-channel-store"
@@ -78,12 +81,17 @@ def output_kind(path) -> str:
         return FILE
     if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
         return STREAM
-    if stat.S_ISDIR(mode):
-        return "a directory"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    if stat.S_ISBLK(mode):
-        return "a block device"
+    return describe(mode)
+
+
+def describe(mode: int) -> str:
+    """What a file of mode ``mode`` (``os.lstat(...).st_mode``) is, for a message."""
+    for test, what in ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a directory"),
+                       (stat.S_ISLNK, "a symbolic link"), (stat.S_ISFIFO, "a FIFO"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISBLK, "a block device")):
+        if test(mode):
+            return what
     return "not a regular file"
 
 
@@ -122,7 +130,31 @@ def output_problem(path, stream: bool = True, overwrite: bool = False) -> str | 
         return f"cannot write {path!r}: directory {directory!r} does not exist"
     if not os.access(directory, os.W_OK | os.X_OK):
         return f"cannot write {path!r}: directory {directory!r} is not writable"
+    return name_problem(path)
+
+
+def name_problem(path) -> str | None:
+    """Why the file system of ``path``'s directory (which exists) cannot hold a file of its name
+    (one line), or None when it can."""
+    path = os.fspath(path)
+    directory, name = os.path.split(os.path.abspath(path))
+    try:
+        limit = os.pathconf(directory, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    n = len(os.fsencode(name))
+    if n > limit:
+        return (f"cannot write {path!r}: its name is {n} bytes long, more than the {limit} the file "
+                "system allows; choose a shorter name")
     return None
+
+
+def temp_path(directory, path) -> str:
+    """A fresh temporary name in ``directory`` for a file that becomes ``path``: a hidden name
+    ending in ``.tmp``, short enough for any file system whatever the length of ``path``'s."""
+    name = os.fsencode(os.path.basename(os.path.abspath(os.fspath(path))))
+    stem = os.fsdecode(name[:TMP_STEM])
+    return os.path.join(directory, f".{stem}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
 
 
 def working_store_around(path) -> str | None:
@@ -178,8 +210,7 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool
         return
     if kind not in (NEW, FILE):
         raise WriteError(_not_a_file(path, kind))
-    directory, name = os.path.split(os.path.abspath(path))
-    tmp = os.path.join(tmp_dir or directory, f".{name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    tmp = temp_path(tmp_dir or os.path.dirname(os.path.abspath(path)), path)
     try:
         write(tmp)
         os.replace(tmp, path)

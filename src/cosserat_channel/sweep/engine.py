@@ -282,7 +282,7 @@ def disk_needed(spec: SweepSpec, plan: Plan, xi, output: str) -> int:
         store += plan.size * (8 + BUCKET.itemsize)
     have = 0
     for root, _, files in os.walk(partial_dir(output)):
-        have += sum(os.path.getsize(os.path.join(root, f)) for f in files)
+        have += sum(os.lstat(os.path.join(root, f)).st_size for f in files)
     return max(0, result + store - have)
 
 

@@ -49,7 +49,14 @@ import stat
 
 import numpy as np
 
-from ..files import STORE_MARKER, atomic_output, netcdf_output, output_problem
+from ..files import (
+    STORE_MARKER,
+    atomic_output,
+    describe,
+    name_problem,
+    netcdf_output,
+    output_problem,
+)
 from .spec import SweepError
 
 MANIFEST = "manifest.json"
@@ -82,7 +89,7 @@ def check_writable(output: str) -> None:
     beside it but a store (:func:`foreign_store`). Whether a file already at ``output`` is kept
     is decided under the store's lock (see :mod:`.engine`)."""
     problem = output_problem(output, stream=False, overwrite=True) or \
-        foreign_store(partial_dir(output))
+        name_problem(partial_dir(output)) or foreign_store(partial_dir(output))
     if problem:
         raise SweepError(problem)
 
@@ -101,6 +108,23 @@ def foreign_store(d: str) -> str | None:
         return (f"{d} is a directory that cosserat-channel did not make (it holds no "
                 f"{STORE_MARKER} marker), not a working store; {how}")
     return None
+
+
+def _not_a_file(path: str) -> str | None:
+    """What is at ``path`` (not following a link) if it exists and is not a regular file."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return None
+    return None if stat.S_ISREG(mode) else describe(mode)
+
+
+def _check_entry(path: str, role: str) -> None:
+    """SweepError naming ``path``, an entry of a store, if it is there and not a regular file."""
+    what = _not_a_file(path)
+    if what is not None:
+        raise SweepError(f"{path} is {what}, not {role} written by a run: move it out of the "
+                         "working store and run again (the finished blocks are kept)")
 
 
 def _is_marker(path: str) -> bool:
@@ -168,6 +192,7 @@ class WorkStore:
         store = cls(d, manifest)
         try:
             store._take_lock(output)
+            _check_entry(os.path.join(d, MANIFEST), "the manifest")
             old = None if store.created else _read_manifest(d)
             if old is not None:
                 store.manifest = _reconcile(old, manifest, output, d, given_block_size)
@@ -181,7 +206,9 @@ class WorkStore:
                 atomic_output(os.path.join(d, MANIFEST), lambda tmp: _write_bytes(tmp, text),
                               stream=False)
             for name in os.listdir(d):
-                if name.endswith(".tmp"):  # left by a killed run; never a finished block
+                # Left by a killed run; never a finished block. Only files: what else is there
+                # was not made by a run (see get).
+                if name.endswith(".tmp") and _not_a_file(os.path.join(d, name)) is None:
                     os.unlink(os.path.join(d, name))
         except OSError as exc:
             store.close()
@@ -252,7 +279,7 @@ class WorkStore:
             return set(self._memory)
         finished = set()
         for k, triples in enumerate(blocks):
-            if not os.path.exists(self._block_path(k)):
+            if not os.path.lexists(self._block_path(k)):
                 continue
             try:
                 self.get(k, triples)
@@ -273,10 +300,16 @@ class WorkStore:
 
     def get(self, k: int, triples: np.ndarray | None = None) -> dict:
         """Block ``k``'s result; :class:`BlockDamaged` unless it is complete, its digest matches
-        and (when given) its triples are ``triples``."""
+        and (when given) its triples are ``triples``.
+
+        Something at the block's name that is not a regular file (a FIFO, whose reading would
+        wait for ever, a directory, a device, a link) was not written by a run and is not
+        touched: :class:`SweepError` naming it.
+        """
         if self.directory is None:
             return self._memory[k]
         path = self._block_path(k)
+        _check_entry(path, "a block")
         try:
             with np.load(path, allow_pickle=False) as z:
                 arrays = {f: z[f] for f in z.files}

@@ -38,6 +38,7 @@ import netCDF4
 import numpy as np
 
 from .. import outputs as out_
+from ..files import temp_path as _temp_path
 from ..solver import layout
 from ..files import write_failure
 from ..parameters import DIMS
@@ -418,5 +419,4 @@ class StreamWriter:
 def temp_path(directory: str, output: str) -> str:
     """A fresh temporary file name for ``output`` inside ``directory`` (the store, whose opening
     deletes ``*.tmp`` leftovers of a killed run)."""
-    name = os.path.basename(os.path.abspath(output))
-    return os.path.join(directory, f".{name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
+    return _temp_path(directory, output)

@@ -41,7 +41,6 @@ Run: ``PYTHONPATH=src .venv/bin/python benchmarks/bench_atlas.py --atlas-out atl
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import subprocess
@@ -57,7 +56,9 @@ def log(msg):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    from cosserat_channel.measure import harness
+
+    ap = harness.parser(__doc__)
     ap.add_argument("--A", default="-0.5:0.5")
     ap.add_argument("--N", default="1:1.5")
     ap.add_argument("--tol", type=float, default=1e-8)
@@ -160,9 +161,7 @@ def main():
     if args.atlas_out:
         at.save_atlas(atlas, args.atlas_out)
     if not parts & {"accuracy", "classify", "plot", "independent"}:
-        for line in summary:
-            log("  " + line)
-        return
+        return report(args, summary)
     ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
     if "independent" in parts:
         independent(args, atlas, A_rng, N_rng, np.random.default_rng(args.seed + 1), ws, summary)
@@ -181,9 +180,19 @@ def main():
         classify(args, atlas, A_rng, N_rng, rng, ws, summary)
     if "plot" in parts:
         plot(atlas, A_rng, N_rng, summary)
+    return report(args, summary)
+
+
+def report(args, summary):
+    """Print the targets' lines and, with ``--json PATH``, write them there too."""
+    from cosserat_channel.measure import harness
+
     log("targets:")
     for line in summary:
         log("  " + line)
+    rec = harness.Record("bench_atlas", args.json, echo=False)
+    rec.add("targets", summary)
+    return rec.finish()
 
 
 def uptime():

@@ -170,9 +170,7 @@ def _example(args: argparse.Namespace) -> int:
     if args.output is None:
         sys.stdout.write(shipped[name])
         return EXIT_OK
-    check_output_path(args.output, "-o")
-    if os.path.lexists(args.output) and not args.overwrite:
-        raise CliError(f"-o: {args.output} exists; kept (add --overwrite to replace it)")
+    check_output_path(args.output, "-o", overwrite=args.overwrite)
     from ..files import atomic_output
 
     def write(tmp):

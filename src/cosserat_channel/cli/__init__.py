@@ -9,8 +9,9 @@ commands live by theme in ``_point`` (point, phase-plane), ``_sweeps`` (run, que
 
 Exit codes: 0 for an answer (a point without solution is an answer: its status says why), 1 for
 a failure after the input was accepted (e.g. the plot file could not be written), 2 for input
-the program rejects (argparse errors, parameters outside the model's domain). Every error is one
-line on stderr, ``cosserat-channel: error: <message>``, never a traceback.
+the program rejects (argparse errors, parameters outside the model's domain), 130 (143) when
+Ctrl-C (SIGTERM) stops a long command, which keeps what it finished (:func:`interrupted`). Every
+error is one line on stderr, ``cosserat-channel: error: <message>``, never a traceback.
 
 Heavy modules (numba through :mod:`.solve`, matplotlib through :mod:`.plot`) are imported inside
 the commands, so ``--help`` and argument errors answer at once. Nothing imports this module.

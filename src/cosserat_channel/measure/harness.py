@@ -180,17 +180,15 @@ class Record:
     json : str, optional
         Where :meth:`finish` writes the JSON (``--json``); nothing is written without it.
     echo : bool
-        Print the header now (and each verdict's line as :meth:`check` records it, when
-        ``print_verdicts``).
+        Print the header now.
     others :
         More ``name=version`` pairs for the header.
     """
 
-    def __init__(self, name: str, json: str | None = None, *, echo: bool = True,
-                 print_verdicts: bool = False, argv=None, **others):
+    def __init__(self, name: str, json: str | None = None, *, echo: bool = True, argv=None,
+                 **others):
         self.name = name
         self.json = json
-        self.print_verdicts = print_verdicts
         self.header = header(argv, **others)
         self.results: dict = {}
         self.verdicts: list[Verdict] = []
@@ -210,8 +208,6 @@ class Record:
         """Record a verdict on ``text`` and return it (its ``word`` goes into the caller's line)."""
         v = Verdict(text, None if passed is None else bool(passed), detail, **kw)
         self.verdicts.append(v)
-        if self.print_verdicts:
-            print(v.line(), flush=True)
         return v
 
     def as_dict(self) -> dict:

@@ -1,9 +1,9 @@
 """measure/harness.py: best-of timing, verdict wording, the header and the JSON record."""
 
-import argparse
 import json
 import math
 import os
+import stat
 
 import numpy as np
 import pytest
@@ -104,25 +104,37 @@ def test_record_without_json_writes_nothing(tmp_path, monkeypatch):
     assert rec.finish() == 0 and not list(tmp_path.iterdir())
 
 
-def test_json_path_is_checked_before_any_work(tmp_path):
-    """A missing directory, a directory, a FIFO and a device node are refused (and left as
-    they are); a new or existing regular file is accepted."""
+def test_json_path_is_checked_before_any_work(tmp_path, capsys):
+    """A missing directory and a directory are refused; an existing file is kept unless
+    --overwrite; a FIFO and a device node take the JSON as a stream (never renamed over)."""
     ap = harness.parser("A benchmark.\n\nMore text.")
     assert ap.description == "A benchmark."
-    assert ap.parse_args(["--json", str(tmp_path / "new.json")]).json == str(tmp_path / "new.json")
+    new = tmp_path / "new.json"
+    assert ap.parse_args(["--json", str(new)]).json == str(new)
     existing = tmp_path / "old.json"
     existing.write_text("{}")
-    assert harness.json_path(str(existing)) == str(existing)
+    for bad in ([str(tmp_path / "no" / "x.json")], [str(tmp_path)], [str(existing)]):
+        with pytest.raises(SystemExit) as exit_:
+            ap.parse_args(["--json", *bad])
+        assert exit_.value.code == 2
+        assert "--json: " in capsys.readouterr().err
+    assert ap.parse_args(["--json", str(existing), "--overwrite"]).overwrite
+    assert existing.read_text() == "{}"
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
+    assert ap.parse_args(["--json", str(fifo)]).json == str(fifo)
+    assert fifo.is_fifo()
+
+
+def test_json_into_a_device_is_a_stream(tmp_path):
+    """The record goes into a character device; the node stays a node."""
     node = tmp_path / "null"
     try:
-        os.mknod(node, 0o600 | 0o020000, os.makedev(1, 3))  # a private character device
-    except (PermissionError, AttributeError):
-        node = None
-    for bad in [tmp_path / "no" / "x.json", tmp_path, fifo] + ([node] if node else []):
-        with pytest.raises(argparse.ArgumentTypeError):
-            harness.json_path(str(bad))
-    assert fifo.exists() and os.path.isdir(tmp_path)
-    if node:
-        assert node.is_char_device()
+        os.mknod(node, 0o600 | stat.S_IFCHR, os.makedev(1, 3))  # a private /dev/null
+    except PermissionError:
+        pytest.skip("making a device node needs root")
+    assert harness.json_problem(str(node)) is None
+    rec = harness.Record("bench_x", str(node), echo=False)
+    rec.add("x", 1.0)
+    assert rec.finish() == 0
+    assert node.is_char_device() and [p.name for p in tmp_path.iterdir()] == ["null"]

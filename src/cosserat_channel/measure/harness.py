@@ -132,27 +132,38 @@ def header_lines(head: dict) -> list[str]:
             f"versions: {machine.format_versions(head['versions'])}"]
 
 
-def json_path(text: str) -> str:
-    """argparse ``type`` of ``--json``: a path a file can be written to, checked before any work.
-
-    An existing regular file is replaced when the run ends (the user named it); anything else
-    that exists there (a directory, a device, a FIFO) is refused, never touched.
-    """
+def json_problem(path: str, overwrite: bool = False) -> str | None:
+    """Why ``--json PATH`` cannot be written (one line), or None: the package's rule for every
+    output (:func:`cosserat_channel.files.output_problem`): an existing file is kept unless
+    ``overwrite``, a character device or a FIFO receives the JSON as a stream, anything else
+    that is not a regular file is refused and left as it is."""
     from ..files import output_problem
 
-    problem = output_problem(text)
-    if problem is None and os.path.lexists(text) and not os.path.isfile(text):
-        problem = f"{text!r} exists and is not a regular file"
-    if problem:
-        raise argparse.ArgumentTypeError(problem)
-    return text
+    return output_problem(path, overwrite=overwrite)
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser that checks ``--json PATH`` as soon as the arguments are parsed, before
+    any work."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        ns, rest = super().parse_known_args(args, namespace)
+        if getattr(ns, "json", None) is not None:
+            problem = json_problem(ns.json, ns.overwrite)
+            if problem:
+                self.error(f"--json: {problem}")
+        return ns, rest
 
 
 def parser(doc: str) -> argparse.ArgumentParser:
-    """An ArgumentParser described by ``doc``'s first line, with ``--json PATH``."""
-    ap = argparse.ArgumentParser(description=doc.strip().splitlines()[0])
-    ap.add_argument("--json", metavar="PATH", type=json_path,
+    """An ArgumentParser described by ``doc``'s first line, with ``--json PATH`` and
+    ``--overwrite``."""
+    ap = _Parser(description=doc.strip().splitlines()[0])
+    ap.add_argument("--json", metavar="PATH",
                     help="also write the header, the numbers and the verdicts to PATH as JSON")
+    ap.add_argument("--overwrite", action="store_true",
+                    help="replace the --json file if it exists (without it an existing file is "
+                    "kept and the run refused before any work)")
     return ap
 
 

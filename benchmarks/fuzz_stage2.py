@@ -26,11 +26,11 @@ a step whose result is useless passes the error test. Each such point is solved,
 with a solve at ``REF_RTOL``.
 
 Run:  .venv/bin/python benchmarks/fuzz_stage2.py [--points 1000000] [--lines 300] [--seed 1]
+[--json PATH]. A check, not a timing: it exits 1 when an ``integration_failed`` is found inside.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -39,6 +39,7 @@ import numba
 import numpy as np
 from numba import njit
 
+from cosserat_channel.measure import harness
 from cosserat_channel import status as st
 from cosserat_channel.integrate import dop853, stepping
 from cosserat_channel.parameters import DEFAULT_ATOL, DEFAULT_RTOL
@@ -208,7 +209,7 @@ def bands(rng, lines, rtol, samples=400):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = harness.parser(__doc__)
     ap.add_argument("--points", type=int, default=1_000_000, help="points inside to reach")
     ap.add_argument("--lines", type=int, default=300, help="lines in eta searched for bands")
     ap.add_argument("--seed", type=int, default=1)
@@ -217,6 +218,8 @@ def main(argv=None) -> int:
     ap.add_argument("--max-seconds", type=float, default=1800.0,
                     help="stop part 1 after this much CPU time, whatever the count (default 1800)")
     args = ap.parse_args(argv)
+    rec = harness.Record("fuzz_stage2", args.json,
+                         argv=sys.argv if argv is None else [sys.argv[0], *argv])
     numba.set_num_threads(1)
     rng = np.random.default_rng(args.seed)
     one = np.ones(1)
@@ -240,7 +243,12 @@ def main(argv=None) -> int:
           f"({1e6 * seconds / max(drawn, 1):.1f} us per point drawn)")
     for name, tally in tallies.items():
         tally.report(name, args.atol)
+        rec.row("part1", domain=name, drawn=tally.drawn, inside=tally.inside,
+                integration_failed_inside=len(tally.failed),
+                integration_failed_also_tight=len(tally.failed_tight))
     failed = sum(len(t.failed) for t in tallies.values())
+    rec.check("part 1: no integration_failed inside the solvable region", failed == 0,
+              f"{failed} of {inside:,} points inside")
 
     if args.lines > 0:
         t0 = time.process_time()
@@ -269,6 +277,13 @@ def main(argv=None) -> int:
         print(f"stage-2 rejected panels: max {rej.max() if rej.size else 0}, points with >= "
               f"{MANY_REJECTIONS}: {int((rej >= MANY_REJECTIONS).sum())}")
         failed += band_failed.size
+        rec.add("part2", {"lines": args.lines, "points": eta.size,
+                          "integration_failed_where_tight_ok": band_failed.size})
+        rec.check("part 2: no integration_failed in the bands", band_failed.size == 0,
+                  f"{band_failed.size} of {eta.size} points")
+    for v in rec.verdicts:
+        print(v.line())
+    rec.finish()
     return 0 if not failed else 1
 
 

@@ -13,7 +13,9 @@ import pytest
 from cosserat_channel.solver import stage1
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
-SCRIPTS = sorted(p for p in BENCHMARKS.glob("bench_*.py"))
+# Every script but fingerprint.py, which uses public entry points only (it must run unchanged
+# on either side of a restructuring).
+SCRIPTS = sorted(p for p in BENCHMARKS.glob("*.py") if p.name != "fingerprint.py")
 PROBES = sorted((BENCHMARKS / "probes").glob("probe_*.py"))
 
 
@@ -23,7 +25,7 @@ def _main(path):
 
 
 def test_the_suite_is_there():
-    assert len(SCRIPTS) >= 7 and len(PROBES) >= 2
+    assert len(SCRIPTS) >= 8 and len(PROBES) >= 2
     assert not list(BENCHMARKS.glob("probe_*.py"))  # probes live apart from the benchmarks
 
 
@@ -41,7 +43,7 @@ def test_every_benchmark_offers_json(path, monkeypatch, capsys):
 def test_the_index_lists_every_benchmark_and_probe():
     text = (BENCHMARKS / "README.md").read_text()
     for path in SCRIPTS:
-        assert f"| `{path.name}` |" in text, path.name
+        assert f"`{path.name}`" in text, path.name
     for path in PROBES:
         assert f"| `probes/{path.name}` |" in text, path.name
 

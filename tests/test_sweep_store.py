@@ -419,3 +419,31 @@ def test_what_is_not_a_store_file_is_named_and_left_alone(tmp_path, monkeypatch,
     before, todo = map(int, LOG.search(capsys.readouterr().err).groups())
     assert (before, todo) == (n_blocks - 1, 1)
     assert_identical(out, run_sweep(str(toml)))
+
+
+@pytest.mark.parametrize("edit", [
+    {"plan_sha256": "0" * 64}, {"sweep_sha256": "f" * 64}, {"block_size": 5, "n_blocks": 4},
+    {"cosserat_channel_version": "0.0.0"}, {"shape": [1, 1, 1, 1, 1]}])
+def test_edited_manifest_resumes_from_the_blocks_its_digests_prove(tmp_path, monkeypatch, capsys,
+                                                                   edit):
+    """A manifest edited by hand (whatever field): the blocks' digests show they are this run's,
+    so the rerun resumes with every block and gives the uninterrupted result; a warning says so."""
+    import json
+
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    out = tmp_path / "out.nc"
+    with monkeypatch.context() as m:
+        m.setattr(engine, "assemble", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("crash")))
+        with pytest.raises(RuntimeError):
+            run_sweep(str(toml), str(out), block_size=3)
+    path = Path(partial_dir(out)) / "manifest.json"
+    manifest = json.loads(path.read_text())
+    n_blocks = manifest["n_blocks"]
+    path.write_text(json.dumps({**manifest, **edit}))
+    capsys.readouterr()
+    assert cli.main(["run", str(toml), "-o", str(out), "--workers", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "digests" in err, err
+    assert tuple(map(int, LOG.search(err).groups())) == (n_blocks, 0)
+    assert_identical(out, run_sweep(str(toml)))

@@ -25,6 +25,7 @@ import dataclasses
 import logging
 import os
 import re
+import stat
 import sys
 import threading
 import time
@@ -134,7 +135,7 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
 
                 return xr.open_dataset(output, chunks={})
             ds, times = _run(spec, plan, store, xi, output, client, n_workers, reduce,
-                             progress, compress)
+                             progress, compress, given_block_size=block_size is not None)
         finally:
             store.close()
     finally:
@@ -196,17 +197,15 @@ def _tile(spec, xi, output):
     return None if output is None else Tiles(spec.shape, 0 if xi is None else xi.size).tile
 
 
-def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, compress):
+def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, compress,
+         given_block_size=False):
     """Solve what the store lacks, writing the file as groups complete, then finish it; returns
     (Dataset or None, (solve s, blocks computed, assemble and write s))."""
-    if store.manifest["block_size"] != plan.block_size:
+    if store.disagreement is None and store.manifest["block_size"] != plan.block_size:
         plan = Plan(spec.coords(), reduce=reduce, block_size=store.manifest["block_size"],
                     tile=_tile(spec, xi, output))
-    if store.manifest["plan_sha256"] != plan.digest():
-        raise SweepError(
-            f"{store.directory} was planned differently (another cosserat-channel build?); "
-            f"delete {store.directory} to start over, or choose another -o"
-        )
+    if store.disagreement is not None or store.manifest["plan_sha256"] != plan.digest():
+        plan = _proven_plan(spec, plan, store, xi, output, reduce, given_block_size)
     done = store.done(plan.blocks)
     todo = [k for k in range(len(plan.blocks)) if k not in done]
     log.info(
@@ -267,6 +266,50 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
                  n_workers, time.process_time() - c0, during, writer.tiles.count, writer.busy,
                  writer.cpu, t2 - t1)
     return ds, (solve, len(todo), t2 - t0 - solve)
+
+
+def _proven_plan(spec, plan, store, xi, output, reduce, given_block_size) -> Plan:
+    """The plan of this run that the store's blocks prove theirs, when its manifest does not
+    match this run (edited, or written by another run); the manifest is then written anew.
+
+    The blocks' digests bind them to the sweep, the plan and the package version, so a block
+    that checks out under this run's manifest was made by this run's plan: the store is resumed.
+    Tried: this run's block size and, unless one was given, the one the manifest records and the
+    first block's. A store without blocks holds nothing to lose and is taken over. Otherwise
+    SweepError: the manifest's disagreement with this run, or another build's plan."""
+    refusal = store.disagreement or (
+        f"{store.directory} was planned differently (another cosserat-channel build?); "
+        f"delete {store.directory} to start over, or choose another -o")
+    sizes = [plan.block_size]
+    if not given_block_size:
+        sizes += [(store.recorded or {}).get("block_size"), _first_block_size(store)]
+    tried = set()
+    for size in sizes:
+        if not isinstance(size, int) or isinstance(size, bool) or size < 1 or size in tried:
+            continue
+        tried.add(size)
+        p = plan if size == plan.block_size else Plan(spec.coords(), reduce=reduce,
+                                                      block_size=size, tile=_tile(spec, xi, output))
+        manifest = _manifest(spec, p)
+        if not store.blocks_on_disk() or store.proves(manifest, p.blocks):
+            log.warning("working store %s: its manifest does not match this run, but its blocks' "
+                        "digests show they are this run's; manifest written anew, blocks that "
+                        "check out kept", store.directory)
+            store.rewrite_manifest(manifest)
+            return p
+    raise SweepError(refusal)
+
+
+def _first_block_size(store) -> int | None:
+    """How many integrations block 0 holds (a hint of the block size), or None."""
+    path = os.path.join(store.directory, "block_00000.npz")
+    try:
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            return None
+        with np.load(path, allow_pickle=False) as z:
+            return int(z["triples"].shape[0])
+    except Exception:  # noqa: BLE001 (a damaged block gives no hint; its digest fails later)
+        return None
 
 
 def disk_needed(spec: SweepSpec, plan: Plan, xi, output: str) -> int:

@@ -24,11 +24,14 @@ copied from another sweep's store fails the check, is logged as a warning, delet
 again, on resume and at assembly alike; it never reaches the result and never raises. This guards
 against damage and accidents, not against someone who recomputes the digest on purpose. Because
 the digest binds each block to its sweep and plan, an unreadable manifest is not fatal either: it
-is written anew and every block that still checks out is reused. Running the
+is written anew and every block that still checks out is reused; nor is an edited one: when the
+manifest does not match the run, the blocks decide (one that checks out under the run's own
+manifest proves the store the run's, see ``engine._proven_plan``). Running the
 same command again finds the finished blocks and computes only the rest; the plan is a function of
 the sweep file and the manifest's options, so the result is the one an uninterrupted run gives.
 A store made by another sweep file (or other options, or another package version) is never
-reused or mixed: the run stops with a one-line message saying what to do.
+reused or mixed: none of its blocks checks out, and the run stops with a one-line message saying
+what to do.
 
 The result goes to a temporary file inside the store and is ``os.replace``'d onto ``OUT.nc`` only
 when complete: an existing ``OUT.nc`` is replaced whole or left alone. Then the store is removed,
@@ -174,6 +177,10 @@ class WorkStore:
         self.directory = directory
         self.manifest = manifest
         self.created = False  # True when this run made the store (nothing to resume)
+        # Why the manifest on disk does not fit this run (None when it does); the blocks' digests
+        # decide then whether the store is this run's (see engine._proven_plan).
+        self.disagreement: str | None = None
+        self.recorded: dict | None = None  # the manifest found on disk
         self._memory: dict[int, dict] = {}
         self._lock = None
 
@@ -181,10 +188,12 @@ class WorkStore:
     def open(cls, output: str | None, manifest: dict, given_block_size: bool) -> "WorkStore":
         """Open (or create) the store for ``output`` with this ``manifest``, and lock it.
 
-        The lock is taken first and everything else is decided under it. A store whose manifest
-        differs is refused, naming the difference; when the block size was not given explicitly,
-        the existing store's is adopted (the caller re-plans with ``store.manifest["block_size"]``),
-        so a plain rerun always resumes.
+        The lock is taken first and everything else is decided under it. When the block size
+        was not given explicitly, the existing store's is adopted (the caller re-plans with
+        ``store.manifest["block_size"]``), so a plain rerun always resumes. A manifest that
+        differs from this run's is not trusted either way: :attr:`disagreement` says how, and
+        the caller asks the blocks (:meth:`proves`), whose digests bind them to their sweep and
+        plan, before it resumes (:meth:`rewrite_manifest`) or refuses with that message.
         """
         if output is None:
             return cls(None, manifest)
@@ -194,8 +203,12 @@ class WorkStore:
             store._take_lock(output)
             _check_entry(os.path.join(d, MANIFEST), "the manifest")
             old = None if store.created else _read_manifest(d)
+            store.recorded = old
             if old is not None:
-                store.manifest = _reconcile(old, manifest, output, d, given_block_size)
+                try:
+                    store.manifest = _reconcile(old, manifest, output, d, given_block_size)
+                except SweepError as exc:
+                    store.disagreement = str(exc)
             elif not store.created:
                 # Every block is bound to its sweep and plan by its digest (see the module
                 # docstring), so a new manifest cannot let a foreign block through.
@@ -259,6 +272,38 @@ class WorkStore:
             os.close(fd)
         raise SweepError(f"cannot lock working store {self.directory!r}: it keeps being removed "
                          "by another run; run again")
+
+    def rewrite_manifest(self, manifest: dict) -> None:
+        """Make ``manifest`` the store's, on disk too (blocks are checked against it from now)."""
+        self.manifest = manifest
+        self.disagreement = None
+        text = json.dumps(manifest, indent=1, sort_keys=True).encode()
+        atomic_output(os.path.join(self.directory, MANIFEST), lambda tmp: _write_bytes(tmp, text),
+                      stream=False)
+
+    def blocks_on_disk(self) -> list[int]:
+        """Indices of the block files present, in order."""
+        found = []
+        for name in os.listdir(self.directory):
+            if name.startswith("block_") and name.endswith(".npz") and name[6:-4].isdigit():
+                found.append(int(name[6:-4]))
+        return sorted(found)
+
+    def proves(self, manifest: dict, blocks: list[np.ndarray], limit: int = 8) -> bool:
+        """Whether a block of the store checks out under ``manifest`` and the plan's ``blocks``
+        (the first ``limit`` block files are tried): the store is then that run's."""
+        saved = self.manifest
+        self.manifest = manifest
+        try:
+            for k in [k for k in self.blocks_on_disk() if k < len(blocks)][:limit]:
+                try:
+                    self.get(k, blocks[k])
+                    return True
+                except BlockDamaged:
+                    continue
+            return False
+        finally:
+            self.manifest = saved
 
     def close(self) -> None:
         if self._lock is not None:

@@ -1,8 +1,8 @@
 """Faults made on purpose (issue 13): every run ends identical to an uninterrupted one, or with one
 line on stderr, a non-zero exit and nothing finished lost.
 
-* kill -9 (and SIGTERM) at several moments: right after the store is opened, after some blocks,
-  while the result file is being written (complete but not yet renamed); SIGINT mid-run;
+* kill -9 at several moments: right after the store is opened, after some blocks, while the
+  result file is being written (complete but not yet renamed); SIGINT and SIGTERM mid-run;
 * an injected write failure standing in for a full disk: the file-size limit (RLIMIT_FSIZE, so
   the write really fails in the C library, as netCDF4/HDF5 see a full disk) on the final NetCDF
   write of ``run`` and of ``query --format netcdf``, and ENOSPC on a block write;
@@ -174,7 +174,7 @@ def rerun(sweep_file, out, capsys):
     ("open", signal.SIGKILL),  # store and manifest made, nothing computed
     ("block:3", signal.SIGKILL),  # three blocks stored
     ("publish", signal.SIGKILL),  # every block stored, result written under its temporary name
-    ("block:5", signal.SIGTERM),
+    ("block:5", signal.SIGKILL),
 ])
 def test_kill_at_several_moments_then_rerun_is_identical(tmp_path, sweep_file, reference,
                                                          capsys, mode, sig):
@@ -195,16 +195,22 @@ def test_kill_at_several_moments_then_rerun_is_identical(tmp_path, sweep_file, r
         == ["out.nc", "s.toml"]
 
 
-def test_sigint_is_one_line_and_resumes(tmp_path, sweep_file, reference, capsys):
+@pytest.mark.parametrize("sig, code, words", [
+    (signal.SIGINT, 130, "interrupted;"),
+    (signal.SIGTERM, 143, "terminated (SIGTERM);"),  # what batch schedulers send
+])
+def test_sigint_and_sigterm_are_one_line_and_resume(tmp_path, sweep_file, reference, capsys, sig,
+                                                    code, words):
     out = tmp_path / "out.nc"
     proc, marker, release = harness(tmp_path, "block:2", "run", sweep_file, "-o", out, *RUN)
     wait_for(proc, marker)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     time.sleep(0.2)
     release.touch()  # let the paused worker thread finish so the process can exit
     _, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 130, stderr
-    assert "run the same command again to resume" in one_line_error(stderr)
+    assert proc.returncode == code, stderr
+    line = one_line_error(stderr)
+    assert words in line and "run the same command again to resume" in line
     assert not out.exists()
     err = rerun(sweep_file, out, capsys)
     assert "0 done before" not in err

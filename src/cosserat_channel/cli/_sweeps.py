@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import logging
@@ -47,6 +48,36 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
 
 @register("run", "solve every point of a sweep file and write a NetCDF result", _run_arguments)
 def _run(args: argparse.Namespace) -> int:
+    with _terminate_as_interrupt():
+        return _run_command(args)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (what batch schedulers and ``kill`` send), raised where SIGINT would be."""
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """Within: SIGTERM stops ``run`` as SIGINT does (the blocks in flight are stored and one
+    line says what is kept) instead of killing it silently. Only the main thread sets handlers."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise _Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_command(args: argparse.Namespace) -> int:
     for flag, value in (("--workers", args.workers), ("--block-size", args.block_size)):
         if value is not None and value < 1:
             raise CliError(f"{flag} must be a positive integer; got {value}")
@@ -66,21 +97,21 @@ def _run(args: argparse.Namespace) -> int:
     check_not_input(output, [args.sweep], "-o")
     if not args.overwrite and _finished_result_kept(output, spec):
         return EXIT_OK
-    if args.scheduler is None:
-        from ..sweep.engine import warm_up
-
-        # Here, not inside the run: on a terminal the minute a new version spends compiling
-        # shows as such, before the run's own progress bar starts.
-        with Progress("run", "loading the solver " + _FIRST_RUN, delay=2.0):
-            warm_up()
     logger = logging.getLogger("cosserat_channel.sweep")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
-    logger.addHandler(handler)
-    logger.setLevel(logging.INFO)
     from ..sweep.engine import SchedulerLost
 
     try:
+        if args.scheduler is None:
+            from ..sweep.engine import warm_up
+
+            # Here, not inside the run: on a terminal the minute a new version spends compiling
+            # shows as such, before the run's own progress bar starts.
+            with Progress("run", "loading the solver " + _FIRST_RUN, delay=2.0):
+                warm_up()
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
         run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
                   reduce=args.reduce, block_size=args.block_size).close()
     except SweepError as exc:
@@ -100,10 +131,12 @@ def _run(args: argparse.Namespace) -> int:
             message += (f"; finished blocks are kept in {partial_dir(output)}/, run the same "
                         "command again to resume")
         raise CliError(message, EXIT_FAILURE) from None
-    except KeyboardInterrupt:
-        _error(f"interrupted; finished blocks are kept in {output}.partial/, run the same "
+    except KeyboardInterrupt as exc:
+        what, code = ("terminated (SIGTERM)", 143) if isinstance(exc, _Terminated) else \
+            ("interrupted", 130)
+        _error(f"{what}; finished blocks are kept in {output}.partial/, run the same "
                "command again to resume")
-        return 130
+        return code
     finally:
         logger.removeHandler(handler)
     return EXIT_OK

@@ -369,6 +369,60 @@ def test_damaged_result_file_fails_to_read_never_changes(tmp_path, sweep_file, c
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+@pytest.fixture(scope="module")
+def result_file(tmp_path_factory):
+    """A finished result of SWEEP, to copy and damage."""
+    path = tmp_path_factory.mktemp("result") / "out.nc"
+    path.with_suffix(".toml").write_text(SWEEP)
+    run_sweep(str(path.with_suffix(".toml")), str(path), workers=1).close()
+    return path
+
+
+def copy_of(result_file, tmp_path, name="r.nc") -> Path:
+    path = tmp_path / name
+    path.write_bytes(result_file.read_bytes())
+    return path
+
+
+def damaged_chunk(result_file, tmp_path, name="sigma_yx_wall") -> Path:
+    """A copy of the result with bytes flipped inside the (uncompressed) chunk of ``name``."""
+    path = copy_of(result_file, tmp_path, "bad.nc")
+    with xr.open_dataset(result_file) as f:
+        chunk = np.ascontiguousarray(f[name].values).tobytes()
+    at = path.read_bytes().find(chunk)
+    assert at > 0
+    flip(path, at + 8, 64)
+    return path
+
+
+def test_query_closes_the_light_reader_before_rereading(tmp_path, result_file, monkeypatch,
+                                                        capsys):
+    """A small query reads through netCDF4 alone; when that fails on a damaged file, the file is
+    read again through xarray and dask to name the damage. With both handles open, HDF5 once
+    ended in SIGBUS: the first is closed before the second opens."""
+    from cosserat_channel.results import light, selection
+
+    bad = damaged_chunk(result_file, tmp_path)
+    opened, open_at_reopen = [], []
+    real_light, real_open = light.open_light, selection.open_results
+
+    def open_light(path):
+        f = real_light(path)
+        opened.append(f)
+        return f
+
+    def open_results(path):
+        open_at_reopen.extend(f.nc.isopen() for f in opened if f is not None)
+        return real_open(path)
+
+    monkeypatch.setattr(light, "open_light", open_light)
+    monkeypatch.setattr(selection, "open_results", open_results)
+    assert cli.main(["query", str(bad), "--vars", "sigma_yx_wall"]) == 1
+    assert "damaged" in one_line_error(capsys.readouterr().err)
+    assert opened and opened[0] is not None  # the light reader was used, and failed
+    assert open_at_reopen == [False]
+
+
 # ---------------------------------------------------------------------------------------------
 # A lost worker
 # ---------------------------------------------------------------------------------------------

@@ -365,6 +365,9 @@ def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | N
     from ..files import WriteError
 
     if isinstance(ds, light.LightFile):  # read through in chunks, with dask
+        # One reader of the file at a time: HDF5 re-reading a damaged file through a second
+        # handle while the first is open once ended in SIGBUS.
+        ds.close()
         with open_results(results) as chunked:
             problem = selection.read_problem(chunked)
     else:

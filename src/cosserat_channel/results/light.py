@@ -57,7 +57,8 @@ class LightFile:
         return LightBox(self, index)
 
     def close(self) -> None:
-        self.nc.close()
+        if self.nc.isopen():  # closed early by a caller that reopens the file another way
+            self.nc.close()
 
     def __enter__(self):
         return self

@@ -154,6 +154,16 @@ def wait_for(proc, marker, timeout=120):
         time.sleep(0.01)
 
 
+def package_env() -> dict:
+    """The environment for a process of its own that imports this package (the one under test,
+    whatever the process's working directory)."""
+    import cosserat_channel
+
+    src = str(Path(cosserat_channel.__file__).resolve().parents[1])
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [src, *filter(None, [os.environ.get("PYTHONPATH")])]))
+
+
 def one_line_error(stderr: str) -> str:
     errors = [line for line in stderr.splitlines() if "error:" in line]
     assert len(errors) == 1, stderr
@@ -395,6 +405,73 @@ def damaged_chunk(result_file, tmp_path, name="sigma_yx_wall") -> Path:
     return path
 
 
+def test_damaged_global_attributes_are_one_line(tmp_path, result_file, capsys):
+    """A bit flipped in the global attributes made netCDF4 raise AttributeError ("Can't open HDF5
+    attribute"), a traceback out of info, query and plot."""
+    import netCDF4
+
+    raw = result_file.read_bytes()
+    at = raw.find(b"Conventions")  # the attribute messages of the root group lie around it
+    bad = tmp_path / "bad.nc"
+    found = []
+    for start in range(max(0, at - 128), at + 32, 4):
+        data = bytearray(raw)
+        for i in range(start, start + 4):
+            data[i] ^= 0xFF
+        bad.write_bytes(bytes(data))
+        try:
+            with netCDF4.Dataset(bad) as nc:
+                nc.ncattrs()
+        except AttributeError:
+            found.append(start)
+            break
+        except (OSError, RuntimeError):
+            pass
+    if not found:
+        pytest.skip("no flip near the global attributes gives AttributeError in this HDF5")
+    for argv in (["info", str(bad)], ["query", str(bad)], ["query", str(bad), "--sel", "L=10"],
+                 ["plot", str(bad), "--x", "eps", "--y", "Delta", "--at",
+                  "L=10,K=0.5,A=1,N=1", "-o", str(tmp_path / "p.png")]):
+        assert cli.main(argv) == 2, argv
+        assert "damaged" in one_line_error(capsys.readouterr().err)
+    assert not (tmp_path / "p.png").exists()
+
+
+@pytest.mark.parametrize("flag_values", ["abc", np.nan, np.array([0.0, 1.5, 2, 3, 4, 5])])
+def test_unusable_status_flags_are_one_line(tmp_path, result_file, capsys, flag_values):
+    """status:flag_values a string or NaN: int() raised out of info and query."""
+    import netCDF4
+
+    path = copy_of(result_file, tmp_path)
+    with netCDF4.Dataset(path, "a") as nc:
+        nc["status"].delncattr("flag_values")
+        nc["status"].flag_values = flag_values
+    for argv in (["info", str(path)], ["query", str(path)],
+                 ["query", str(path), "--sel", "L=10", "--where", "status == ok"],
+                 ["query", str(path), "--format", "json"],
+                 ["plot", str(path), "--x", "eps", "--y", "Delta", "--at", "L=10,K=0.5,A=1,N=1",
+                  "-o", str(tmp_path / "p.png")]):
+        assert cli.main(argv) == 2, argv
+        assert "flag_values" in one_line_error(capsys.readouterr().err)
+
+
+def test_time_units_on_a_coordinate_give_text_in_json(tmp_path, result_file, capsys):
+    """eps:units = "days since ..." makes xarray decode eps as dates, which json.dumps refused
+    (TypeError). Dates are written as their text, as CSV and the table do."""
+    import json
+
+    import netCDF4
+
+    path = copy_of(result_file, tmp_path)
+    with netCDF4.Dataset(path, "a") as nc:
+        nc["eps"].units = "days since 2000-01-01"
+    assert cli.main(["query", str(path), "--format", "json", "--sel", "L=10"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert len(rows) == 3 * 2 * 2 * 2 and all(r["eps"].startswith("2000-01-01T") for r in rows)
+    assert cli.main(["query", str(path), "--format", "csv", "--sel", "L=10"]) == 0
+    assert capsys.readouterr().out.count("2000-01-01T") == len(rows)
+
+
 def test_query_closes_the_light_reader_before_rereading(tmp_path, result_file, monkeypatch,
                                                         capsys):
     """A small query reads through netCDF4 alone; when that fails on a damaged file, the file is
@@ -499,6 +576,112 @@ def test_bad_scheduler_is_one_line_before_any_store(tmp_path, sweep_file, capsys
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 
+@pytest.mark.parametrize("address", ["tls://127.0.0.1:9", "ucx://127.0.0.1:9", "inproc://x",
+                                     "tcp://[::1"])
+def test_unusable_scheduler_address_is_one_line_and_quiet_at_exit(tmp_path, sweep_file, address):
+    """tls:// without dask's TLS set-up and ucx:// without UCX raised TypeError (a traceback);
+    after any failed connection the half-made client's __del__ printed another at exit, 10 s
+    later. In a process of its own: stderr is one line, at once."""
+    script = "import sys; from cosserat_channel import cli; sys.exit(cli.main(sys.argv[1:]))"
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", script, "run", str(sweep_file), "-o",
+                           str(tmp_path / "out.nc"), "--scheduler", address],
+                          capture_output=True, text=True, timeout=120, env=package_env())
+    assert proc.returncode == 2, proc.stderr
+    assert "scheduler:" in one_line_error(proc.stderr)
+    assert proc.stderr.count("\n") == 1, proc.stderr
+    assert time.perf_counter() - t0 < engine.CONNECT_TIMEOUT + 15  # a loaded machine included
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+class SubprocessCluster:
+    """A dask scheduler and nanny-managed workers, each a process of its own started here (so
+    that the test can kill them like a batch system or a crash does), on the loopback address."""
+
+    def __init__(self, tmp_path, n_workers):
+        import json
+
+        env = package_env()
+        file = tmp_path / "scheduler.json"
+        quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        self.scheduler = subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+             "--port", "0", "--no-dashboard", "--scheduler-file", str(file)], **quiet)
+        self.nannies = []
+        try:
+            deadline = time.monotonic() + 60
+            while not (file.exists() and file.stat().st_size):
+                assert time.monotonic() < deadline, "the scheduler did not start"
+                time.sleep(0.1)
+            self.address = json.loads(file.read_text())["address"]
+            self.nannies = [subprocess.Popen(
+                [sys.executable, "-m", "distributed.cli.dask_worker", self.address, "--host",
+                 "127.0.0.1", "--nthreads", "1", "--no-dashboard"], **quiet)
+                for _ in range(n_workers)]
+            from dask.distributed import Client
+
+            with Client(self.address, timeout=30) as client:
+                client.wait_for_workers(n_workers, timeout=120)
+                self.workers = set(client.run(os.getpid).values())
+        except BaseException:
+            self.close()
+            raise
+
+    def kill_workers(self) -> None:
+        """SIGKILL every nanny, then every worker: nothing is left to start them again."""
+        for proc in self.nannies:
+            proc.kill()
+            proc.wait()
+        for pid in self.workers:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    def close(self) -> None:
+        for proc in [*self.nannies, self.scheduler]:
+            proc.kill()
+            proc.wait()
+        for pid in getattr(self, "workers", ()):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+@pytest.fixture
+def subprocess_cluster(tmp_path):
+    pytest.importorskip("dask.distributed")
+    clusters = []
+
+    def start(n_workers):
+        clusters.append(SubprocessCluster(tmp_path, n_workers))
+        return clusters[-1]
+
+    yield start
+    for c in clusters:
+        c.close()
+
+
+def test_scheduler_killed_mid_run_is_one_line(tmp_path, sweep_file, subprocess_cluster):
+    """The scheduler killed mid-run: some thirty lines of distributed.client's tracebacks came
+    before the run's own line. The run's stderr is its own lines alone."""
+    cluster = subprocess_cluster(1)
+    out = tmp_path / "out.nc"
+    proc, marker, release = harness(tmp_path, "block:1", "run", sweep_file, "-o", out,
+                                    "--scheduler", cluster.address, "--block-size", "1")
+    wait_for(proc, marker)
+    cluster.scheduler.kill()
+    cluster.scheduler.wait()
+    time.sleep(1)
+    release.touch()
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 1, stderr
+    assert "lost the dask scheduler" in one_line_error(stderr)
+    assert all(line.startswith("cosserat-channel: ") for line in stderr.splitlines()), stderr
+    assert list(Path(partial_dir(out)).glob("block_*.npz"))
+
+
 # ---------------------------------------------------------------------------------------------
 # Bad input (issue 13, items 4 and 8-12)
 # ---------------------------------------------------------------------------------------------
@@ -576,6 +759,49 @@ def test_tiny_eps_L_in_a_sweep_is_refused_without_numpy_warnings():
         warnings.simplefilter("error")
         Plan({d: np.atleast_1d(np.asarray(v, dtype=float)) for d, v in grid.items()})
     assert ETA_MIN <= 1e-12
+
+
+BIG = "1" + "0" * 400  # a TOML integer (unbounded) above the largest float, about 1.8e308
+
+
+@pytest.mark.parametrize("eps", [BIG, f"[0.1, {BIG}]", f"{{linspace = [0.1, {BIG}, 3]}}",
+                                 f"{{logspace = [-3, {BIG}, 3]}}"])
+def test_a_toml_integer_beyond_the_largest_float_is_one_line(tmp_path, capsys, eps):
+    """float() of such an integer raised OverflowError out of load_sweep."""
+    path = tmp_path / "big.toml"
+    path.write_text(f"[grid]\neps = {eps}\nL = 10\nK = 0.5\nA = 1.0\nN = 1.0\n")
+    with pytest.raises(SweepError, match=r"grid\.eps.*beyond the largest float"):
+        load_sweep(str(path))
+    assert cli.main(["run", str(path), "-o", str(tmp_path / "big.nc")]) == 2
+    assert "beyond the largest float" in one_line_error(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.toml"]
+
+
+@pytest.mark.parametrize("argv, written", [
+    (["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1"], None),
+    (["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1", "--plot",
+      "p.png"], "p.png"),
+    (["boundary", "--A", "0.3333333333333333", "--N", "1", "--coarse", "8", "-o", "b.nc"],
+     "b.nc"),
+])
+def test_a_reader_that_leaves_early_is_one_line_and_keeps_the_files(tmp_path, argv, written):
+    """'point ... | head -1': BrokenPipeError, a traceback, and 'boundary' printed before writing
+    its traced file, so the file was lost. The pipe is closed before anything is printed."""
+    script = "import sys; from cosserat_channel import cli; sys.exit(cli.main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", script, *argv], cwd=tmp_path,
+                            env=package_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    proc.stdout.close()  # the reader is gone before the command prints
+    stderr = proc.stderr.read()
+    proc.wait(timeout=300)
+    assert proc.returncode == 1, stderr
+    assert "broken pipe" in one_line_error(stderr)
+    assert stderr.count("\n") == 1 and "Exception ignored" not in stderr, stderr
+    if written == "b.nc":
+        with xr.open_dataset(tmp_path / written) as f:
+            assert np.isfinite(f["eta_max"].values).all()
+    elif written:
+        assert (tmp_path / written).read_bytes().startswith(b"\x89PNG")
 
 
 def test_info_and_query_on_a_string_coordinate(tmp_path, capsys):

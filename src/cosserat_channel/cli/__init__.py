@@ -156,12 +156,29 @@ def main(argv=None) -> int:
     """Run the command line on ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     try:
         args = build_parser().parse_args(argv)
-        return args._run(args)
+        code = args._run(args)
+        sys.stdout.flush()  # a reader gone (``| head -1``) shows here, not at the interpreter's exit
+        return code
     except _ParserExit as exc:
         return exc.code
     except CliError as exc:
         _error(str(exc))
         return exc.code
+    except BrokenPipeError:
+        _stdout_to_devnull()
+        _error("standard output was closed before everything was printed (broken pipe)")
+        return EXIT_FAILURE
+
+
+def _stdout_to_devnull() -> None:
+    """Point standard output at /dev/null, so that the interpreter's last flush of what is still
+    buffered does not fail again (a second BrokenPipeError, printed at exit)."""
+    try:
+        fd = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(fd, sys.stdout.fileno())
+        os.close(fd)
+    except (OSError, ValueError):  # no file descriptor (an in-memory stream): nothing to do
+        pass
 
 
 def _error(message: str) -> None:

@@ -112,8 +112,9 @@ def _run_command(args: argparse.Namespace) -> int:
                 warm_up()
         logger.addHandler(handler)
         logger.setLevel(logging.INFO)
-        run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                  reduce=args.reduce, block_size=args.block_size).close()
+        with _quiet_distributed(args.scheduler is not None):
+            run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
+                      reduce=args.reduce, block_size=args.block_size).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:
@@ -140,6 +141,27 @@ def _run_command(args: argparse.Namespace) -> int:
     finally:
         logger.removeHandler(handler)
     return EXIT_OK
+
+
+@contextlib.contextmanager
+def _quiet_distributed(active: bool):
+    """Within: dask.distributed's client-side log lines off (a lost scheduler printed some thirty
+    lines of tracebacks before the run's own line, which says what happened and what is kept)."""
+    if not active:
+        yield
+        return
+    import distributed  # noqa: F401 (its logging set-up runs on import: override it after)
+
+    names = {"distributed", "tornado", "asyncio"} | {
+        n for n in logging.Logger.manager.loggerDict if n.split(".")[0] in ("distributed", "tornado")}
+    saved = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for n, level in saved.items():
+            logging.getLogger(n).setLevel(level)
 
 
 def _finished_result_kept(output: str, spec) -> bool:
@@ -243,6 +265,8 @@ def _query(args: argparse.Namespace) -> int:
                 render.write_text(args.output, writer)
             else:
                 sys.stdout.write(render.render(picked, args.format))
+        except BrokenPipeError:
+            raise  # the reader left (| head): nothing to tell from the file (see main)
         except (OSError, RuntimeError) as exc:
             raise _read_or_write_failure(exc, args.results, ds, args.output) from None
     finally:

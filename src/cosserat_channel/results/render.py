@@ -82,11 +82,17 @@ def _load_box(selection: Selection, names: list[str]) -> xr.Dataset:
 
 
 def _python(x):
+    """A value as JSON, CSV and the table take it: float, int, bool or str (a date, bytes or
+    anything else of a foreign file as its text)."""
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
     if isinstance(x, (np.floating, float)):
         return float(x)
     if isinstance(x, (np.integer, int)):
         return int(x)
-    return x
+    if isinstance(x, bytes):
+        return x.decode("utf-8", "backslashreplace")
+    return x if isinstance(x, str) else str(x)
 
 
 def _text(x) -> str:

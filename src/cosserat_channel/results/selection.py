@@ -88,10 +88,12 @@ def open_results(path) -> xr.Dataset:
 
     try:
         ds = xr.open_dataset(path, chunks={})
-    # Any file can arrive here; the backends raise several types for "not NetCDF".
-    except (OSError, ValueError, RuntimeError, TypeError, KeyError) as exc:
+    # Any file can arrive here; the backends raise several types for "not NetCDF", and netCDF4
+    # an AttributeError for an attribute HDF5 cannot read (a damaged header).
+    except OPEN_ERRORS as exc:
         reason = (isinstance(exc, OSError) and exc.strerror) or (
-            "damaged, or not NetCDF" if type(exc) is RuntimeError else "not NetCDF")
+            "damaged, or not NetCDF" if type(exc) in (RuntimeError, AttributeError)
+            else "not NetCDF")
         raise QueryError(f"{path}: cannot open as a NetCDF result file ({reason})") from None
     if "status" not in ds.data_vars or not _is_flag(ds["status"]):
         ds.close()
@@ -99,7 +101,16 @@ def open_results(path) -> xr.Dataset:
             f"{path}: not a cosserat-channel result file (no 'status' variable with "
             "flag_values/flag_meanings)"
         )
+    try:
+        check_flags(ds)
+    except QueryError as exc:
+        ds.close()
+        raise QueryError(f"{path}: {exc}") from None
     return ds
+
+
+# What opening an arbitrary file with xarray or netCDF4 raises when it is not a readable NetCDF.
+OPEN_ERRORS = (OSError, ValueError, RuntimeError, TypeError, KeyError, AttributeError)
 
 
 def read_problem(ds: xr.Dataset) -> str | None:
@@ -124,10 +135,25 @@ def _is_flag(da: xr.DataArray) -> bool:
 
 
 def flag_names(da: xr.DataArray) -> dict[str, int]:
-    """``{flag name: value}`` of a CF flag variable."""
-    values = np.atleast_1d(np.asarray(da.attrs["flag_values"])).tolist()
+    """``{flag name: value}`` of a CF flag variable; QueryError unless its ``flag_values`` are
+    integers, one per name of its ``flag_meanings``."""
+    values = np.atleast_1d(np.asarray(da.attrs["flag_values"]))
     names = str(da.attrs["flag_meanings"]).split()
-    return dict(zip(names, (int(v) for v in values)))
+    whole = values.dtype.kind in "iu" or (
+        values.dtype.kind == "f" and bool(np.all(np.isfinite(values)))
+        and bool(np.all(values == np.round(values))))
+    if values.ndim != 1 or not whole or values.size != len(names):
+        raise QueryError(f"variable {da.name!r}: flag_values "
+                         f"{_show(values.tolist(), 40)} are not {len(names)} integers, one per "
+                         "name of flag_meanings (a damaged or foreign file)")
+    return dict(zip(names, (int(v) for v in values.tolist())))
+
+
+def check_flags(ds: xr.Dataset) -> None:
+    """QueryError naming the first flag variable of ``ds`` whose flags are unusable."""
+    for name in ds.data_vars:
+        if _is_flag(ds[name]):
+            flag_names(ds[name])
 
 
 # ---------------------------------------------------------------------------------------------

@@ -379,13 +379,31 @@ def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
     if not isinstance(address, str) or not _ADDRESS.match(address):
         raise SweepError(f"scheduler: {scheduler!r} is not a dask scheduler address; expected "
                          "e.g. tcp://host:8786")
+    client = Client.__new__(Client)
     try:
-        return Client(address, timeout=timeout, set_as_default=False), True
-    except (OSError, TimeoutError, ValueError) as exc:
+        client.__init__(address, timeout=timeout, set_as_default=False)
+        return client, True
+    # Whatever the comm layer raises for an address it cannot use: TypeError for tls:// without
+    # dask's TLS configuration, for ucx:// without UCX, ValueError for a malformed host.
+    except Exception as exc:  # noqa: BLE001
+        _discard(client)
         reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise SweepError(f"scheduler: no dask scheduler answers at {address!r} within "
-                         f"{timeout:g} s ({reason}); start one (dask scheduler) or check the "
-                         "address") from None
+        if isinstance(exc, (OSError, TimeoutError)):
+            raise SweepError(f"scheduler: no dask scheduler answers at {address!r} within "
+                             f"{timeout:g} s ({reason}); start one (dask scheduler) or check "
+                             "the address") from None
+        raise SweepError(f"scheduler: cannot connect to {address!r} ({reason}); check the "
+                         "address and its protocol (tcp:// needs no set-up)") from None
+
+
+def _discard(client) -> None:
+    """Stop a client whose constructor failed. Left alone, its ``__del__`` waits for a
+    connection that never came (10 s at exit) and prints a traceback."""
+    try:
+        client.status = "closed"  # close() and __del__ then have nothing to do
+        client._loop_runner.stop()
+    except Exception:  # noqa: BLE001 (failed before these existed: nothing to stop)
+        pass
 
 
 def _solve_remote(inp: BlockInputs, args) -> dict:

@@ -258,18 +258,28 @@ def _axis_count(value, key: str) -> int:
 def _axis_values(value, key: str) -> np.ndarray:
     """The axis as float64 in file order (shape already checked by :func:`_axis_count`)."""
     if _is_number(value):
-        out = np.array([float(value)])
+        out = np.array([_float(value, key)])
     elif isinstance(value, Mapping):
         form, (start, stop, num) = next(iter(value.items()))
         for name, x in (("start", start), ("stop", stop)):
-            if not math.isfinite(float(x)):
+            if not math.isfinite(_float(x, f"{key}: {form} {name}")):
                 raise SweepError(f"{key}: {form} {name} must be finite; got {_show(x)}")
         fn = np.linspace if form == "linspace" else np.logspace
         with np.errstate(over="ignore"):
             out = fn(float(start), float(stop), int(num))
     else:
-        out = np.array([float(v) for v in value], dtype=np.float64)
+        out = np.array([_float(v, f"{key}[{i}]") for i, v in enumerate(value)], dtype=np.float64)
     return np.ascontiguousarray(out, dtype=np.float64)
+
+
+def _float(x, key: str) -> float:
+    """``float(x)``; SweepError for an integer beyond the largest float (TOML integers are
+    unbounded; float() raises OverflowError above about 1.8e308)."""
+    try:
+        return float(x)
+    except OverflowError:
+        raise SweepError(f"{key}: {_show(x, 24)} is beyond the largest float (about "
+                         "1.8e308)") from None
 
 
 def _material(material: Mapping | None) -> dict | None:

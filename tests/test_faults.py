@@ -472,6 +472,50 @@ def test_time_units_on_a_coordinate_give_text_in_json(tmp_path, result_file, cap
     assert capsys.readouterr().out.count("2000-01-01T") == len(rows)
 
 
+def write_huge(path: Path, shape, chunks=None) -> None:
+    """A file declaring a grid of ``shape`` with its coordinates and no values written."""
+    import netCDF4
+
+    with netCDF4.Dataset(path, "w") as nc:
+        nc.source = "cosserat-channel run"
+        for d, n in zip(("eps", "L", "K", "A", "N"), shape):
+            nc.createDimension(d, n)
+            nc.createVariable(d, "f8", (d,))[:] = np.linspace(0.01, 0.1, n)
+        dims = ("eps", "L", "K", "A", "N")
+        nc.createVariable("status", "i1", dims, chunksizes=chunks).setncatts(st.cf_flag_attrs())
+        nc.createVariable("Delta", "f8", dims, chunksizes=chunks)
+
+
+@pytest.mark.parametrize("shape, chunks", [
+    ((100_000, 1_000, 10, 10, 10), None),  # 10^11 points, contiguous
+    ((10_000, 1_000, 10, 1, 1), None),  # 10^8 points, contiguous: 800 MB in one piece
+    ((10_000, 1_000, 10, 10, 1), (10, 10, 10, 10, 1)),  # 10^9 points, in unwritten chunks
+])
+def test_a_huge_declared_grid_is_refused_before_reading(tmp_path, shape, chunks):
+    """An 827 kB file declaring a 10^13-point grid took 5 GB in info and 11 GB in query: the
+    declared sizes are checked against the file before anything is read. Under a 3 GB address
+    space limit every command answers in one line, at once."""
+    path = tmp_path / "huge.nc"
+    write_huge(path, shape, chunks)
+    assert path.stat().st_size < 1_000_000
+
+    def limits():
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+    script = "import sys; from cosserat_channel import cli; sys.exit(cli.main(sys.argv[1:]))"
+    for argv in (["info", path], ["query", path], ["query", path, "--sel", "eps=0.01"],
+                 ["query", path, "--where", "Delta > 1"],
+                 ["plot", path, "--x", "eps", "--y", "Delta", "-o", tmp_path / "p.png"]):
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-c", script, *map(str, argv)], capture_output=True,
+                              text=True, preexec_fn=limits, timeout=300, env=package_env())
+        assert proc.returncode == 2, (argv, proc.stderr[-2000:])
+        line = one_line_error(proc.stderr)
+        assert "nothing read" in line, line
+        assert time.perf_counter() - t0 < 60
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["huge.nc"]
+
+
 def test_query_closes_the_light_reader_before_rereading(tmp_path, result_file, monkeypatch,
                                                         capsys):
     """A small query reads through netCDF4 alone; when that fails on a damaged file, the file is

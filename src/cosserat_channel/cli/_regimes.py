@@ -286,8 +286,12 @@ def _open_whole(path):
     """
     import xarray as xr
 
-    from ..results.selection import OPEN_ERRORS, QueryError, check_flags
+    from ..results.selection import OPEN_ERRORS, QueryError, check_flags, check_storage
 
+    try:
+        check_storage(path)  # it is read whole: its declared sizes first
+    except QueryError as exc:
+        raise CliError(str(exc)) from None
     try:
         ds = xr.open_dataset(path)
     except OPEN_ERRORS:

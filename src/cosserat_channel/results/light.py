@@ -13,7 +13,7 @@ import numpy as np
 
 
 from .render import _python
-from .selection import _OPS, Selection, _is_flag, check_flags, flag_names
+from .selection import _OPS, Selection, _is_flag, check_flags, flag_names, storage_problem
 
 class _LightVariable:
     """What parsing and selecting read of a variable: dims, attrs, dtype, shape, values."""
@@ -157,7 +157,10 @@ def open_light(path) -> LightFile | None:
         if getattr(nc, "source", None) != "cosserat-channel run" or nc.groups or \
                 "status" not in f.data_vars or not _is_flag(f["status"]):
             raise LookupError
-        check_flags(f)  # a QueryError (a ValueError): open_results then says what is wrong
+        # A QueryError (a ValueError): open_results then says what is wrong.
+        if storage_problem(nc, path):
+            raise LookupError
+        check_flags(f)
         order = {d: i for i, d in enumerate(f.dims)}
         for var in nc.variables.values():
             attrs = var.ncattrs()

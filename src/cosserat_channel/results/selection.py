@@ -77,13 +77,90 @@ class QueryError(ParameterError):
 # ---------------------------------------------------------------------------------------------
 # Opening
 # ---------------------------------------------------------------------------------------------
+# What a file's metadata may declare before anything is read (see storage_problem): the pieces a
+# variable is read in (HDF5 chunks, or the whole of a contiguous variable) and their size. A
+# result of 'run' has 1 MiB chunks, about 10^5 per variable at the largest grid a sweep allows.
+MAX_PIECES = 1_000_000
+MAX_PIECE_BYTES = 64 << 20
+# Bytes a written HDF5 chunk takes at the least (its index entry and one byte of data): a file
+# holds at least this much per chunk of every variable, and a contiguous variable whole.
+MIN_CHUNK_BYTES = 8
+
+
+def storage_problem(nc, path: str) -> str | None:
+    """Why the sizes that the open ``netCDF4.Dataset`` ``nc`` declares cannot be read, from its
+    metadata alone (None when they can).
+
+    A reader trusts the declared shapes: a crafted file of a few hundred kB declaring a 10^13-point
+    grid made counting its statuses allocate gigabytes. Refused: a grid (``status``) of more
+    points than a sweep may hold (:data:`~cosserat_channel.parameters.MAX_GRID_POINTS`), a
+    variable that would be read in more than :data:`MAX_PIECES` pieces or in a piece above
+    :data:`MAX_PIECE_BYTES`, and a file smaller than its variables take once written (unwritten
+    chunks take no space).
+    """
+    from ..parameters import MAX_GRID_POINTS
+
+    status = nc.variables.get("status")
+    if status is not None and math.prod(status.shape) > MAX_GRID_POINTS:
+        return (f"'status' declares {math.prod(status.shape):,} points, more than the "
+                f"{MAX_GRID_POINTS:,} a sweep may hold: not a result of 'run'; nothing read")
+    least, size = 0, os.path.getsize(path)
+    for name, var in nc.variables.items():
+        n = math.prod(var.shape)
+        if n == 0:
+            continue
+        itemsize = getattr(var.dtype, "itemsize", 0) or 8
+        chunks = var.chunking()
+        if chunks == "contiguous":
+            pieces, piece = 1, n * itemsize
+            least += piece
+        else:
+            pieces = math.prod(-(-d // c) for d, c in zip(var.shape, chunks))
+            piece = math.prod(chunks) * itemsize
+            least += pieces * MIN_CHUNK_BYTES
+        shape = " x ".join(map(str, var.shape))
+        if pieces > MAX_PIECES:
+            return (f"variable {name!r} ({shape}) is stored in {pieces:,} chunks, more than "
+                    f"{MAX_PIECES:,}: not a result of 'run'; nothing read")
+        if piece > MAX_PIECE_BYTES:
+            return (f"variable {name!r} ({shape}) would be read in pieces of {piece:,} bytes, "
+                    f"more than {MAX_PIECE_BYTES:,}: not a result of 'run'; nothing read")
+    if least > size:
+        return (f"the file is {size:,} bytes but its variables take at least {least:,} once "
+                "written (their shapes are larger than what it holds): truncated, damaged or "
+                "crafted; nothing read")
+    return None
+
+
+def check_storage(path) -> None:
+    """QueryError (naming ``path``) when :func:`storage_problem` finds one; a file that netCDF4
+    cannot open passes (its opener says what is wrong with it)."""
+    import netCDF4
+
+    path = os.fspath(path)
+    try:
+        nc = netCDF4.Dataset(path)
+    except OPEN_ERRORS:
+        return
+    try:
+        problem = storage_problem(nc, path)
+    except OPEN_ERRORS:
+        problem = None
+    finally:
+        nc.close()
+    if problem:
+        raise QueryError(f"{path}: {problem}")
+
+
 def open_results(path) -> xr.Dataset:
-    """Open a result file lazily (dask-backed); QueryError unless it is one of our result files."""
+    """Open a result file lazily (dask-backed); QueryError unless it is one of our result files
+    and its declared sizes can be read (:func:`storage_problem`)."""
     path = os.fspath(path)
     if not os.path.exists(path):
         raise QueryError(f"{path}: no such file")
     if os.path.isdir(path):
         raise QueryError(f"{path}: is a directory, not a result file")
+    check_storage(path)  # closed again before xarray opens the file: one reader at a time
     import xarray as xr
 
     try:

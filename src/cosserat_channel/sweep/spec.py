@@ -51,6 +51,7 @@ from ..parameters import (
     DEFAULT_RTOL,
     DIMS,
     MATERIAL,
+    MAX_GRID_POINTS,
     ParameterError,
     check_material,
     check_eta,
@@ -62,7 +63,7 @@ from ..parameters import (
 # .writer), so memory does not grow with the grid, and the real limit is the free disk space,
 # which :func:`.engine.run_sweep` checks before computing. Beyond this the plan's per-triple
 # arrays (one entry per distinct (eps L, A, N)) would outgrow a single machine's memory.
-MAX_POINTS = 10_000_000_000
+MAX_POINTS = MAX_GRID_POINTS
 PROFILE_POINTS_RANGE = (2, 10001)
 
 TABLES = ("grid", "material", "solver", "output")

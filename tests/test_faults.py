@@ -405,6 +405,46 @@ def damaged_chunk(result_file, tmp_path, name="sigma_yx_wall") -> Path:
     return path
 
 
+def test_info_reads_what_it_describes(tmp_path, result_file, monkeypatch, capsys):
+    """info read only 'status', and called a file with a damaged variable healthy. It now reads
+    the variables through (up to CHECK_BYTES of values, saying which it did not read)."""
+    from cosserat_channel.results import describe
+
+    assert cli.main(["info", str(result_file)]) == 0
+    assert "checked  every variable read through without error" in capsys.readouterr().out
+    bad = damaged_chunk(result_file, tmp_path)
+    assert cli.main(["info", str(bad)]) == 1
+    line = one_line_error(capsys.readouterr().err)
+    assert "damaged" in line and "'sigma_yx_wall'" in line
+    # With a budget too small for the damaged variable, info says that it did not read it.
+    monkeypatch.setattr(describe, "CHECK_BYTES", 600)
+    assert cli.main(["info", str(bad)]) == 0
+    out = capsys.readouterr().out
+    checked = next(line for line in out.splitlines() if line.startswith("checked"))
+    assert "all but" in checked and "sigma_yx_wall" in checked and "--check-all" in checked
+    assert cli.main(["info", str(bad), "--check-all"]) == 1
+    assert "'sigma_yx_wall'" in one_line_error(capsys.readouterr().err)
+
+
+def test_info_escapes_control_characters_from_the_file(tmp_path, result_file, capsys):
+    """Attribute text went to the terminal raw: escape sequences in a file (a title change, a
+    cleared screen, a bell) acted on it. They are shown escaped."""
+    import netCDF4
+
+    path = copy_of(result_file, tmp_path)
+    evil = "\x1b]0;owned\x07\x1b[2J\r\u202e"
+    with netCDF4.Dataset(path, "a") as nc:
+        nc["Delta"].long_name = "shear layer" + evil
+        nc["eps"].units = "1" + evil
+        nc.created = "2026" + evil
+        nc.sweep_toml = nc.sweep_toml + "\n# " + evil
+    assert cli.main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert not any(c in out for c in "\x1b\x07\r\u202e")
+    assert "shear layer\\x1b]0;owned\\x07\\x1b[2J\\r\\u202e" in out
+    assert out.count("owned") == 4  # every attribute shown, escaped
+
+
 def test_damaged_global_attributes_are_one_line(tmp_path, result_file, capsys):
     """A bit flipped in the global attributes made netCDF4 raise AttributeError ("Can't open HDF5
     attribute"), a traceback out of info, query and plot."""

@@ -182,11 +182,19 @@ def _stdout_to_devnull() -> None:
 
 
 def _error(message: str) -> None:
-    print(f"{PROG}: error: {' '.join(message.split())}", file=sys.stderr)
+    print(f"{PROG}: error: {_one_line(message)}", file=sys.stderr)
 
 
 def _note(message: str) -> None:
-    print(f"{PROG}: note: {' '.join(message.split())}", file=sys.stderr)
+    print(f"{PROG}: note: {_one_line(message)}", file=sys.stderr)
+
+
+def _one_line(message: str) -> str:
+    """``message`` on one line, with what a terminal would obey (a file's names and attributes
+    quoted in it) escaped."""
+    from ..results.selection import printable
+
+    return printable(" ".join(str(message).split()))
 
 
 HEARTBEAT = 60.0  # seconds between Progress's lines when stderr is not a terminal

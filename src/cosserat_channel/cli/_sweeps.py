@@ -276,16 +276,23 @@ def _query(args: argparse.Namespace) -> int:
 
 def _info_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", metavar="OUT.nc", help="a result file written by 'run'")
+    p.add_argument("--check-all", action="store_true",
+                   help="read every variable through to verify it (default: up to 1 GB of "
+                   "values; the report names what was not read)")
 
 
-@register("info", "describe a result file: dimensions, variables, status counts, provenance",
-          _info_arguments)
+@register("info", "describe a result file and verify it: dimensions, variables, status counts, "
+          "provenance", _info_arguments)
 def _info(args: argparse.Namespace) -> int:
     from ..results import describe
     ds = open_results(args.results)
     try:
+        # What is described is read first: a damaged file is reported as such, not described.
+        problem, skipped = describe.verify(ds, None if args.check_all else describe.CHECK_BYTES)
+        if problem:
+            raise CliError(f"{args.results}: {problem}", EXIT_FAILURE)
         try:
-            text = describe.describe(ds, args.results)
+            text = describe.describe(ds, args.results, skipped)
         except (OSError, RuntimeError) as exc:
             raise _read_or_write_failure(exc, args.results, ds, None) from None
         sys.stdout.write(text)

@@ -190,14 +190,16 @@ def open_results(path) -> xr.Dataset:
 OPEN_ERRORS = (OSError, ValueError, RuntimeError, TypeError, KeyError, AttributeError)
 
 
-def read_problem(ds: xr.Dataset) -> str | None:
-    """Read every variable of ``ds`` through (in chunks) and say which one cannot be read, if any.
+def read_problem(ds: xr.Dataset, names=None) -> str | None:
+    """Read every variable of ``ds`` (or those in ``names``) through, in chunks, and say which one
+    cannot be read, if any.
 
     Result files carry HDF5 Fletcher-32 checksums (:func:`sweep.dataset.encoding`): a damaged
     chunk fails to read (netCDF4: ``RuntimeError: NetCDF: HDF error``) instead of returning
-    changed numbers. Used to tell such a file from a failure to write the output.
+    changed numbers. Used to tell such a file from a failure to write the output, and by
+    ``info`` to verify what it describes.
     """
-    for name in [*ds.coords, *ds.data_vars]:
+    for name in [*ds.coords, *ds.data_vars] if names is None else names:
         try:
             ds[name].count().compute()
         except (OSError, RuntimeError, ValueError) as exc:
@@ -263,8 +265,19 @@ def _check_coordinate(name: str, ds: xr.Dataset, option: str) -> None:
 
 
 def _show(x, limit: int = 24) -> str:
-    s = str(x)
+    s = printable(str(x))
     return s if len(s) <= limit else s[: limit - 1] + "…"
+
+
+def printable(text: str) -> str:
+    """``text`` with every character a terminal would act on (escape sequences, carriage
+    returns, bidirectional overrides, ...) written as its escape, e.g. ``\\x1b``: text read
+    from a file is shown, never obeyed."""
+    text = str(text)
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                   for c in text)
 
 
 def _float(text: str, what: str) -> float:

@@ -747,6 +747,38 @@ def subprocess_cluster(tmp_path):
         c.close()
 
 
+def test_every_worker_and_nanny_killed_ends_in_one_line(tmp_path, sweep_file, reference,
+                                                        monkeypatch, capsys, subprocess_cluster):
+    """All workers killed with their nannies mid-run: the tasks waited for ever and 'run' hung,
+    silent. A cluster without a worker for --no-workers-timeout seconds ends the run: one line,
+    exit 1, the finished blocks kept; the same command resumes (here, without a cluster)."""
+    cluster = subprocess_cluster(2)
+    orig = engine.WorkStore.put
+    killed = []
+
+    def put(self, k, result):  # the first block home: every worker and nanny goes
+        orig(self, k, result)
+        if not killed:
+            cluster.kill_workers()
+            killed.append(k)
+
+    monkeypatch.setattr(engine.WorkStore, "put", put)
+    out = tmp_path / "out.nc"
+    t0 = time.perf_counter()
+    code = cli.main(["run", str(sweep_file), "-o", str(out), "--scheduler", cluster.address,
+                     "--no-workers-timeout", "3", "--workers", "1", "--block-size", "1"])
+    assert code == 1 and killed
+    assert time.perf_counter() - t0 < 60
+    line = one_line_error(capsys.readouterr().err)
+    assert "has had no worker for 3 s" in line and "rerun the same command to resume" in line
+    kept = len(list(Path(partial_dir(out)).glob("block_*.npz")))
+    assert 1 <= kept < 28 and not out.exists()  # 28 blocks of one integration
+    monkeypatch.setattr(engine.WorkStore, "put", orig)
+    assert cli.main(["run", str(sweep_file), "-o", str(out), "--workers", "1"]) == 0
+    assert f"{kept} done before" in capsys.readouterr().err
+    assert_identical(out, reference)
+
+
 def test_scheduler_killed_mid_run_is_one_line(tmp_path, sweep_file, subprocess_cluster):
     """The scheduler killed mid-run: some thirty lines of distributed.client's tracebacks came
     before the run's own line. The run's stderr is its own lines alone."""

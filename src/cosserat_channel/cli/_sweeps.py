@@ -37,6 +37,9 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the blocks on this dask.distributed scheduler, e.g. tcp://host:8786 "
                    "(checked before anything is written; see README, 'sweeps on a cluster')")
+    p.add_argument("--no-workers-timeout", type=float, metavar="SECONDS",
+                   help="with --scheduler: end the run (blocks kept) when the cluster has had no "
+                   "worker for this long (default 120)")
     p.add_argument("--no-reduce", dest="reduce", action="store_false",
                    help="one integration per grid point instead of per distinct (eps L, A, N); "
                    "same values, for checks and benchmarks")
@@ -81,6 +84,9 @@ def _run_command(args: argparse.Namespace) -> int:
     for flag, value in (("--workers", args.workers), ("--block-size", args.block_size)):
         if value is not None and value < 1:
             raise CliError(f"{flag} must be a positive integer; got {value}")
+    if args.no_workers_timeout is not None and not 0 < args.no_workers_timeout < math.inf:
+        raise CliError(f"--no-workers-timeout must be a positive number of seconds; got "
+                       f"{args.no_workers_timeout:g}")
 
     from ..sweep import run_sweep
     from ..sweep.spec import SweepError, load_sweep
@@ -114,7 +120,8 @@ def _run_command(args: argparse.Namespace) -> int:
         logger.setLevel(logging.INFO)
         with _quiet_distributed(args.scheduler is not None):
             run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                      reduce=args.reduce, block_size=args.block_size).close()
+                      reduce=args.reduce, block_size=args.block_size,
+                      no_workers_timeout=args.no_workers_timeout).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import os
 import re
 import sys
@@ -45,17 +46,21 @@ from .writer import BUCKET, StreamWriter, Tiles
 
 # Seconds to wait for a scheduler to answer before the run is refused (nothing created yet).
 CONNECT_TIMEOUT = 5.0
+# Seconds a cluster may have no worker at all before the run ends (SchedulerLost): long enough
+# for a nanny or a batch system to bring lost workers back, short enough not to look hung.
+NO_WORKERS_TIMEOUT = 120.0
 _ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
 
 
 class SchedulerLost(RuntimeError):
-    """The dask scheduler went away mid-run; the finished blocks are kept in the store."""
+    """The dask cluster can no longer run the blocks: its scheduler went away mid-run, or it has
+    had no worker for ``no_workers_timeout`` seconds. The finished blocks are kept in the store."""
 
 log = logging.getLogger("cosserat_channel.sweep")
 
 
 def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, reduce=True,
-              block_size=None, progress=None, compress=True):
+              block_size=None, progress=None, compress=True, no_workers_timeout=None):
     """Solve every point of a sweep and return the labelled result (and write it to NetCDF).
 
     Parameters
@@ -80,6 +85,9 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     compress : bool or str
         Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level -1),
         ``"zlib"`` (level 1, for readers without netCDF-C's zstd filter), or False.
+    no_workers_timeout : float, optional
+        With ``scheduler``: seconds the cluster may have no worker before the run ends with
+        :class:`SchedulerLost` (default :data:`NO_WORKERS_TIMEOUT`).
 
     Returns
     -------
@@ -106,6 +114,11 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     n_workers = int(workers or os.cpu_count() or 1)
     if compress not in (True, False, "zstd", "zlib"):
         raise SweepError(f"compress must be True, False, 'zstd' or 'zlib'; got {compress!r}")
+    if no_workers_timeout is None:
+        no_workers_timeout = NO_WORKERS_TIMEOUT
+    if not 0 < no_workers_timeout < math.inf:
+        raise SweepError(f"no_workers_timeout must be a positive number of seconds; got "
+                         f"{no_workers_timeout!r}")
     xi = _profile_xi(spec)
     try:
         plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers,
@@ -123,7 +136,7 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
                                given_block_size=block_size is not None)
         try:
             ds, times = _run(spec, plan, store, xi, output, client, n_workers, reduce,
-                             progress, compress)
+                             progress, compress, no_workers_timeout)
         finally:
             store.close()
     finally:
@@ -145,7 +158,8 @@ def _tile(spec, xi, output):
     return None if output is None else Tiles(spec.shape, 0 if xi is None else xi.size).tile
 
 
-def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, compress):
+def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, compress,
+         no_workers_timeout=NO_WORKERS_TIMEOUT):
     """Solve what the store lacks, writing the file as groups complete, then finish it; returns
     (Dataset or None, (solve s, blocks computed, assemble and write s))."""
     if store.manifest["block_size"] != plan.block_size:
@@ -192,7 +206,8 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
             if client is None:
                 _run_threads(plan, todo, store, args, n_workers, progress, writer, cpu)
             else:
-                _run_distributed(plan, todo, store, args, client, progress, writer)
+                _run_distributed(plan, todo, store, args, client, progress, writer,
+                                 no_workers_timeout)
         t1 = time.perf_counter()
         during = 0 if writer is None else writer.tiles_written
         ds = assemble(spec, plan, store, xi, recompute=recompute, output=output,
@@ -410,13 +425,15 @@ def _solve_remote(inp: BlockInputs, args) -> dict:
     return solve_block(inp, *args)
 
 
-def _run_distributed(plan, todo, store, args, client, progress, writer=None) -> None:
+def _run_distributed(plan, todo, store, args, client, progress, writer=None,
+                     no_workers_timeout=NO_WORKERS_TIMEOUT) -> None:
     from dask.distributed import CancelledError, KilledWorker
 
     address = client.scheduler.address
     try:
         with client.as_current():  # as_completed and the progress bar find it
-            _submit_and_store(plan, todo, store, args, client, progress, writer)
+            _submit_and_store(plan, todo, store, args, client, progress, writer,
+                              _WorkerWatch(client, no_workers_timeout))
     except KilledWorker as exc:
         raise SchedulerLost(f"a block killed every worker that ran it ({exc}); see the workers' "
                             "logs") from None
@@ -428,7 +445,41 @@ def _run_distributed(plan, todo, store, args, client, progress, writer=None) -> 
                             f"({type(exc).__name__})") from None
 
 
-def _submit_and_store(plan, todo, store, args, client, progress, writer=None) -> None:
+class _WorkerWatch:
+    """Whether a cluster has had no worker for ``timeout`` seconds (asked at most once a second).
+
+    Tasks wait on a cluster without workers for ever, silently: the run would hang. A scheduler
+    that does not answer is not this watch's concern (its futures are cancelled, see
+    :func:`_run_distributed`).
+    """
+
+    def __init__(self, client, timeout: float):
+        self.client, self.timeout = client, timeout
+        self._asked = -math.inf
+        self._since = None  # when the cluster was first seen without a worker
+
+    def check(self) -> None:
+        """Raise :class:`SchedulerLost` once the cluster has had no worker for ``timeout``."""
+        now = time.monotonic()
+        if now - self._asked < min(1.0, self.timeout / 4) or self.client.status != "running":
+            return
+        self._asked = now
+        try:
+            n = len(self.client.nthreads())
+        except Exception:  # noqa: BLE001 (an unreachable scheduler: the futures say so)
+            return
+        if n:
+            self._since = None
+        elif self._since is None:
+            self._since = now
+        elif now - self._since >= self.timeout:
+            raise SchedulerLost(
+                f"the dask cluster at {self.client.scheduler.address} has had no worker for "
+                f"{self.timeout:g} s (all lost, none started)")
+
+
+def _submit_and_store(plan, todo, store, args, client, progress, writer=None,
+                      watch: _WorkerWatch | None = None) -> None:
     from dask.distributed import as_completed
 
     client.run(warm_up)
@@ -441,14 +492,33 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None) ->
     key_to_block = {f.key: k for f, k in zip(futures, todo)}
     if progress:
         _progress_thread(futures)
-    for fut in as_completed(futures):
-        k = key_to_block[fut.key]
-        out = fut.result()
-        out["triples"] = plan.blocks[k]
-        store.put(k, out)
-        if writer is not None:
-            writer.add(k, out)
-        fut.release()
+    pending = as_completed(futures)
+    while not pending.is_empty():
+        ready = pending.next_batch(block=False)
+        if not ready:
+            if watch is not None:
+                watch.check()
+            time.sleep(0.05)
+            continue
+        for fut in ready:
+            k = key_to_block[fut.key]
+            out = _result(fut, watch)
+            out["triples"] = plan.blocks[k]
+            store.put(k, out)
+            if writer is not None:
+                writer.add(k, out)
+            fut.release()
+
+
+def _result(fut, watch: _WorkerWatch | None):
+    """``fut.result()``, watching the cluster meanwhile: a finished task whose worker is lost
+    before its result is fetched runs again, and waits for a worker like any other."""
+    while True:
+        try:
+            return fut.result(timeout=0.5)
+        except TimeoutError:  # dask.distributed's is the built-in one
+            if watch is not None:
+                watch.check()
 
 
 def _progress_thread(futures) -> None:

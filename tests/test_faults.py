@@ -877,6 +877,51 @@ def test_tiny_eps_L_in_a_sweep_is_refused_without_numpy_warnings():
     assert ETA_MIN <= 1e-12
 
 
+def test_a_long_axis_is_refused_before_its_values_are_made():
+    """eps = {logspace = [-3, -1, 10000000000]} (within the grid's 10^10 points) was a 74.5 GiB
+    allocation and a traceback: the axis is refused by its count, nothing allocated."""
+    import tracemalloc
+
+    grid = {"eps": {"logspace": [-3, -1, 10_000_000_000]}, "L": 10.0, "K": 0.5, "A": 1.0,
+            "N": 1.0}
+    tracemalloc.start()
+    try:
+        with pytest.raises(SweepError, match=r"grid\.eps: 10,000,000,000 values exceed"):
+            load_sweep({"grid": grid})
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 1 << 20
+
+
+@pytest.mark.parametrize("short", ["memory", "disk"])
+def test_memory_and_disk_are_checked_before_the_plan(tmp_path, monkeypatch, short):
+    """10^8 points on one axis took 13.5 GB (the plan) before the disk check refused them. Both
+    checks now come from the grid's counts, before the plan: 10^7 points here, refused with
+    the few MB the check takes (the plan would take some 700 MB)."""
+    import tracemalloc
+
+    from cosserat_channel import files
+
+    spec = load_sweep({"grid": {"eps": {"logspace": [-3, -1, 10_000_000]}, "L": 10.0,
+                                "K": 0.5, "A": 1.0, "N": 1.0}})
+    if short == "memory":
+        monkeypatch.setattr(engine, "available_memory", lambda: 100 << 20)
+    else:
+        monkeypatch.setattr(engine, "available_memory", lambda: None)
+        real = files.shutil.disk_usage
+        monkeypatch.setattr(files.shutil, "disk_usage", lambda p: real(p)._replace(free=1000))
+    tracemalloc.start()
+    try:
+        with pytest.raises(SweepError, match=f"{short}"):
+            run_sweep(spec, str(tmp_path / "out.nc"), workers=1)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 << 20
+    assert list(tmp_path.iterdir()) == []
+
+
 BIG = "1" + "0" * 400  # a TOML integer (unbounded) above the largest float, about 1.8e308
 
 

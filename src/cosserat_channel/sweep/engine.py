@@ -37,9 +37,11 @@ from ..integrate import rk45
 from .. import outputs as out_
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
-from ..files import space_problem
+from ..files import format_size, space_problem
+from . import writer as writer_
 from .dataset import build_dataset
-from .plan import BlockInputs, Plan
+from .plan import (DEFAULT_BLOCKS, MAX_BLOCK_ENTRIES, BlockInputs, Plan, count_triples,
+                   plan_memory)
 from .spec import SweepError, SweepSpec, load_sweep
 from .store import FORMAT, BlockDamaged, WorkStore, check_writable, partial_dir
 from .writer import BUCKET, StreamWriter, Tiles
@@ -120,15 +122,18 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         raise SweepError(f"no_workers_timeout must be a positive number of seconds; got "
                          f"{no_workers_timeout!r}")
     xi = _profile_xi(spec)
+    # Memory and disk are checked from the grid's counts, before the plan (grid-sized) is made.
+    n_triples = count_triples(spec.coords(), reduce)
+    problem = memory_problem(memory_needed(spec, n_triples, xi, output, reduce, n_workers))
+    if problem is None and output is not None:
+        problem = space_problem(output, disk_needed(spec, n_triples, xi, output))
+    if problem:
+        raise SweepError(problem)
     try:
         plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers,
                     tile=_tile(spec, xi, output))
     except ValueError as exc:
         raise SweepError(str(exc)) from None
-    if output is not None:
-        problem = space_problem(output, disk_needed(spec, plan, xi, output))
-        if problem:
-            raise SweepError(problem)
     # The cluster is reached before any store exists: a wrong address leaves nothing behind.
     client, own_client = (None, False) if scheduler is None else connect(scheduler)
     try:
@@ -233,21 +238,92 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     return ds, (solve, len(todo), t2 - t0 - solve)
 
 
-def disk_needed(spec: SweepSpec, plan: Plan, xi, output: str) -> int:
+def disk_needed(spec: SweepSpec, n_triples: int, xi, output: str) -> int:
     """Bytes the run will still put on disk at its peak: the result file uncompressed (an upper
-    bound), the working store's blocks and the tile buckets (:mod:`.writer`), less what an
-    earlier run of the same output already left in the store."""
+    bound), the working store's blocks, the tile buckets and the writer's mapped arrays
+    (:mod:`.writer`), less what an earlier run of the same output already left in the store.
+    ``n_triples``: the integrations (:func:`.plan.count_triples`, an upper bound will do)."""
     n_xi = 0 if xi is None else xi.size
     plug_edge = out_.needs_plug_edge(spec.variables)
-    per_point = 1 + sum(8 if v in out_.OUTPUTS else 4 for v in spec.variables)  # + status
-    result = plan.size * (per_point + 4 * 8 * n_xi)
-    store = plan.n_triples * (8 * layout.N_R + 16 + 8 + 8 * layout.N_PROF * n_xi)
+    result = spec.size * _bytes_per_point(spec, n_xi)
+    store = n_triples * (8 * layout.N_R + 16 + 8 + 8 * layout.N_PROF * n_xi)
     if plug_edge:
-        store += plan.size * (8 + BUCKET.itemsize)
+        store += spec.size * (8 + BUCKET.itemsize)
+    held = n_triples * writer_.bytes_per_triple(n_xi)
+    if held > writer_.WRITER_MEMORY:
+        store += held
     have = 0
     for root, _, files in os.walk(partial_dir(output)):
         have += sum(os.path.getsize(os.path.join(root, f)) for f in files)
     return max(0, result + store - have)
+
+
+def _bytes_per_point(spec: SweepSpec, n_xi: int) -> int:
+    """Bytes of one grid point in the result: its variables (float64 outputs, int32 counters),
+    status, and the profiles' four float64 rows."""
+    return 1 + sum(8 if v in out_.OUTPUTS else 4 for v in spec.variables) + 4 * 8 * n_xi
+
+
+# What a run holds besides its plan and the writer's per-integration arrays: the tiles being
+# derived and written (.writer: a dozen tile-sized temporaries, near 200 MB, two tiles at once)
+# and, per worker, the block being solved and stored (its eps K entries with their grid
+# indices, owners and plug-edge values).
+TILE_MEMORY = 2 * (200 << 20)
+BLOCK_BYTES_PER_ENTRY = 64
+
+
+def memory_needed(spec: SweepSpec, n_triples: int, xi, output, reduce: bool,
+                  workers: int) -> int:
+    """Bytes a run holds at its peak, from the grid's counts alone (``n_triples`` from
+    :func:`.plan.count_triples`): the plan, the per-integration arrays the writer (or, without
+    a file, the in-memory result) keeps, the tiles in flight and the blocks being solved."""
+    n_xi = 0 if xi is None else xi.size
+    need = plan_memory(spec.shape, n_triples, reduce)
+    held = n_triples * writer_.bytes_per_triple(n_xi)
+    if output is None:  # everything in memory, the grid-sized result twice while it is built
+        need += held + 2 * spec.size * _bytes_per_point(spec, n_xi)
+    else:  # beyond WRITER_MEMORY the writer maps its arrays onto the disk
+        need += (held if held <= writer_.WRITER_MEMORY else 0) + TILE_MEMORY
+    # A block holds whole integrations, about 1/DEFAULT_BLOCKS of the grid up to
+    # MAX_BLOCK_ENTRIES entries (.plan), and at least one integration's entries.
+    per_triple = -(-spec.size // max(1, n_triples))
+    entries = min(spec.size, max(per_triple, min(MAX_BLOCK_ENTRIES,
+                                                 -(-spec.size // DEFAULT_BLOCKS))))
+    return need + workers * entries * BLOCK_BYTES_PER_ENTRY
+
+
+def available_memory() -> int | None:
+    """Bytes this process may still take: the system's MemAvailable, or the memory left under
+    the cgroup's limit (a batch job's, a container's) when that is less; None when unknown."""
+    found = []
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    found.append(int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        with open("/sys/fs/cgroup/memory.max") as f:
+            limit = f.read().strip()
+        with open("/sys/fs/cgroup/memory.current") as f:
+            current = int(f.read().strip())
+        if limit != "max":
+            found.append(max(0, int(limit) - current))
+    except (OSError, ValueError):
+        pass
+    return min(found) if found else None
+
+
+def memory_problem(need: int) -> str | None:
+    """Why ``need`` bytes will not fit in memory (one line), or None when they will (or when the
+    system cannot say)."""
+    free = available_memory()
+    if free is None or need <= free:
+        return None
+    return (f"grid: the run needs about {format_size(need)} of memory and {format_size(free)} "
+            "is available; split the sweep into smaller ones (fewer distinct eps L, A and N "
+            "values each), or run it where there is more")
 
 
 def _manifest(spec: SweepSpec, plan: Plan) -> dict:

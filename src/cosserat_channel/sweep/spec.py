@@ -64,6 +64,12 @@ from ..parameters import (
 # which :func:`.engine.run_sweep` checks before computing. Beyond this the plan's per-triple
 # arrays (one entry per distinct (eps L, A, N)) would outgrow a single machine's memory.
 MAX_POINTS = MAX_GRID_POINTS
+# The most values on one axis, checked before any is made. Every value of eps, L, A or N is at
+# least one integration, and every value of K an entry of each block, and a run keeps some 100
+# bytes per integration and per entry of a block (:func:`.engine.memory_needed`): an axis beyond
+# this needs tens of GB whatever the rest of the grid (10^10 values, within MAX_POINTS, were a
+# 74.5 GiB allocation before anything was checked).
+MAX_AXIS_POINTS = 100_000_000
 PROFILE_POINTS_RANGE = (2, 10001)
 
 TABLES = ("grid", "material", "solver", "output")
@@ -193,6 +199,10 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
         raise SweepError(
             f"grid: {size:,} points ({shape}) exceeds the limit of {MAX_POINTS:,}; split the sweep"
         )
+    for d, n in counts.items():
+        if n > MAX_AXIS_POINTS:
+            raise SweepError(f"grid.{d}: {n:,} values exceed the limit of {MAX_AXIS_POINTS:,} "
+                             "on one axis; split the sweep along it")
     axes = {}
     for d in DIMS:
         key = f"grid.{d}"
@@ -201,9 +211,8 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
             check_values(d, values)
         except ParameterError as exc:
             raise SweepError(f"{key}: {exc}") from None
-        uniq, counts_ = np.unique(values, return_counts=True)
-        if np.any(counts_ > 1):
-            dup = ", ".join(f"{v!r}" for v in uniq[counts_ > 1][:5].tolist())
+        dup = _duplicates(values)
+        if dup:
             raise SweepError(f"{key}: duplicate value(s) {dup}; coordinate values must be unique")
         values.setflags(write=False)
         axes[d] = values
@@ -265,12 +274,25 @@ def _axis_values(value, key: str) -> np.ndarray:
         for name, x in (("start", start), ("stop", stop)):
             if not math.isfinite(_float(x, f"{key}: {form} {name}")):
                 raise SweepError(f"{key}: {form} {name} must be finite; got {_show(x)}")
-        fn = np.linspace if form == "linspace" else np.logspace
         with np.errstate(over="ignore"):
-            out = fn(float(start), float(stop), int(num))
+            out = np.linspace(float(start), float(stop), int(num))
+            if form == "logspace":  # np.logspace's values, without its second axis-sized array
+                np.power(10.0, out, out=out)
     else:
         out = np.array([_float(v, f"{key}[{i}]") for i, v in enumerate(value)], dtype=np.float64)
     return np.ascontiguousarray(out, dtype=np.float64)
+
+
+def _duplicates(values: np.ndarray) -> str:
+    """The first few values that ``values`` holds twice, as text ('' when none): a strictly
+    monotonic axis (every linspace and logspace of distinct ends) is known free of them without
+    a sorted copy of it."""
+    if values.size < 2 or bool(np.all(values[1:] > values[:-1])) or \
+            bool(np.all(values[1:] < values[:-1])):
+        return ""
+    ordered = np.sort(values)
+    repeated = ordered[1:][ordered[1:] == ordered[:-1]]
+    return ", ".join(f"{v!r}" for v in np.unique(repeated)[:5].tolist())
 
 
 def _float(x, key: str) -> float:

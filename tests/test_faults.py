@@ -1,8 +1,8 @@
 """Faults made on purpose: every run ends identical to an uninterrupted one, or with one
 line on stderr, a non-zero exit and nothing finished lost.
 
-* kill -9 (and SIGTERM) at several moments: right after the store is opened, after some blocks,
-  while the result file is being written (complete but not yet renamed); SIGINT mid-run;
+* kill -9 at several moments: right after the store is opened, after some blocks, while the
+  result file is being written (complete but not yet renamed); SIGINT and SIGTERM mid-run;
 * an injected write failure standing in for a full disk: the file-size limit (RLIMIT_FSIZE, so
   the write really fails in the C library, as netCDF4/HDF5 see a full disk) on the final NetCDF
   write of ``run`` and of ``query --format netcdf``, and ENOSPC on a block write;
@@ -154,6 +154,16 @@ def wait_for(proc, marker, timeout=120):
         time.sleep(0.01)
 
 
+def package_env() -> dict:
+    """The environment for a process of its own that imports this package (the one under test,
+    whatever the process's working directory)."""
+    import cosserat_channel
+
+    src = str(Path(cosserat_channel.__file__).resolve().parents[1])
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [src, *filter(None, [os.environ.get("PYTHONPATH")])]))
+
+
 def one_line_error(stderr: str) -> str:
     errors = [line for line in stderr.splitlines() if "error:" in line]
     assert len(errors) == 1, stderr
@@ -174,7 +184,7 @@ def rerun(sweep_file, out, capsys):
     ("open", signal.SIGKILL),  # store and manifest made, nothing computed
     ("block:3", signal.SIGKILL),  # three blocks stored
     ("publish", signal.SIGKILL),  # every block stored, result written under its temporary name
-    ("block:5", signal.SIGTERM),
+    ("block:5", signal.SIGKILL),
 ])
 def test_kill_at_several_moments_then_rerun_is_identical(tmp_path, sweep_file, reference,
                                                          capsys, mode, sig):
@@ -195,16 +205,22 @@ def test_kill_at_several_moments_then_rerun_is_identical(tmp_path, sweep_file, r
         == ["out.nc", "s.toml"]
 
 
-def test_sigint_is_one_line_and_resumes(tmp_path, sweep_file, reference, capsys):
+@pytest.mark.parametrize("sig, code, words", [
+    (signal.SIGINT, 130, "interrupted;"),
+    (signal.SIGTERM, 143, "terminated (SIGTERM);"),  # what batch schedulers send
+])
+def test_sigint_and_sigterm_are_one_line_and_resume(tmp_path, sweep_file, reference, capsys, sig,
+                                                    code, words):
     out = tmp_path / "out.nc"
     proc, marker, release = harness(tmp_path, "block:2", "run", sweep_file, "-o", out, *RUN)
     wait_for(proc, marker)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     time.sleep(0.2)
     release.touch()  # let the paused worker thread finish so the process can exit
     _, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 130, stderr
-    assert "run the same command again to resume" in one_line_error(stderr)
+    assert proc.returncode == code, stderr
+    line = one_line_error(stderr)
+    assert words in line and "run the same command again to resume" in line
     assert not out.exists()
     err = rerun(sweep_file, out, capsys)
     assert "0 done before" not in err
@@ -363,6 +379,211 @@ def test_damaged_result_file_fails_to_read_never_changes(tmp_path, sweep_file, c
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+@pytest.fixture(scope="module")
+def result_file(tmp_path_factory):
+    """A finished result of SWEEP, to copy and damage."""
+    path = tmp_path_factory.mktemp("result") / "out.nc"
+    path.with_suffix(".toml").write_text(SWEEP)
+    run_sweep(str(path.with_suffix(".toml")), str(path), workers=1).close()
+    return path
+
+
+def copy_of(result_file, tmp_path, name="r.nc") -> Path:
+    path = tmp_path / name
+    path.write_bytes(result_file.read_bytes())
+    return path
+
+
+def damaged_chunk(result_file, tmp_path, name="sigma_yx_wall") -> Path:
+    """A copy of the result with bytes flipped inside the (uncompressed) chunk of ``name``."""
+    path = copy_of(result_file, tmp_path, "bad.nc")
+    with xr.open_dataset(result_file) as f:
+        chunk = np.ascontiguousarray(f[name].values).tobytes()
+    at = path.read_bytes().find(chunk)
+    assert at > 0
+    flip(path, at + 8, 64)
+    return path
+
+
+def test_info_reads_what_it_describes(tmp_path, result_file, monkeypatch, capsys):
+    """info read only 'status', and called a file with a damaged variable healthy. It now reads
+    the variables through (up to CHECK_BYTES of values, saying which it did not read)."""
+    from cosserat_channel.results import describe
+
+    assert cli.main(["info", str(result_file)]) == 0
+    assert "checked  every variable read through without error" in capsys.readouterr().out
+    bad = damaged_chunk(result_file, tmp_path)
+    assert cli.main(["info", str(bad)]) == 1
+    line = one_line_error(capsys.readouterr().err)
+    assert "damaged" in line and "'sigma_yx_wall'" in line
+    # With a budget too small for the damaged variable, info says that it did not read it.
+    monkeypatch.setattr(describe, "CHECK_BYTES", 600)
+    assert cli.main(["info", str(bad)]) == 0
+    out = capsys.readouterr().out
+    checked = next(line for line in out.splitlines() if line.startswith("checked"))
+    assert "all but" in checked and "sigma_yx_wall" in checked and "--check-all" in checked
+    assert cli.main(["info", str(bad), "--check-all"]) == 1
+    assert "'sigma_yx_wall'" in one_line_error(capsys.readouterr().err)
+
+
+def test_info_escapes_control_characters_from_the_file(tmp_path, result_file, capsys):
+    """Attribute text went to the terminal raw: escape sequences in a file (a title change, a
+    cleared screen, a bell) acted on it. They are shown escaped."""
+    import netCDF4
+
+    path = copy_of(result_file, tmp_path)
+    evil = "\x1b]0;owned\x07\x1b[2J\r\u202e"
+    with netCDF4.Dataset(path, "a") as nc:
+        nc["Delta"].long_name = "shear layer" + evil
+        nc["eps"].units = "1" + evil
+        nc.created = "2026" + evil
+        nc.sweep_toml = nc.sweep_toml + "\n# " + evil
+    assert cli.main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert not any(c in out for c in "\x1b\x07\r\u202e")
+    assert "shear layer\\x1b]0;owned\\x07\\x1b[2J\\r\\u202e" in out
+    assert out.count("owned") == 4  # every attribute shown, escaped
+
+
+def test_damaged_global_attributes_are_one_line(tmp_path, result_file, capsys):
+    """A bit flipped in the global attributes made netCDF4 raise AttributeError ("Can't open HDF5
+    attribute"), a traceback out of info, query and plot."""
+    import netCDF4
+
+    raw = result_file.read_bytes()
+    at = raw.find(b"Conventions")  # the attribute messages of the root group lie around it
+    bad = tmp_path / "bad.nc"
+    found = []
+    for start in range(max(0, at - 128), at + 32, 4):
+        data = bytearray(raw)
+        for i in range(start, start + 4):
+            data[i] ^= 0xFF
+        bad.write_bytes(bytes(data))
+        try:
+            with netCDF4.Dataset(bad) as nc:
+                nc.ncattrs()
+        except AttributeError:
+            found.append(start)
+            break
+        except (OSError, RuntimeError):
+            pass
+    if not found:
+        pytest.skip("no flip near the global attributes gives AttributeError in this HDF5")
+    for argv in (["info", str(bad)], ["query", str(bad)], ["query", str(bad), "--sel", "L=10"],
+                 ["plot", str(bad), "--x", "eps", "--y", "Delta", "--at",
+                  "L=10,K=0.5,A=1,N=1", "-o", str(tmp_path / "p.png")]):
+        assert cli.main(argv) == 2, argv
+        assert "damaged" in one_line_error(capsys.readouterr().err)
+    assert not (tmp_path / "p.png").exists()
+
+
+@pytest.mark.parametrize("flag_values", ["abc", np.nan, np.array([0.0, 1.5, 2, 3, 4, 5])])
+def test_unusable_status_flags_are_one_line(tmp_path, result_file, capsys, flag_values):
+    """status:flag_values a string or NaN: int() raised out of info and query."""
+    import netCDF4
+
+    path = copy_of(result_file, tmp_path)
+    with netCDF4.Dataset(path, "a") as nc:
+        nc["status"].delncattr("flag_values")
+        nc["status"].flag_values = flag_values
+    for argv in (["info", str(path)], ["query", str(path)],
+                 ["query", str(path), "--sel", "L=10", "--where", "status == ok"],
+                 ["query", str(path), "--format", "json"],
+                 ["plot", str(path), "--x", "eps", "--y", "Delta", "--at", "L=10,K=0.5,A=1,N=1",
+                  "-o", str(tmp_path / "p.png")]):
+        assert cli.main(argv) == 2, argv
+        assert "flag_values" in one_line_error(capsys.readouterr().err)
+
+
+def test_time_units_on_a_coordinate_give_text_in_json(tmp_path, result_file, capsys):
+    """eps:units = "days since ..." makes xarray decode eps as dates, which json.dumps refused
+    (TypeError). Dates are written as their text, as CSV and the table do."""
+    import json
+
+    import netCDF4
+
+    path = copy_of(result_file, tmp_path)
+    with netCDF4.Dataset(path, "a") as nc:
+        nc["eps"].units = "days since 2000-01-01"
+    assert cli.main(["query", str(path), "--format", "json", "--sel", "L=10"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert len(rows) == 3 * 2 * 2 * 2 and all(r["eps"].startswith("2000-01-01T") for r in rows)
+    assert cli.main(["query", str(path), "--format", "csv", "--sel", "L=10"]) == 0
+    assert capsys.readouterr().out.count("2000-01-01T") == len(rows)
+
+
+def write_huge(path: Path, shape, chunks=None) -> None:
+    """A file declaring a grid of ``shape`` with its coordinates and no values written."""
+    import netCDF4
+
+    with netCDF4.Dataset(path, "w") as nc:
+        nc.source = "cosserat-channel run"
+        for d, n in zip(("eps", "L", "K", "A", "N"), shape):
+            nc.createDimension(d, n)
+            nc.createVariable(d, "f8", (d,))[:] = np.linspace(0.01, 0.1, n)
+        dims = ("eps", "L", "K", "A", "N")
+        nc.createVariable("status", "i1", dims, chunksizes=chunks).setncatts(st.cf_flag_attrs())
+        nc.createVariable("Delta", "f8", dims, chunksizes=chunks)
+
+
+@pytest.mark.parametrize("shape, chunks", [
+    ((100_000, 1_000, 10, 10, 10), None),  # 10^11 points, contiguous
+    ((10_000, 1_000, 10, 1, 1), None),  # 10^8 points, contiguous: 800 MB in one piece
+    ((10_000, 1_000, 10, 10, 1), (10, 10, 10, 10, 1)),  # 10^9 points, in unwritten chunks
+])
+def test_a_huge_declared_grid_is_refused_before_reading(tmp_path, shape, chunks):
+    """An 827 kB file declaring a 10^13-point grid took 5 GB in info and 11 GB in query: the
+    declared sizes are checked against the file before anything is read. Under a 3 GB address
+    space limit every command answers in one line, at once."""
+    path = tmp_path / "huge.nc"
+    write_huge(path, shape, chunks)
+    assert path.stat().st_size < 1_000_000
+
+    def limits():
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+    script = "import sys; from cosserat_channel import cli; sys.exit(cli.main(sys.argv[1:]))"
+    for argv in (["info", path], ["query", path], ["query", path, "--sel", "eps=0.01"],
+                 ["query", path, "--where", "Delta > 1"],
+                 ["plot", path, "--x", "eps", "--y", "Delta", "-o", tmp_path / "p.png"]):
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-c", script, *map(str, argv)], capture_output=True,
+                              text=True, preexec_fn=limits, timeout=300, env=package_env())
+        assert proc.returncode == 2, (argv, proc.stderr[-2000:])
+        line = one_line_error(proc.stderr)
+        assert "nothing read" in line, line
+        assert time.perf_counter() - t0 < 60
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["huge.nc"]
+
+
+def test_query_closes_the_light_reader_before_rereading(tmp_path, result_file, monkeypatch,
+                                                        capsys):
+    """A small query reads through netCDF4 alone; when that fails on a damaged file, the file is
+    read again through xarray and dask to name the damage. With both handles open, HDF5 once
+    ended in SIGBUS: the first is closed before the second opens."""
+    from cosserat_channel.results import light, selection
+
+    bad = damaged_chunk(result_file, tmp_path)
+    opened, open_at_reopen = [], []
+    real_light, real_open = light.open_light, selection.open_results
+
+    def open_light(path):
+        f = real_light(path)
+        opened.append(f)
+        return f
+
+    def open_results(path):
+        open_at_reopen.extend(f.nc.isopen() for f in opened if f is not None)
+        return real_open(path)
+
+    monkeypatch.setattr(light, "open_light", open_light)
+    monkeypatch.setattr(selection, "open_results", open_results)
+    assert cli.main(["query", str(bad), "--vars", "sigma_yx_wall"]) == 1
+    assert "damaged" in one_line_error(capsys.readouterr().err)
+    assert opened and opened[0] is not None  # the light reader was used, and failed
+    assert open_at_reopen == [False]
+
+
 # ---------------------------------------------------------------------------------------------
 # A lost worker
 # ---------------------------------------------------------------------------------------------
@@ -437,6 +658,144 @@ def test_bad_scheduler_is_one_line_before_any_store(tmp_path, sweep_file, capsys
     assert time.perf_counter() - t0 < engine.CONNECT_TIMEOUT + 10
     assert words in one_line_error(capsys.readouterr().err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+@pytest.mark.parametrize("address", ["tls://127.0.0.1:9", "ucx://127.0.0.1:9", "inproc://x",
+                                     "tcp://[::1"])
+def test_unusable_scheduler_address_is_one_line_and_quiet_at_exit(tmp_path, sweep_file, address):
+    """tls:// without dask's TLS set-up and ucx:// without UCX raised TypeError (a traceback);
+    after any failed connection the half-made client's __del__ printed another at exit, 10 s
+    later. In a process of its own: stderr is one line, at once."""
+    script = "import sys; from cosserat_channel import cli; sys.exit(cli.main(sys.argv[1:]))"
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", script, "run", str(sweep_file), "-o",
+                           str(tmp_path / "out.nc"), "--scheduler", address],
+                          capture_output=True, text=True, timeout=120, env=package_env())
+    assert proc.returncode == 2, proc.stderr
+    assert "scheduler:" in one_line_error(proc.stderr)
+    assert proc.stderr.count("\n") == 1, proc.stderr
+    assert time.perf_counter() - t0 < engine.CONNECT_TIMEOUT + 15  # a loaded machine included
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+class SubprocessCluster:
+    """A dask scheduler and nanny-managed workers, each a process of its own started here (so
+    that the test can kill them like a batch system or a crash does), on the loopback address."""
+
+    def __init__(self, tmp_path, n_workers):
+        import json
+
+        env = package_env()
+        file = tmp_path / "scheduler.json"
+        quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        self.scheduler = subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+             "--port", "0", "--no-dashboard", "--scheduler-file", str(file)], **quiet)
+        self.nannies = []
+        try:
+            deadline = time.monotonic() + 60
+            while not (file.exists() and file.stat().st_size):
+                assert time.monotonic() < deadline, "the scheduler did not start"
+                time.sleep(0.1)
+            self.address = json.loads(file.read_text())["address"]
+            self.nannies = [subprocess.Popen(
+                [sys.executable, "-m", "distributed.cli.dask_worker", self.address, "--host",
+                 "127.0.0.1", "--nthreads", "1", "--no-dashboard"], **quiet)
+                for _ in range(n_workers)]
+            from dask.distributed import Client
+
+            with Client(self.address, timeout=30) as client:
+                client.wait_for_workers(n_workers, timeout=120)
+                self.workers = set(client.run(os.getpid).values())
+        except BaseException:
+            self.close()
+            raise
+
+    def kill_workers(self) -> None:
+        """SIGKILL every nanny, then every worker: nothing is left to start them again."""
+        for proc in self.nannies:
+            proc.kill()
+            proc.wait()
+        for pid in self.workers:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+    def close(self) -> None:
+        for proc in [*self.nannies, self.scheduler]:
+            proc.kill()
+            proc.wait()
+        for pid in getattr(self, "workers", ()):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+@pytest.fixture
+def subprocess_cluster(tmp_path):
+    pytest.importorskip("dask.distributed")
+    clusters = []
+
+    def start(n_workers):
+        clusters.append(SubprocessCluster(tmp_path, n_workers))
+        return clusters[-1]
+
+    yield start
+    for c in clusters:
+        c.close()
+
+
+def test_every_worker_and_nanny_killed_ends_in_one_line(tmp_path, sweep_file, reference,
+                                                        monkeypatch, capsys, subprocess_cluster):
+    """All workers killed with their nannies mid-run: the tasks waited for ever and 'run' hung,
+    silent. A cluster without a worker for --no-workers-timeout seconds ends the run: one line,
+    exit 1, the finished blocks kept; the same command resumes (here, without a cluster)."""
+    cluster = subprocess_cluster(2)
+    orig = engine.WorkStore.put
+    killed = []
+
+    def put(self, k, result):  # the first block home: every worker and nanny goes
+        orig(self, k, result)
+        if not killed:
+            cluster.kill_workers()
+            killed.append(k)
+
+    monkeypatch.setattr(engine.WorkStore, "put", put)
+    out = tmp_path / "out.nc"
+    t0 = time.perf_counter()
+    code = cli.main(["run", str(sweep_file), "-o", str(out), "--scheduler", cluster.address,
+                     "--no-workers-timeout", "3", "--workers", "1", "--block-size", "1"])
+    assert code == 1 and killed
+    assert time.perf_counter() - t0 < 60
+    line = one_line_error(capsys.readouterr().err)
+    assert "has had no worker for 3 s" in line and "rerun the same command to resume" in line
+    kept = len(list(Path(partial_dir(out)).glob("block_*.npz")))
+    assert 1 <= kept < 28 and not out.exists()  # 28 blocks of one integration
+    monkeypatch.setattr(engine.WorkStore, "put", orig)
+    assert cli.main(["run", str(sweep_file), "-o", str(out), "--workers", "1"]) == 0
+    assert f"{kept} done before" in capsys.readouterr().err
+    assert_identical(out, reference)
+
+
+def test_scheduler_killed_mid_run_is_one_line(tmp_path, sweep_file, subprocess_cluster):
+    """The scheduler killed mid-run: some thirty lines of distributed.client's tracebacks came
+    before the run's own line. The run's stderr is its own lines alone."""
+    cluster = subprocess_cluster(1)
+    out = tmp_path / "out.nc"
+    proc, marker, release = harness(tmp_path, "block:1", "run", sweep_file, "-o", out,
+                                    "--scheduler", cluster.address, "--block-size", "1")
+    wait_for(proc, marker)
+    cluster.scheduler.kill()
+    cluster.scheduler.wait()
+    time.sleep(1)
+    release.touch()
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 1, stderr
+    assert "lost the dask scheduler" in one_line_error(stderr)
+    assert all(line.startswith("cosserat-channel: ") for line in stderr.splitlines()), stderr
+    assert list(Path(partial_dir(out)).glob("block_*.npz"))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -516,6 +875,94 @@ def test_tiny_eps_L_in_a_sweep_is_refused_without_numpy_warnings():
         warnings.simplefilter("error")
         Plan({d: np.atleast_1d(np.asarray(v, dtype=float)) for d, v in grid.items()})
     assert ETA_MIN <= 1e-12
+
+
+def test_a_long_axis_is_refused_before_its_values_are_made():
+    """eps = {logspace = [-3, -1, 10000000000]} (within the grid's 10^10 points) was a 74.5 GiB
+    allocation and a traceback: the axis is refused by its count, nothing allocated."""
+    import tracemalloc
+
+    grid = {"eps": {"logspace": [-3, -1, 10_000_000_000]}, "L": 10.0, "K": 0.5, "A": 1.0,
+            "N": 1.0}
+    tracemalloc.start()
+    try:
+        with pytest.raises(SweepError, match=r"grid\.eps: 10,000,000,000 values exceed"):
+            load_sweep({"grid": grid})
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 1 << 20
+
+
+@pytest.mark.parametrize("short", ["memory", "disk"])
+def test_memory_and_disk_are_checked_before_the_plan(tmp_path, monkeypatch, short):
+    """10^8 points on one axis took 13.5 GB (the plan) before the disk check refused them. Both
+    checks now come from the grid's counts, before the plan: 10^7 points here, refused with
+    the few MB the check takes (the plan would take some 700 MB)."""
+    import tracemalloc
+
+    from cosserat_channel import files
+
+    spec = load_sweep({"grid": {"eps": {"logspace": [-3, -1, 10_000_000]}, "L": 10.0,
+                                "K": 0.5, "A": 1.0, "N": 1.0}})
+    if short == "memory":
+        monkeypatch.setattr(engine, "available_memory", lambda: 100 << 20)
+    else:
+        monkeypatch.setattr(engine, "available_memory", lambda: None)
+        real = files.shutil.disk_usage
+        monkeypatch.setattr(files.shutil, "disk_usage", lambda p: real(p)._replace(free=1000))
+    tracemalloc.start()
+    try:
+        with pytest.raises(SweepError, match=f"{short}"):
+            run_sweep(spec, str(tmp_path / "out.nc"), workers=1)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 << 20
+    assert list(tmp_path.iterdir()) == []
+
+
+BIG = "1" + "0" * 400  # a TOML integer (unbounded) above the largest float, about 1.8e308
+
+
+@pytest.mark.parametrize("eps", [BIG, f"[0.1, {BIG}]", f"{{linspace = [0.1, {BIG}, 3]}}",
+                                 f"{{logspace = [-3, {BIG}, 3]}}"])
+def test_a_toml_integer_beyond_the_largest_float_is_one_line(tmp_path, capsys, eps):
+    """float() of such an integer raised OverflowError out of load_sweep."""
+    path = tmp_path / "big.toml"
+    path.write_text(f"[grid]\neps = {eps}\nL = 10\nK = 0.5\nA = 1.0\nN = 1.0\n")
+    with pytest.raises(SweepError, match=r"grid\.eps.*beyond the largest float"):
+        load_sweep(str(path))
+    assert cli.main(["run", str(path), "-o", str(tmp_path / "big.nc")]) == 2
+    assert "beyond the largest float" in one_line_error(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.toml"]
+
+
+@pytest.mark.parametrize("argv, written", [
+    (["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1"], None),
+    (["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1", "--plot",
+      "p.png"], "p.png"),
+    (["boundary", "--A", "0.3333333333333333", "--N", "1", "--coarse", "8", "-o", "b.nc"],
+     "b.nc"),
+])
+def test_a_reader_that_leaves_early_is_one_line_and_keeps_the_files(tmp_path, argv, written):
+    """'point ... | head -1': BrokenPipeError, a traceback, and 'boundary' printed before writing
+    its traced file, so the file was lost. The pipe is closed before anything is printed."""
+    script = "import sys; from cosserat_channel import cli; sys.exit(cli.main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", script, *argv], cwd=tmp_path,
+                            env=package_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    proc.stdout.close()  # the reader is gone before the command prints
+    stderr = proc.stderr.read()
+    proc.wait(timeout=300)
+    assert proc.returncode == 1, stderr
+    assert "broken pipe" in one_line_error(stderr)
+    assert stderr.count("\n") == 1 and "Exception ignored" not in stderr, stderr
+    if written == "b.nc":
+        with xr.open_dataset(tmp_path / written) as f:
+            assert np.isfinite(f["eta_max"].values).all()
+    elif written:
+        assert (tmp_path / written).read_bytes().startswith(b"\x89PNG")
 
 
 def test_info_and_query_on_a_string_coordinate(tmp_path, capsys):

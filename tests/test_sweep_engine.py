@@ -129,6 +129,63 @@ def test_block_plan_balances_cost():
     assert cost[:100].sum() / totals.mean() > 3
 
 
+def test_block_plan_is_the_snake_deal():
+    """block_plan reads the snake off the cost ranking without a grid-sized array per step; a
+    plain deal (the block of every position of the ranking, then each block's triples in order)
+    gives the same blocks, for block counts that divide the triples and counts that do not."""
+    rng = np.random.default_rng(7)
+    for n, size in [(1, 1), (10, 3), (1000, 100), (1001, 7), (997, 1000), (50, 1)]:
+        cost = np.round(rng.exponential(1.0, n), 1)  # ties: the ranking's stability counts
+        n_blocks = -(-n // size)
+        rank = np.argsort(-cost, kind="stable")
+        block_of = np.empty(n, dtype=np.int64)
+        for i, t in enumerate(rank):
+            lap, pos = divmod(i, n_blocks)
+            block_of[t] = pos if lap % 2 == 0 else n_blocks - 1 - pos
+        got = block_plan(cost, size)
+        assert len(got) == n_blocks
+        for k, b in enumerate(got):
+            assert b.dtype == np.int64 and same(b, np.flatnonzero(block_of == k)), (n, size, k)
+
+
+@pytest.mark.parametrize("reduce", [True, False])
+def test_a_plan_takes_what_plan_memory_says(monkeypatch, reduce):
+    """The plan of a grid with one long axis (every eps its own integration) peaks within
+    plan_memory: 146 bytes per integration before its per-integration work went slice by slice
+    (74 now); and count_triples counts the integrations before any plan exists."""
+    import tracemalloc
+
+    from cosserat_channel.sweep import plan as plan_mod
+
+    monkeypatch.setattr(plan_mod, "SLICE", 1 << 12)  # slices far smaller than the grid
+    n = 200_000
+    axes = {"eps": np.logspace(-3, -1, n), "L": np.array([10.0]), "K": np.array([0.5, 1.0]),
+            "A": np.array([1.0]), "N": np.array([1.0])}
+    Plan({d: v[:10] for d, v in axes.items()})  # the classify kernel loaded before measuring
+    tracemalloc.start()
+    try:
+        p = Plan(axes, reduce=reduce, tile=(4096, 1, 2, 1, 1))
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert plan_mod.count_triples(axes, reduce) == p.n_triples == (n if reduce else 2 * n)
+    assert peak <= plan_mod.plan_memory(p.shape, p.n_triples, reduce)
+    assert peak > 0.3 * plan_mod.plan_memory(p.shape, p.n_triples, reduce)  # not a loose bound
+
+
+def test_count_triples_is_exact_or_an_upper_bound(monkeypatch):
+    """Exact for a small reduced grid (shared eps L products counted once); beyond COUNT_PAIRS
+    pairs, every product counted (an upper bound, no grid-sized work)."""
+    from cosserat_channel.sweep import plan as plan_mod
+
+    axes = {d: np.asarray(v, dtype=float) for d, v in SHARED.items()}
+    exact = Plan(axes).n_triples
+    assert plan_mod.count_triples(axes) == exact
+    assert plan_mod.count_triples(axes, reduce=False) == Plan(axes, reduce=False).n_triples
+    monkeypatch.setattr(plan_mod, "COUNT_PAIRS", 4)
+    assert plan_mod.count_triples(axes) == 4 * 3 * 2 * 2 > exact
+
+
 def test_netcdf_file_is_cf_and_plain_readable(tmp_path):
     """The file carries the CF attributes; plain netCDF4 reads int8 status without _FillValue."""
     out = tmp_path / "r.nc"

@@ -61,6 +61,32 @@ def test_file_written_in_many_tiles_equals_the_in_memory_result(tmp_path, monkey
     assert not (tmp_path / "r.nc.partial").exists()
 
 
+def test_mapped_per_triple_arrays_give_the_in_memory_values(tmp_path, monkeypatch):
+    """Beyond WRITER_MEMORY the writer's per-integration arrays are mapped onto unlinked files in
+    the store (memory then follows the groups being written): the file holds the in-memory
+    values to the last bit, the disk estimate counts the mapped bytes, nothing is left."""
+    monkeypatch.setattr(writer, "TILE_POINTS", 16)
+    spec = load_sweep({"grid": GRID, "output": {
+        "variables": ["Delta", "slip", "stage1_steps"], "profile_points": 4}})
+    xi = engine._profile_xi(spec)
+    kept = engine.disk_needed(spec, 72, xi, str(tmp_path / "r.nc"))
+    monkeypatch.setattr(writer, "WRITER_MEMORY", 0)
+    assert engine.disk_needed(spec, 72, xi, str(tmp_path / "r.nc")) == \
+        kept + 72 * writer.bytes_per_triple(4)
+    arrays = []
+    real = writer.StreamWriter._array
+    monkeypatch.setattr(writer.StreamWriter, "_array", lambda self, *a: (
+        arrays.append(real(self, *a)), arrays[-1])[1])
+    out = tmp_path / "r.nc"
+    with run_sweep(spec, out, workers=2, block_size=5) as ds:
+        ds.load()
+    assert len(arrays) == 3 and all(isinstance(a, np.memmap) for a in arrays)
+    ref = run_sweep(spec, workers=1)
+    for v in ref.data_vars:
+        assert np.array_equal(ds[v].values, ref[v].values, equal_nan=True), v
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.nc"]
+
+
 def test_chunks_serve_a_slice_and_a_curve():
     """A 10^8-point grid: an A x N slice and a curve along eps each read a few MB, not a slab."""
     shape = (100, 100, 100, 10, 10)
@@ -143,11 +169,11 @@ def test_too_little_disk_space_is_refused_before_any_work(tmp_path, monkeypatch,
 def test_disk_estimate_grows_with_the_grid_and_counts_what_is_stored():
     spec = load_sweep({"grid": GRID, "output": {"variables": ["Delta", "slip"]}})
     plan = engine.Plan(spec.coords())
-    need = engine.disk_needed(spec, plan, None, "/nonexistent/out.nc")
+    need = engine.disk_needed(spec, plan.n_triples, None, "/nonexistent/out.nc")
     assert need >= spec.size * (8 + 8 + 1)  # two float64 outputs and status, uncompressed
     big = load_sweep({"grid": {**GRID, "K": {"linspace": [0, 3, 300]}},
                       "output": {"variables": ["Delta", "slip"]}})
-    assert engine.disk_needed(big, engine.Plan(big.coords()), None, "/x") > 50 * need
+    assert engine.disk_needed(big, engine.Plan(big.coords()).n_triples, None, "/x") > 50 * need
 
 
 # ---------------------------------------------------------------------------------------------

@@ -38,6 +38,9 @@ __all__ = [
 ]
 
 DIMS = ("eps", "L", "K", "A", "N")
+# The most points a grid over DIMS may hold: a sweep's (sweep/spec.py says why) and so a result
+# file's, which its readers check before reading anything.
+MAX_GRID_POINTS = 10_000_000_000
 
 
 class ParameterError(ValueError):

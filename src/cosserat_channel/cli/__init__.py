@@ -180,20 +180,45 @@ def main(argv=None) -> int:
     """Run the command line on ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     try:
         args = build_parser().parse_args(argv)
-        return args._run(args)
+        code = args._run(args)
+        sys.stdout.flush()  # a reader gone (``| head -1``) shows here, not at the interpreter's exit
+        return code
     except _ParserExit as exc:
         return exc.code
     except CliError as exc:
         _error(str(exc))
         return exc.code
+    except BrokenPipeError:
+        _stdout_to_devnull()
+        _error("standard output was closed before everything was printed (broken pipe)")
+        return EXIT_FAILURE
+
+
+def _stdout_to_devnull() -> None:
+    """Point standard output at /dev/null, so that the interpreter's last flush of what is still
+    buffered does not fail again (a second BrokenPipeError, printed at exit)."""
+    try:
+        fd = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(fd, sys.stdout.fileno())
+        os.close(fd)
+    except (OSError, ValueError):  # no file descriptor (an in-memory stream): nothing to do
+        pass
 
 
 def _error(message: str) -> None:
-    print(f"{PROG}: error: {' '.join(message.split())}", file=sys.stderr)
+    print(f"{PROG}: error: {_one_line(message)}", file=sys.stderr)
 
 
 def _note(message: str) -> None:
-    print(f"{PROG}: note: {' '.join(message.split())}", file=sys.stderr)
+    print(f"{PROG}: note: {_one_line(message)}", file=sys.stderr)
+
+
+def _one_line(message: str) -> str:
+    """``message`` on one line, with what a terminal would obey (a file's names and attributes
+    quoted in it) escaped."""
+    from ..results.selection import printable
+
+    return printable(" ".join(str(message).split()))
 
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT: what a shell reports after Ctrl-C
@@ -433,6 +458,9 @@ def _read_or_write_failure(exc: BaseException, results: str, ds, output: str | N
     from ..files import WriteError
 
     if isinstance(ds, light.LightFile):  # read through in chunks, with dask
+        # One reader of the file at a time: HDF5 re-reading a damaged file through a second
+        # handle while the first is open once ended in SIGBUS.
+        ds.close()
         with open_results(results) as chunked:
             problem = selection.read_problem(chunked)
     else:

@@ -62,13 +62,7 @@ def _point(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
 
-    if args.json:
-        # allow_nan=False: to_dict maps NaN to null, and the output must stay strict JSON.
-        print(json.dumps(result.to_dict(), allow_nan=False))
-    else:
-        tol = {k: tolerances.get(k, p.default) for k, p in TOLERANCES.items()}
-        print(format_point_table(result, tol, material))
-
+    # The figure first: a reader that leaves early (| head) loses no file.
     if args.plot is not None:
         if not result.ok:
             _note(f"no profile to plot (status {result.status.name}); {args.plot} not written")
@@ -77,6 +71,12 @@ def _point(args: argparse.Namespace) -> int:
                 plot.point_profiles(result, args.plot)
             except OSError as exc:
                 raise CliError(f"--plot: cannot write {args.plot!r}: {exc}", EXIT_FAILURE) from None
+    if args.json:
+        # allow_nan=False: to_dict maps NaN to null, and the output must stay strict JSON.
+        print(json.dumps(result.to_dict(), allow_nan=False))
+    else:
+        tol = {k: tolerances.get(k, p.default) for k, p in TOLERANCES.items()}
+        print(format_point_table(result, tol, material))
     return EXIT_OK
 
 

@@ -122,14 +122,6 @@ def _boundary(args: argparse.Namespace) -> int:
         with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
             ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
                                         progress=lambda k, n: bar.update(f"{k}/{n} edges traced"))
-    print(f"{'A':>12} {'N':>10} {'eta_max':>18} {'kind':<20} {'status above'}")
-    for i, a in enumerate(ds["A"].values):
-        for j, n in enumerate(ds["N"].values):
-            k = int(ds["edge_kind"].values[i, j])
-            above = int(ds["status_above"].values[i, j])
-            name = "-" if above < 0 else Status(above).name
-            print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
-                  f"{regimes.EDGE_KINDS[k]:<20} {name}")
     from ..files import netcdf_output
 
     try:
@@ -147,6 +139,15 @@ def _boundary(args: argparse.Namespace) -> int:
 
         raise CliError(str(exc) if isinstance(exc, WriteError) else f"cannot write: {exc}",
                        EXIT_FAILURE) from None
+    # Printed after the files are written: a reader that leaves early (| head) loses no file.
+    print(f"{'A':>12} {'N':>10} {'eta_max':>18} {'kind':<20} {'status above'}")
+    for i, a in enumerate(ds["A"].values):
+        for j, n in enumerate(ds["N"].values):
+            k = int(ds["edge_kind"].values[i, j])
+            above = int(ds["status_above"].values[i, j])
+            name = "-" if above < 0 else Status(above).name
+            print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
+                  f"{regimes.EDGE_KINDS[k]:<20} {name}")
     return EXIT_OK
 
 
@@ -178,9 +179,11 @@ def _same_boundary(path, A, N, lo, hi, coarse):
     import numpy as np
     import xarray as xr
 
+    from ..results.selection import OPEN_ERRORS
+
     try:
         ds = xr.load_dataset(path)
-    except (OSError, ValueError, RuntimeError):
+    except OPEN_ERRORS:
         ds = None
     if ds is not None and "eta_max" in ds:
         a = ds.attrs
@@ -286,12 +289,22 @@ def _open_whole(path):
     """
     import xarray as xr
 
+    from ..results.selection import OPEN_ERRORS, QueryError, check_flags, check_storage
+
+    try:
+        check_storage(path)  # it is read whole: its declared sizes first
+    except QueryError as exc:
+        raise CliError(str(exc)) from None
     try:
         ds = xr.open_dataset(path)
-    except (OSError, ValueError, RuntimeError, TypeError, KeyError):
+    except OPEN_ERRORS:
         return open_results(path)
     status = ds.data_vars.get("status")
-    if status is None or not {"flag_values", "flag_meanings"} <= set(status.attrs):
+    try:
+        if status is None or not {"flag_values", "flag_meanings"} <= set(status.attrs):
+            raise QueryError("not a result file")
+        check_flags(ds)
+    except QueryError:
         ds.close()
         return open_results(path)
     return ds
@@ -324,9 +337,11 @@ def _plot(args: argparse.Namespace) -> int:
         if args.boundary is not None:
             import xarray as xr
 
+            from ..results.selection import OPEN_ERRORS
+
             try:
                 boundary = xr.load_dataset(args.boundary)
-            except (OSError, ValueError) as exc:
+            except OPEN_ERRORS as exc:
                 raise CliError(f"--boundary: cannot read {args.boundary!r}: {exc}") from None
             if "eta_max" not in boundary:
                 raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")

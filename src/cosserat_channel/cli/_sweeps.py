@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import logging
@@ -37,6 +38,9 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the blocks on this dask.distributed scheduler, e.g. tcp://host:8786 "
                    "(checked before anything is written; see README, 'sweeps on a cluster')")
+    p.add_argument("--no-workers-timeout", type=float, metavar="SECONDS",
+                   help="with --scheduler: end the run (blocks kept) when the cluster has had no "
+                   "worker for this long (default 120)")
     p.add_argument("--no-reduce", dest="reduce", action="store_false",
                    help="one integration per grid point instead of per distinct (eps L, A, N); "
                    "same values, for checks and benchmarks")
@@ -48,9 +52,42 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
 
 @register("run", "solve every point of a sweep file and write a NetCDF result", _run_arguments)
 def _run(args: argparse.Namespace) -> int:
+    with _terminate_as_interrupt():
+        return _run_command(args)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (what batch schedulers and ``kill`` send), raised where SIGINT would be."""
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """Within: SIGTERM stops ``run`` as SIGINT does (the blocks in flight are stored and one
+    line says what is kept) instead of killing it silently. Only the main thread sets handlers."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise _Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_command(args: argparse.Namespace) -> int:
     for flag, value in (("--workers", args.workers), ("--block-size", args.block_size)):
         if value is not None and value < 1:
             raise CliError(f"{flag} must be a positive integer; got {value}")
+    if args.no_workers_timeout is not None and not 0 < args.no_workers_timeout < math.inf:
+        raise CliError(f"--no-workers-timeout must be a positive number of seconds; got "
+                       f"{args.no_workers_timeout:g}")
 
     from ..sweep import run_sweep
     from ..sweep.spec import SweepError, load_sweep
@@ -73,24 +110,26 @@ def _run(args: argparse.Namespace) -> int:
         raise CliError(f"-o: {exc}") from None
     if not args.overwrite and _finished_result_kept(output, spec):
         return EXIT_OK
-    if args.scheduler is None:
-        from ..sweep.engine import warm_up
-
-        # Here, not inside the run: on a terminal the minute a new version spends compiling
-        # shows as such, before the run's own progress bar starts.
-        with Progress("run", "loading the solver " + _FIRST_RUN, delay=2.0):
-            warm_up()
     logger = logging.getLogger("cosserat_channel.sweep")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
-    logger.addHandler(handler)
-    logger.setLevel(logging.INFO)
     from ..sweep.engine import SchedulerLost
 
     try:
-        run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                  reduce=args.reduce, block_size=args.block_size,
-                  overwrite=args.overwrite).close()
+        if args.scheduler is None:
+            from ..sweep.engine import warm_up
+
+            # Here, not inside the run: on a terminal the minute a new version spends compiling
+            # shows as such, before the run's own progress bar starts.
+            with Progress("run", "loading the solver " + _FIRST_RUN, delay=2.0):
+                warm_up()
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
+        with _quiet_distributed(args.scheduler is not None):
+            run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
+                      reduce=args.reduce, block_size=args.block_size,
+                      overwrite=args.overwrite,
+                      no_workers_timeout=args.no_workers_timeout).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:
@@ -108,13 +147,36 @@ def _run(args: argparse.Namespace) -> int:
             message += (f"; finished blocks are kept in {partial_dir(output)}/, run the same "
                         "command again to resume")
         raise CliError(message, EXIT_FAILURE) from None
-    except KeyboardInterrupt:
-        _error(f"interrupted; finished blocks are kept in {output}.partial/, run the same "
+    except KeyboardInterrupt as exc:
+        what, code = ("terminated (SIGTERM)", 143) if isinstance(exc, _Terminated) else \
+            ("interrupted", 130)
+        _error(f"{what}; finished blocks are kept in {output}.partial/, run the same "
                "command again to resume")
-        return 130
+        return code
     finally:
         logger.removeHandler(handler)
     return EXIT_OK
+
+
+@contextlib.contextmanager
+def _quiet_distributed(active: bool):
+    """Within: dask.distributed's client-side log lines off (a lost scheduler printed some thirty
+    lines of tracebacks before the run's own line, which says what happened and what is kept)."""
+    if not active:
+        yield
+        return
+    import distributed  # noqa: F401 (its logging set-up runs on import: override it after)
+
+    names = {"distributed", "tornado", "asyncio"} | {
+        n for n in logging.Logger.manager.loggerDict if n.split(".")[0] in ("distributed", "tornado")}
+    saved = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for n, level in saved.items():
+            logging.getLogger(n).setLevel(level)
 
 
 def _finished_result_kept(output: str, spec) -> bool:
@@ -263,6 +325,8 @@ def _query(args: argparse.Namespace) -> int:
                 render.write_text(args.output, writer)
             else:
                 sys.stdout.write(render.render(picked, args.format))
+        except BrokenPipeError:
+            raise  # the reader left (| head): nothing to tell from the file (see main)
         except (OSError, RuntimeError) as exc:
             raise _read_or_write_failure(exc, args.results, ds, args.output) from None
     finally:
@@ -273,10 +337,13 @@ def _query(args: argparse.Namespace) -> int:
 def _info_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", metavar="FILE.nc",
                    help="a file written by 'run' (or 'query --format netcdf'), 'boundary' or 'atlas'")
+    p.add_argument("--check-all", action="store_true",
+                   help="read every variable through to verify it (default: up to 1 GB of "
+                   "values; the report names what was not read)")
 
 
-@register("info", "describe a file of the tool (result, boundary or atlas): dimensions, variables, "
-          "status counts, provenance", _info_arguments)
+@register("info", "describe a file of the tool (result, boundary or atlas) and verify it: "
+          "dimensions, variables, status counts, provenance", _info_arguments)
 def _info(args: argparse.Namespace) -> int:
     from ..results import describe
 
@@ -285,8 +352,12 @@ def _info(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     try:
+        # What is described is read first: a damaged file is reported as such, not described.
+        problem, skipped = describe.verify(ds, None if args.check_all else describe.CHECK_BYTES)
+        if problem:
+            raise CliError(f"{args.results}: {problem}", EXIT_FAILURE)
         try:
-            text = describe.describe(ds, args.results)
+            text = describe.describe(ds, args.results, skipped)
         except (OSError, RuntimeError) as exc:
             raise _read_or_write_failure(exc, args.results, ds, None) from None
         sys.stdout.write(text)

@@ -17,12 +17,17 @@ import numpy as np
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr
 
+from ..files import format_size
 from .render import _python, _text
-from .selection import QueryError, _is_flag, _show, flag_names, is_result, open_netcdf
+from .selection import (QueryError, _is_flag, _show, flag_names, is_result, open_netcdf,
+                        printable, read_problem)
 
 SWEEP_TEXT_LINES = 12
 PROVENANCE = ("cosserat_channel_version", "created", "rtol", "atol", "sweep_sha256", "Conventions")
 KINDS = ("result", "boundary", "atlas")
+# Uncompressed bytes of values that info reads to verify a file (a few seconds); the variables
+# beyond it are named as not checked.
+CHECK_BYTES = 1 << 30
 
 
 def file_kind(ds: xr.Dataset) -> str | None:
@@ -72,36 +77,65 @@ def status_counts(ds: xr.Dataset) -> dict[str, int]:
 def _counts(title: str, counts: dict[str, int], total: int) -> list[str]:
     lines = [title]
     for name, n in counts.items():
-        lines.append(f"  {name:<22} {n:>12}  {100.0 * n / max(1, total):6.2f} %")
+        lines.append(f"  {printable(name):<22} {n:>12}  {100.0 * n / max(1, total):6.2f} %")
     return lines
 
 
-def describe(ds: xr.Dataset, path: str = "") -> str:
-    """The ``info`` report: kind, dimensions, variables, flag counts, provenance."""
+def verify(ds: xr.Dataset, budget: int | None = CHECK_BYTES) -> tuple[str | None, list[str]]:
+    """Read what ``info`` describes through (checksums included), ``status`` (where there is
+    one) and the coordinates first, then the variables in file order while their values fit
+    ``budget`` bytes (None: all of them).
+
+    Returns ``(problem, skipped)``: :func:`.selection.read_problem`'s one line for the first
+    variable that cannot be read (None if all can) and the variables not read for the budget.
+    """
+    first = ["status"] if "status" in ds.variables else []
+    names = list(dict.fromkeys([*first, *ds.coords, *ds.data_vars]))
+    read, skipped, spent = [], [], 0
+    for name in names:
+        nbytes = int(ds[name].size) * ds[name].dtype.itemsize
+        if name in first or name in ds.coords or budget is None or spent + nbytes <= budget:
+            read.append(name)
+            spent += nbytes
+        else:
+            skipped.append(name)
+    return read_problem(ds, read), skipped
+
+
+def describe(ds: xr.Dataset, path: str = "", skipped=None) -> str:
+    """The ``info`` report: kind, dimensions, variables, flag counts, provenance, and with
+    ``skipped`` (from :func:`verify`) what was read to check the file.
+
+    Text from the file is shown with :func:`.selection.printable`: a file's attributes never
+    reach the terminal as control sequences.
+    """
     kind = file_kind(ds)
-    lines = [f"file  {path}"] if path else []
+    lines = [f"file  {printable(path)}"] if path else []
     if kind is not None:
-        lines.append(f"kind  {kind}" + (f": {ds.attrs['title']}" if "title" in ds.attrs else ""))
+        title = f": {printable(ds.attrs['title'])}" if "title" in ds.attrs else ""
+        lines.append(f"kind  {kind}{title}")
     lines.append("dimensions")
     for d in ds.dims:
         n = ds.sizes[d]
+        name = printable(d)
         if d in ds.coords and n:
             c = np.asarray(ds[d].values)
-            unit = ds[d].attrs.get("units", "")
+            unit = printable(ds[d].attrs.get("units", ""))
             if c.dtype.kind in "iuf":
                 rng = f"{np.min(c):.10g} .. {np.max(c):.10g}"
             else:  # not a file of ours, but describe what is there (strings, dates, ...)
                 rng = _show(c[0]) + (f" .. {_show(c[-1])}" if n > 1 else "")
-            text = _text_of(ds[d])
-            lines.append(f"  {d:<8} {n:>8}  {rng:<30} {unit:<10} {text}".rstrip())
+            text = printable(_text_of(ds[d]))
+            lines.append(f"  {name:<8} {n:>8}  {rng:<30} {unit:<10} {text}".rstrip())
         else:
-            lines.append(f"  {d:<8} {n:>8}")
+            lines.append(f"  {name:<8} {n:>8}")
     lines.append("variables")
     for v in ds.data_vars:
         da = ds[v]
-        unit = da.attrs.get("units", "")
-        dims = "(" + ", ".join(da.dims) + ")"
-        lines.append(f"  {v:<18} {str(da.dtype):<8} {unit:<18} {_text_of(da)}  {dims}".rstrip())
+        unit = printable(da.attrs.get("units", ""))
+        dims = printable("(" + ", ".join(map(str, da.dims)) + ")")
+        lines.append(f"  {printable(v):<18} {str(da.dtype):<8} {unit:<18} "
+                     f"{printable(_text_of(da))}  {dims}".rstrip())
     if kind == "result" or (kind is None and "status" in ds):
         total = int(ds["status"].size)
         lines += _counts(f"status ({total} points)", status_counts(ds), total)
@@ -115,20 +149,28 @@ def describe(ds: xr.Dataset, path: str = "") -> str:
         unresolved = int((ds["leaf_n"] < 0).sum()) if "leaf_n" in ds else 0
         lines.append(f"cells ({n_leaf} leaves, {unresolved} unresolved; "
                      f"{int(ds.sizes.get('sample', 0))} traced edges)")
+    if skipped is not None:
+        if not skipped:
+            lines.append("checked  every variable read through without error")
+        else:
+            size = sum(int(ds[v].size) * ds[v].dtype.itemsize for v in skipped)
+            lines.append(f"checked  all but {printable(', '.join(map(str, skipped)))} "
+                         f"({format_size(size)}, beyond the {format_size(CHECK_BYTES)} info reads; "
+                         "--check-all reads them)")
     lines.append("provenance")
     a = ds.attrs
     keys = PROVENANCE if kind == "result" else [k for k in a if k != "title"]
     for key in keys:
         if key in a:
-            lines.append(f"  {key:<24} {_text(_python(a[key]))}")
+            lines.append(f"  {key:<24} {printable(_text(_python(a[key])))}")
     if "query" in a and "query" not in keys:
-        lines.append(f"  {'query':<24} {a['query']}")
+        lines.append(f"  {'query':<24} {printable(a['query'])}")
     text = str(a.get("sweep_toml", ""))
     if text:
         sweep_lines = text.splitlines()
         shown = min(SWEEP_TEXT_LINES, len(sweep_lines))
         lines.append(f"  sweep (first {shown} of {len(sweep_lines)} lines)")
-        lines += ["    " + s for s in sweep_lines[:SWEEP_TEXT_LINES]]
+        lines += ["    " + printable(s.expandtabs()) for s in sweep_lines[:SWEEP_TEXT_LINES]]
     return "\n".join(lines) + "\n"
 
 

@@ -13,13 +13,14 @@ import numpy as np
 
 
 from .render import _python
-from .selection import _OPS, Selection, _is_flag, flag_names
+from .selection import _OPS, Selection, _is_flag, check_flags, flag_names, storage_problem
 
 class _LightVariable:
     """What parsing and selecting read of a variable: dims, attrs, dtype, shape, values."""
 
     def __init__(self, var, dims):
         self._var = var
+        self.name = var.name
         self.dims = dims
         self.attrs = {k: var.getncattr(k) for k in var.ncattrs()}
         self.dtype = var.dtype
@@ -57,7 +58,8 @@ class LightFile:
         return LightBox(self, index)
 
     def close(self) -> None:
-        self.nc.close()
+        if self.nc.isopen():  # closed early by a caller that reopens the file another way
+            self.nc.close()
 
     def __enter__(self):
         return self
@@ -155,6 +157,10 @@ def open_light(path) -> LightFile | None:
         if getattr(nc, "source", None) != "cosserat-channel run" or nc.groups or \
                 "status" not in f.data_vars or not _is_flag(f["status"]):
             raise LookupError
+        # A QueryError (a ValueError): open_results then says what is wrong.
+        if storage_problem(nc, path):
+            raise LookupError
+        check_flags(f)
         order = {d: i for i, d in enumerate(f.dims)}
         for var in nc.variables.values():
             attrs = var.ncattrs()
@@ -167,7 +173,7 @@ def open_light(path) -> LightFile | None:
                 raise LookupError
         if any(d not in f.coords or nc[d].dimensions != (d,) for d in f.dims):
             raise LookupError
-    except (LookupError, OSError, RuntimeError, ValueError):
+    except (LookupError, AttributeError, OSError, RuntimeError, ValueError):
         nc.close()
         return None
     return f

@@ -19,7 +19,7 @@ from ..files import atomic_output, netcdf_output
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr
-from .selection import ROW_BLOCK, Selection, _is_flag, flag_names
+from .selection import ROW_BLOCK, Selection, _is_flag, flag_names, printable
 
 TABLE_ROWS = 200
 
@@ -82,11 +82,17 @@ def _load_box(selection: Selection, names: list[str]) -> xr.Dataset:
 
 
 def _python(x):
+    """A value as JSON, CSV and the table take it: float, int, bool or str (a date, bytes or
+    anything else of a foreign file as its text)."""
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
     if isinstance(x, (np.floating, float)):
         return float(x)
     if isinstance(x, (np.integer, int)):
         return int(x)
-    return x
+    if isinstance(x, bytes):
+        return x.decode("utf-8", "backslashreplace")
+    return x if isinstance(x, str) else str(x)
 
 
 def _text(x) -> str:
@@ -96,8 +102,8 @@ def _text(x) -> str:
 def format_table(selection: Selection, max_rows: int | None = None) -> str:
     """Aligned columns, at most ``max_rows`` rows (default ``TABLE_ROWS``), then a count."""
     max_rows = TABLE_ROWS if max_rows is None else max_rows
-    head = header(selection)
-    rows = [[_text(x) for x in r] for r in iter_rows(selection, limit=max_rows)]
+    head = [printable(h) for h in header(selection)]
+    rows = [[printable(_text(x)) for x in r] for r in iter_rows(selection, limit=max_rows)]
     widths = [max([len(h), *(len(r[i]) for r in rows)]) for i, h in enumerate(head)]
     lines = ["  ".join(h.rjust(w) for h, w in zip(head, widths))]
     lines += ["  ".join(x.rjust(w) for x, w in zip(r, widths)) for r in rows]

@@ -77,21 +77,100 @@ class QueryError(ParameterError):
 # ---------------------------------------------------------------------------------------------
 # Opening
 # ---------------------------------------------------------------------------------------------
+# What a file's metadata may declare before anything is read (see storage_problem): the pieces a
+# variable is read in (HDF5 chunks, or the whole of a contiguous variable) and their size. A
+# result of 'run' has 1 MiB chunks, about 10^5 per variable at the largest grid a sweep allows.
+MAX_PIECES = 1_000_000
+MAX_PIECE_BYTES = 64 << 20
+# Bytes a written HDF5 chunk takes at the least (its index entry and one byte of data): a file
+# holds at least this much per chunk of every variable, and a contiguous variable whole.
+MIN_CHUNK_BYTES = 8
+
+
+def storage_problem(nc, path: str) -> str | None:
+    """Why the sizes that the open ``netCDF4.Dataset`` ``nc`` declares cannot be read, from its
+    metadata alone (None when they can).
+
+    A reader trusts the declared shapes: a crafted file of a few hundred kB declaring a 10^13-point
+    grid made counting its statuses allocate gigabytes. Refused: a grid (``status``) of more
+    points than a sweep may hold (:data:`~cosserat_channel.parameters.MAX_GRID_POINTS`), a
+    variable that would be read in more than :data:`MAX_PIECES` pieces or in a piece above
+    :data:`MAX_PIECE_BYTES`, and a file smaller than its variables take once written (unwritten
+    chunks take no space).
+    """
+    from ..parameters import MAX_GRID_POINTS
+
+    status = nc.variables.get("status")
+    if status is not None and math.prod(status.shape) > MAX_GRID_POINTS:
+        return (f"'status' declares {math.prod(status.shape):,} points, more than the "
+                f"{MAX_GRID_POINTS:,} a sweep may hold: not a result of 'run'; nothing read")
+    least, size = 0, os.path.getsize(path)
+    for name, var in nc.variables.items():
+        n = math.prod(var.shape)
+        if n == 0:
+            continue
+        itemsize = getattr(var.dtype, "itemsize", 0) or 8
+        chunks = var.chunking()
+        if chunks == "contiguous":
+            pieces, piece = 1, n * itemsize
+            least += piece
+        else:
+            pieces = math.prod(-(-d // c) for d, c in zip(var.shape, chunks))
+            piece = math.prod(chunks) * itemsize
+            least += pieces * MIN_CHUNK_BYTES
+        shape = " x ".join(map(str, var.shape))
+        if pieces > MAX_PIECES:
+            return (f"variable {name!r} ({shape}) is stored in {pieces:,} chunks, more than "
+                    f"{MAX_PIECES:,}: not a result of 'run'; nothing read")
+        if piece > MAX_PIECE_BYTES:
+            return (f"variable {name!r} ({shape}) would be read in pieces of {piece:,} bytes, "
+                    f"more than {MAX_PIECE_BYTES:,}: not a result of 'run'; nothing read")
+    if least > size:
+        return (f"the file is {size:,} bytes but its variables take at least {least:,} once "
+                "written (their shapes are larger than what it holds): truncated, damaged or "
+                "crafted; nothing read")
+    return None
+
+
+def check_storage(path) -> None:
+    """QueryError (naming ``path``) when :func:`storage_problem` finds one; a file that netCDF4
+    cannot open passes (its opener says what is wrong with it)."""
+    import netCDF4
+
+    path = os.fspath(path)
+    try:
+        nc = netCDF4.Dataset(path)
+    except OPEN_ERRORS:
+        return
+    try:
+        problem = storage_problem(nc, path)
+    except OPEN_ERRORS:
+        problem = None
+    finally:
+        nc.close()
+    if problem:
+        raise QueryError(f"{path}: {problem}")
+
+
 def open_netcdf(path) -> xr.Dataset:
-    """Open any NetCDF file lazily (dask-backed); QueryError (one line) when it cannot be."""
+    """Open any NetCDF file lazily (dask-backed); QueryError (one line) when it cannot be, or
+    when its declared sizes cannot be read (:func:`storage_problem`)."""
     path = os.fspath(path)
     if not os.path.exists(path):
         raise QueryError(f"{path}: no such file")
     if os.path.isdir(path):
         raise QueryError(f"{path}: is a directory, not a result file")
+    check_storage(path)  # closed again before xarray opens the file: one reader at a time
     import xarray as xr
 
     try:
         return xr.open_dataset(path, chunks={})
-    # Any file can arrive here; the backends raise several types for "not NetCDF".
-    except (OSError, ValueError, RuntimeError, TypeError, KeyError) as exc:
+    # Any file can arrive here; the backends raise several types for "not NetCDF", and netCDF4
+    # an AttributeError for an attribute HDF5 cannot read (a damaged header).
+    except OPEN_ERRORS as exc:
         reason = (isinstance(exc, OSError) and exc.strerror) or (
-            "damaged, or not NetCDF" if type(exc) is RuntimeError else "not NetCDF")
+            "damaged, or not NetCDF" if type(exc) in (RuntimeError, AttributeError)
+            else "not NetCDF")
         raise QueryError(f"{path}: cannot open as a NetCDF result file ({reason})") from None
 
 
@@ -112,19 +191,30 @@ def open_results(path) -> xr.Dataset:
             f"{os.fspath(path)}: not a cosserat-channel result file (no 'status' variable with "
             "flag_values/flag_meanings)"
         )
+    try:
+        check_flags(ds)
+    except QueryError as exc:
+        ds.close()
+        raise QueryError(f"{os.fspath(path)}: {exc}") from None
     from . import accessor  # noqa: F401 (registers ds.cosserat)
 
     return ds
 
 
-def read_problem(ds: xr.Dataset) -> str | None:
-    """Read every variable of ``ds`` through (in chunks) and say which one cannot be read, if any.
+# What opening an arbitrary file with xarray or netCDF4 raises when it is not a readable NetCDF.
+OPEN_ERRORS = (OSError, ValueError, RuntimeError, TypeError, KeyError, AttributeError)
+
+
+def read_problem(ds: xr.Dataset, names=None) -> str | None:
+    """Read every variable of ``ds`` (or those in ``names``) through, in chunks, and say which one
+    cannot be read, if any.
 
     Result files carry HDF5 Fletcher-32 checksums (:func:`sweep.dataset.encoding`): a damaged
     chunk fails to read (netCDF4: ``RuntimeError: NetCDF: HDF error``) instead of returning
-    changed numbers. Used to tell such a file from a failure to write the output.
+    changed numbers. Used to tell such a file from a failure to write the output, and by
+    ``info`` to verify what it describes.
     """
-    for name in [*ds.coords, *ds.data_vars]:
+    for name in [*ds.coords, *ds.data_vars] if names is None else names:
         try:
             ds[name].count().compute()
         except (OSError, RuntimeError, ValueError) as exc:
@@ -139,10 +229,25 @@ def _is_flag(da: xr.DataArray) -> bool:
 
 
 def flag_names(da: xr.DataArray) -> dict[str, int]:
-    """``{flag name: value}`` of a CF flag variable."""
-    values = np.atleast_1d(np.asarray(da.attrs["flag_values"])).tolist()
+    """``{flag name: value}`` of a CF flag variable; QueryError unless its ``flag_values`` are
+    integers, one per name of its ``flag_meanings``."""
+    values = np.atleast_1d(np.asarray(da.attrs["flag_values"]))
     names = str(da.attrs["flag_meanings"]).split()
-    return dict(zip(names, (int(v) for v in values)))
+    whole = values.dtype.kind in "iu" or (
+        values.dtype.kind == "f" and bool(np.all(np.isfinite(values)))
+        and bool(np.all(values == np.round(values))))
+    if values.ndim != 1 or not whole or values.size != len(names):
+        raise QueryError(f"variable {da.name!r}: flag_values "
+                         f"{_show(values.tolist(), 40)} are not {len(names)} integers, one per "
+                         "name of flag_meanings (a damaged or foreign file)")
+    return dict(zip(names, (int(v) for v in values.tolist())))
+
+
+def check_flags(ds: xr.Dataset) -> None:
+    """QueryError naming the first flag variable of ``ds`` whose flags are unusable."""
+    for name in ds.data_vars:
+        if _is_flag(ds[name]):
+            flag_names(ds[name])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -175,8 +280,19 @@ def _check_coordinate(name: str, ds: xr.Dataset, option: str) -> None:
 
 
 def _show(x, limit: int = 24) -> str:
-    s = str(x)
+    s = printable(str(x))
     return s if len(s) <= limit else s[: limit - 1] + "…"
+
+
+def printable(text: str) -> str:
+    """``text`` with every character a terminal would act on (escape sequences, carriage
+    returns, bidirectional overrides, ...) written as its escape, e.g. ``\\x1b``: text read
+    from a file is shown, never obeyed."""
+    text = str(text)
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                   for c in text)
 
 
 def _float(text: str, what: str) -> float:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import os
 import re
 import stat
@@ -37,26 +38,33 @@ from ..integrate import stepping
 from .. import outputs as out_
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
-from ..files import FILE, output_kind, space_problem
+from ..files import FILE, format_size, output_kind, space_problem
+from . import writer as writer_
 from .dataset import build_dataset
-from .plan import BlockInputs, Plan
+from .plan import (DEFAULT_BLOCKS, MAX_BLOCK_ENTRIES, BlockInputs, Plan, count_triples,
+                   plan_memory)
 from .spec import SweepError, SweepSpec, load_sweep
 from .store import FORMAT, BlockDamaged, WorkStore, check_writable, partial_dir
 from .writer import BUCKET, StreamWriter, Tiles
 
 # Seconds to wait for a scheduler to answer before the run is refused (nothing created yet).
 CONNECT_TIMEOUT = 5.0
+# Seconds a cluster may have no worker at all before the run ends (SchedulerLost): long enough
+# for a nanny or a batch system to bring lost workers back, short enough not to look hung.
+NO_WORKERS_TIMEOUT = 120.0
 _ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
 
 
 class SchedulerLost(RuntimeError):
-    """The dask scheduler went away mid-run; the finished blocks are kept in the store."""
+    """The dask cluster can no longer run the blocks: its scheduler went away mid-run, or it has
+    had no worker for ``no_workers_timeout`` seconds. The finished blocks are kept in the store."""
 
 log = logging.getLogger("cosserat_channel.sweep")
 
 
 def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, reduce=True,
-              block_size=None, progress=None, compress=True, overwrite=False):
+              block_size=None, progress=None, compress=True, overwrite=False,
+              no_workers_timeout=None):
     """Solve every point of a sweep and return the labelled result (and write it to NetCDF).
 
     Parameters
@@ -85,6 +93,9 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         Compute again and replace ``output`` when it is a file already. Without it a finished
         result of this sweep is kept and returned (nothing computed), any other file is refused;
         an unfinished run of this sweep (its working store) is resumed either way.
+    no_workers_timeout : float, optional
+        With ``scheduler``: seconds the cluster may have no worker before the run ends with
+        :class:`SchedulerLost` (default :data:`NO_WORKERS_TIMEOUT`).
 
     Returns
     -------
@@ -112,16 +123,24 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     n_workers = int(workers or os.cpu_count() or 1)
     if compress not in (True, False, "zstd", "zlib"):
         raise SweepError(f"compress must be True, False, 'zstd' or 'zlib'; got {compress!r}")
+    if no_workers_timeout is None:
+        no_workers_timeout = NO_WORKERS_TIMEOUT
+    if not 0 < no_workers_timeout < math.inf:
+        raise SweepError(f"no_workers_timeout must be a positive number of seconds; got "
+                         f"{no_workers_timeout!r}")
     xi = _profile_xi(spec)
+    # Memory and disk are checked from the grid's counts, before the plan (grid-sized) is made.
+    n_triples = count_triples(spec.coords(), reduce)
+    problem = memory_problem(memory_needed(spec, n_triples, xi, output, reduce, n_workers))
+    if problem is None and output is not None:
+        problem = space_problem(output, disk_needed(spec, n_triples, xi, output))
+    if problem:
+        raise SweepError(problem)
     try:
         plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers,
                     tile=_tile(spec, xi, output))
     except ValueError as exc:
         raise SweepError(str(exc)) from None
-    if output is not None:
-        problem = space_problem(output, disk_needed(spec, plan, xi, output))
-        if problem:
-            raise SweepError(problem)
     # The cluster is reached before any store exists: a wrong address leaves nothing behind.
     client, own_client = (None, False) if scheduler is None else connect(scheduler)
     try:
@@ -135,7 +154,8 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
 
                 return xr.open_dataset(output, chunks={})
             ds, times = _run(spec, plan, store, xi, output, client, n_workers, reduce,
-                             progress, compress, given_block_size=block_size is not None)
+                             progress, compress, no_workers_timeout,
+                             given_block_size=block_size is not None)
         finally:
             store.close()
     finally:
@@ -198,7 +218,7 @@ def _tile(spec, xi, output):
 
 
 def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, compress,
-         given_block_size=False):
+         no_workers_timeout=NO_WORKERS_TIMEOUT, given_block_size=False):
     """Solve what the store lacks, writing the file as groups complete, then finish it; returns
     (Dataset or None, (solve s, blocks computed, assemble and write s))."""
     if store.disagreement is None and store.manifest["block_size"] != plan.block_size:
@@ -242,7 +262,8 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
             if client is None:
                 _run_threads(plan, todo, store, args, n_workers, progress, writer, cpu)
             else:
-                _run_distributed(plan, todo, store, args, client, progress, writer)
+                _run_distributed(plan, todo, store, args, client, progress, writer,
+                                 no_workers_timeout)
         t1 = time.perf_counter()
         during = 0 if writer is None else writer.tiles_written
         ds = assemble(spec, plan, store, xi, recompute=recompute, output=output,
@@ -312,21 +333,92 @@ def _first_block_size(store) -> int | None:
         return None
 
 
-def disk_needed(spec: SweepSpec, plan: Plan, xi, output: str) -> int:
+def disk_needed(spec: SweepSpec, n_triples: int, xi, output: str) -> int:
     """Bytes the run will still put on disk at its peak: the result file uncompressed (an upper
-    bound), the working store's blocks and the tile buckets (:mod:`.writer`), less what an
-    earlier run of the same output already left in the store."""
+    bound), the working store's blocks, the tile buckets and the writer's mapped arrays
+    (:mod:`.writer`), less what an earlier run of the same output already left in the store.
+    ``n_triples``: the integrations (:func:`.plan.count_triples`, an upper bound will do)."""
     n_xi = 0 if xi is None else xi.size
     plug_edge = out_.needs_plug_edge(spec.variables)
-    per_point = 1 + sum(8 if v in out_.OUTPUTS else 4 for v in spec.variables)  # + status
-    result = plan.size * (per_point + 4 * 8 * n_xi)
-    store = plan.n_triples * (8 * layout.N_R + 16 + 8 + 8 * layout.N_PROF * n_xi)
+    result = spec.size * _bytes_per_point(spec, n_xi)
+    store = n_triples * (8 * layout.N_R + 16 + 8 + 8 * layout.N_PROF * n_xi)
     if plug_edge:
-        store += plan.size * (8 + BUCKET.itemsize)
+        store += spec.size * (8 + BUCKET.itemsize)
+    held = n_triples * writer_.bytes_per_triple(n_xi)
+    if held > writer_.WRITER_MEMORY:
+        store += held
     have = 0
     for root, _, files in os.walk(partial_dir(output)):
         have += sum(os.lstat(os.path.join(root, f)).st_size for f in files)
     return max(0, result + store - have)
+
+
+def _bytes_per_point(spec: SweepSpec, n_xi: int) -> int:
+    """Bytes of one grid point in the result: its variables (float64 outputs, int32 counters),
+    status, and the profiles' four float64 rows."""
+    return 1 + sum(8 if v in out_.OUTPUTS else 4 for v in spec.variables) + 4 * 8 * n_xi
+
+
+# What a run holds besides its plan and the writer's per-integration arrays: the tiles being
+# derived and written (.writer: a dozen tile-sized temporaries, near 200 MB, two tiles at once)
+# and, per worker, the block being solved and stored (its eps K entries with their grid
+# indices, owners and plug-edge values).
+TILE_MEMORY = 2 * (200 << 20)
+BLOCK_BYTES_PER_ENTRY = 64
+
+
+def memory_needed(spec: SweepSpec, n_triples: int, xi, output, reduce: bool,
+                  workers: int) -> int:
+    """Bytes a run holds at its peak, from the grid's counts alone (``n_triples`` from
+    :func:`.plan.count_triples`): the plan, the per-integration arrays the writer (or, without
+    a file, the in-memory result) keeps, the tiles in flight and the blocks being solved."""
+    n_xi = 0 if xi is None else xi.size
+    need = plan_memory(spec.shape, n_triples, reduce)
+    held = n_triples * writer_.bytes_per_triple(n_xi)
+    if output is None:  # everything in memory, the grid-sized result twice while it is built
+        need += held + 2 * spec.size * _bytes_per_point(spec, n_xi)
+    else:  # beyond WRITER_MEMORY the writer maps its arrays onto the disk
+        need += (held if held <= writer_.WRITER_MEMORY else 0) + TILE_MEMORY
+    # A block holds whole integrations, about 1/DEFAULT_BLOCKS of the grid up to
+    # MAX_BLOCK_ENTRIES entries (.plan), and at least one integration's entries.
+    per_triple = -(-spec.size // max(1, n_triples))
+    entries = min(spec.size, max(per_triple, min(MAX_BLOCK_ENTRIES,
+                                                 -(-spec.size // DEFAULT_BLOCKS))))
+    return need + workers * entries * BLOCK_BYTES_PER_ENTRY
+
+
+def available_memory() -> int | None:
+    """Bytes this process may still take: the system's MemAvailable, or the memory left under
+    the cgroup's limit (a batch job's, a container's) when that is less; None when unknown."""
+    found = []
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    found.append(int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        with open("/sys/fs/cgroup/memory.max") as f:
+            limit = f.read().strip()
+        with open("/sys/fs/cgroup/memory.current") as f:
+            current = int(f.read().strip())
+        if limit != "max":
+            found.append(max(0, int(limit) - current))
+    except (OSError, ValueError):
+        pass
+    return min(found) if found else None
+
+
+def memory_problem(need: int) -> str | None:
+    """Why ``need`` bytes will not fit in memory (one line), or None when they will (or when the
+    system cannot say)."""
+    free = available_memory()
+    if free is None or need <= free:
+        return None
+    return (f"grid: the run needs about {format_size(need)} of memory and {format_size(free)} "
+            "is available; split the sweep into smaller ones (fewer distinct eps L, A and N "
+            "values each), or run it where there is more")
 
 
 def _manifest(spec: SweepSpec, plan: Plan) -> dict:
@@ -473,26 +565,46 @@ def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
     if not isinstance(address, str) or not _ADDRESS.match(address):
         raise SweepError(f"scheduler: {scheduler!r} is not a dask scheduler address; expected "
                          "e.g. tcp://host:8786")
+    client = Client.__new__(Client)
     try:
-        return Client(address, timeout=timeout, set_as_default=False), True
-    except (OSError, TimeoutError, ValueError) as exc:
+        client.__init__(address, timeout=timeout, set_as_default=False)
+        return client, True
+    # Whatever the comm layer raises for an address it cannot use: TypeError for tls:// without
+    # dask's TLS configuration, for ucx:// without UCX, ValueError for a malformed host.
+    except Exception as exc:  # noqa: BLE001
+        _discard(client)
         reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise SweepError(f"scheduler: no dask scheduler answers at {address!r} within "
-                         f"{timeout:g} s ({reason}); start one (dask scheduler) or check the "
-                         "address") from None
+        if isinstance(exc, (OSError, TimeoutError)):
+            raise SweepError(f"scheduler: no dask scheduler answers at {address!r} within "
+                             f"{timeout:g} s ({reason}); start one (dask scheduler) or check "
+                             "the address") from None
+        raise SweepError(f"scheduler: cannot connect to {address!r} ({reason}); check the "
+                         "address and its protocol (tcp:// needs no set-up)") from None
+
+
+def _discard(client) -> None:
+    """Stop a client whose constructor failed. Left alone, its ``__del__`` waits for a
+    connection that never came (10 s at exit) and prints a traceback."""
+    try:
+        client.status = "closed"  # close() and __del__ then have nothing to do
+        client._loop_runner.stop()
+    except Exception:  # noqa: BLE001 (failed before these existed: nothing to stop)
+        pass
 
 
 def _solve_remote(inp: BlockInputs, args) -> dict:
     return solve_block(inp, *args)
 
 
-def _run_distributed(plan, todo, store, args, client, progress, writer=None) -> None:
+def _run_distributed(plan, todo, store, args, client, progress, writer=None,
+                     no_workers_timeout=NO_WORKERS_TIMEOUT) -> None:
     from dask.distributed import CancelledError, KilledWorker
 
     address = client.scheduler.address
     try:
         with client.as_current():  # as_completed and the progress bar find it
-            _submit_and_store(plan, todo, store, args, client, progress, writer)
+            _submit_and_store(plan, todo, store, args, client, progress, writer,
+                              _WorkerWatch(client, no_workers_timeout))
     except KilledWorker as exc:
         raise SchedulerLost(f"a block killed every worker that ran it ({exc}); see the workers' "
                             "logs") from None
@@ -504,7 +616,41 @@ def _run_distributed(plan, todo, store, args, client, progress, writer=None) -> 
                             f"({type(exc).__name__})") from None
 
 
-def _submit_and_store(plan, todo, store, args, client, progress, writer=None) -> None:
+class _WorkerWatch:
+    """Whether a cluster has had no worker for ``timeout`` seconds (asked at most once a second).
+
+    Tasks wait on a cluster without workers for ever, silently: the run would hang. A scheduler
+    that does not answer is not this watch's concern (its futures are cancelled, see
+    :func:`_run_distributed`).
+    """
+
+    def __init__(self, client, timeout: float):
+        self.client, self.timeout = client, timeout
+        self._asked = -math.inf
+        self._since = None  # when the cluster was first seen without a worker
+
+    def check(self) -> None:
+        """Raise :class:`SchedulerLost` once the cluster has had no worker for ``timeout``."""
+        now = time.monotonic()
+        if now - self._asked < min(1.0, self.timeout / 4) or self.client.status != "running":
+            return
+        self._asked = now
+        try:
+            n = len(self.client.nthreads())
+        except Exception:  # noqa: BLE001 (an unreachable scheduler: the futures say so)
+            return
+        if n:
+            self._since = None
+        elif self._since is None:
+            self._since = now
+        elif now - self._since >= self.timeout:
+            raise SchedulerLost(
+                f"the dask cluster at {self.client.scheduler.address} has had no worker for "
+                f"{self.timeout:g} s (all lost, none started)")
+
+
+def _submit_and_store(plan, todo, store, args, client, progress, writer=None,
+                      watch: _WorkerWatch | None = None) -> None:
     from dask.distributed import as_completed
 
     client.run(warm_up)
@@ -517,14 +663,33 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None) ->
     key_to_block = {f.key: k for f, k in zip(futures, todo)}
     if progress:
         _progress_thread(futures)
-    for fut in as_completed(futures):
-        k = key_to_block[fut.key]
-        out = fut.result()
-        out["triples"] = plan.blocks[k]
-        store.put(k, out)
-        if writer is not None:
-            writer.add(k, out)
-        fut.release()
+    pending = as_completed(futures)
+    while not pending.is_empty():
+        ready = pending.next_batch(block=False)
+        if not ready:
+            if watch is not None:
+                watch.check()
+            time.sleep(0.05)
+            continue
+        for fut in ready:
+            k = key_to_block[fut.key]
+            out = _result(fut, watch)
+            out["triples"] = plan.blocks[k]
+            store.put(k, out)
+            if writer is not None:
+                writer.add(k, out)
+            fut.release()
+
+
+def _result(fut, watch: _WorkerWatch | None):
+    """``fut.result()``, watching the cluster meanwhile: a finished task whose worker is lost
+    before its result is fetched runs again, and waits for a worker like any other."""
+    while True:
+        try:
+            return fut.result(timeout=0.5)
+        except TimeoutError:  # dask.distributed's is the built-in one
+            if watch is not None:
+                watch.check()
 
 
 def _progress_thread(futures) -> None:

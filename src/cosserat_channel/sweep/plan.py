@@ -59,6 +59,37 @@ COST_FIXED = 30.0
 COST_PER_INV_ETA = 1.2
 COST_REJECTED = 0.5
 COST_PER_ENTRY = 0.75
+# Triples per slice when the plan computes per-triple values (costs, groups): its temporaries
+# then follow the slice, not the grid, and only the results are grid-sized.
+SLICE = 1 << 20
+# Bytes a plan takes at its peak per triple (costs, groups, the ranking, the blocks) and per
+# (eps, L) pair of a reduced plan (the products, their sorting, the pair arrays kept): 74 per
+# triple measured (tracemalloc) with one pair per triple, 2 x 10^7 of them.
+PLAN_BYTES_PER_TRIPLE = 48
+PLAN_BYTES_PER_PAIR = 40
+# (eps, L) pairs up to which the distinct products are counted exactly before planning.
+COUNT_PAIRS = 1 << 22
+
+
+def count_triples(axes: dict, reduce: bool = True) -> int:
+    """The number of integrations of a grid, before any plan is made: exact, or for a reduced
+    grid of more than :data:`COUNT_PAIRS` ``(eps, L)`` pairs an upper bound (every product
+    distinct), so that what depends on it is checked without grid-sized work."""
+    n = {d: np.size(axes[d]) for d in ("eps", "L", "K", "A", "N")}
+    if not reduce:
+        return math.prod(n.values())
+    pairs = n["eps"] * n["L"]
+    if pairs <= COUNT_PAIRS:
+        eps = np.asarray(axes["eps"], dtype=np.float64)
+        L = np.asarray(axes["L"], dtype=np.float64)
+        pairs = np.unique(eps[:, None] * L[None, :]).size
+    return pairs * n["A"] * n["N"]
+
+
+def plan_memory(shape, n_triples: int, reduce: bool = True) -> int:
+    """Bytes a :class:`Plan` of ``n_triples`` integrations over ``shape`` takes at its peak."""
+    pairs = shape[0] * shape[1] if reduce else 0
+    return PLAN_BYTES_PER_TRIPLE * n_triples + PLAN_BYTES_PER_PAIR * pairs
 
 
 @njit(**_JIT)
@@ -123,6 +154,7 @@ class Plan:
             pair_eta = (self.eps[:, None] * self.L[None, :]).ravel()
             # Exact float equality: a shared product is the very same float in solve_point too.
             self.eta_u, self.inv = np.unique(pair_eta, return_inverse=True)
+            del pair_eta
             self.inv = self.inv.ravel()
             self.pair_order = np.argsort(self.inv, kind="stable")
             counts = np.bincount(self.inv, minlength=self.eta_u.size)
@@ -161,13 +193,16 @@ class Plan:
 
     def costs(self) -> np.ndarray:
         """Expected cost of every triple (arbitrary units; see the ``COST_*`` constants)."""
-        t = np.arange(self.n_triples, dtype=np.int64)
-        eta, A, N = self.triple_params(t)
-        code = np.empty(t.size, dtype=np.int64)
-        _classify_many(eta, A, N, code)
-        with np.errstate(over="ignore", divide="ignore"):  # only the order matters (inf is fine)
-            cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
-        return cost + COST_PER_ENTRY * self.entries_per_triple(t)
+        out = np.empty(self.n_triples)
+        for lo in range(0, self.n_triples, SLICE):
+            t = np.arange(lo, min(self.n_triples, lo + SLICE), dtype=np.int64)
+            eta, A, N = self.triple_params(t)
+            code = np.empty(t.size, dtype=np.int64)
+            _classify_many(eta, A, N, code)
+            with np.errstate(over="ignore", divide="ignore"):  # only the order matters (inf is fine)
+                cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
+            out[lo:lo + t.size] = cost + COST_PER_ENTRY * self.entries_per_triple(t)
+        return out
 
     def _groups(self):
         """``(group of every triple, tile indices of every group)``; see the module docstring."""
@@ -177,9 +212,12 @@ class Plan:
         all_tiles = np.arange(math.prod(self.tile_grid), dtype=np.int64).reshape(self.tile_grid)
         if not self.reduce:
             # Every triple is a grid point: its tile is its group.
-            e, l, k, a, n = np.unravel_index(np.arange(self.size, dtype=np.int64), self.shape)
-            tile = np.ravel_multi_index((e // te, l // tl, k // tk, a // ta, n // tn),
-                                        self.tile_grid)
+            tile = np.empty(self.size, dtype=np.int64)
+            for lo in range(0, self.size, SLICE):
+                t = np.arange(lo, min(self.size, lo + SLICE), dtype=np.int64)
+                e, l, k, a, n = np.unravel_index(t, self.shape)
+                tile[lo:lo + t.size] = np.ravel_multi_index(
+                    (e // te, l // tl, k // tk, a // ta, n // tn), self.tile_grid)
             return tile, [np.array([i]) for i in range(all_tiles.size)]
         if gk != 1:
             return np.zeros(self.n_triples, dtype=np.int64), [all_tiles.ravel()]
@@ -202,9 +240,11 @@ class Plan:
         n_cls = int(cls.max()) + 1
         # eta u's class: that of its first pair (all its pairs are in one class).
         u_cls = cls[box[self.pair_order[self.pair_start[:-1]]]]
-        t = np.arange(self.n_triples, dtype=np.int64)
-        u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
-        group = (u_cls[u] * ga + a // ta) * gn + n // tn
+        group = np.empty(self.n_triples, dtype=np.int64)
+        for lo in range(0, self.n_triples, SLICE):
+            t = np.arange(lo, min(self.n_triples, lo + SLICE), dtype=np.int64)
+            u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
+            group[lo:lo + t.size] = (u_cls[u] * ga + a // ta) * gn + n // tn
         tiles_el = all_tiles[:, :, 0].reshape(ge * gl, ga, gn)
         groups = [tiles_el[cls == c, i, j].ravel() for c in range(n_cls)
                   for i in range(ga) for j in range(gn)]
@@ -336,8 +376,9 @@ def grouped_block_plan(cost: np.ndarray, group: np.ndarray, block_size: int):
     groups in order of falling total cost (empty groups get no block)."""
     n_groups = int(group.max()) + 1 if group.size else 0
     total = np.bincount(group, weights=cost, minlength=n_groups)
-    order = np.argsort(group, kind="stable")  # triples by group, ascending within each
-    bounds = np.searchsorted(group[order], np.arange(n_groups + 1))
+    # Triples by group, ascending within each; one group (the common case) needs no sorting.
+    order = np.argsort(group, kind="stable") if n_groups > 1 else np.arange(group.size)
+    bounds = np.concatenate(([0], np.cumsum(np.bincount(group, minlength=n_groups))))
     blocks, block_group = [], []
     for g in np.argsort(-total, kind="stable"):
         members = order[bounds[g]:bounds[g + 1]]
@@ -359,11 +400,8 @@ def block_plan(cost: np.ndarray, block_size: int) -> list[np.ndarray]:
     n = cost.size
     n_blocks = max(1, math.ceil(n / block_size))
     rank = np.argsort(-cost, kind="stable")
-    i = np.arange(n)
-    pos = i % n_blocks
-    snake = np.where((i // n_blocks) % 2 == 0, pos, n_blocks - 1 - pos)
-    which = np.empty(n, dtype=np.int64)
-    which[rank] = snake
-    order = np.argsort(which, kind="stable")  # stable: triple indices ascending within a block
-    bounds = np.searchsorted(which[order], np.arange(n_blocks + 1))
-    return [order[bounds[k]:bounds[k + 1]].astype(np.int64) for k in range(n_blocks)]
+    # Block k takes the ranks k and 2B - 1 - k of every round of 2B (B blocks): the snake read
+    # off directly, so that no other grid-sized array is made.
+    period = 2 * n_blocks
+    return [np.sort(np.concatenate((rank[k::period], rank[period - 1 - k::period])))
+            .astype(np.int64) for k in range(n_blocks)]

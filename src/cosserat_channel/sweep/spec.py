@@ -51,6 +51,7 @@ from ..parameters import (
     DEFAULT_RTOL,
     DIMS,
     MATERIAL,
+    MAX_GRID_POINTS,
     ParameterError,
     check_material,
     check_eta,
@@ -62,7 +63,13 @@ from ..parameters import (
 # .writer), so memory does not grow with the grid, and the real limit is the free disk space,
 # which :func:`.engine.run_sweep` checks before computing. Beyond this the plan's per-triple
 # arrays (one entry per distinct (eps L, A, N)) would outgrow a single machine's memory.
-MAX_POINTS = 10_000_000_000
+MAX_POINTS = MAX_GRID_POINTS
+# The most values on one axis, checked before any is made. Every value of eps, L, A or N is at
+# least one integration, and every value of K an entry of each block, and a run keeps some 100
+# bytes per integration and per entry of a block (:func:`.engine.memory_needed`): an axis beyond
+# this needs tens of GB whatever the rest of the grid (10^10 values, within MAX_POINTS, were a
+# 74.5 GiB allocation before anything was checked).
+MAX_AXIS_POINTS = 100_000_000
 PROFILE_POINTS_RANGE = (2, 10001)
 
 TABLES = ("grid", "material", "solver", "output")
@@ -208,6 +215,10 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
         raise SweepError(
             f"grid: {size:,} points ({shape}) exceeds the limit of {MAX_POINTS:,}; split the sweep"
         )
+    for d, n in counts.items():
+        if n > MAX_AXIS_POINTS:
+            raise SweepError(f"grid.{d}: {n:,} values exceed the limit of {MAX_AXIS_POINTS:,} "
+                             "on one axis; split the sweep along it")
     axes = {}
     for d in DIMS:
         key = f"grid.{d}"
@@ -216,9 +227,8 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
             check_values(d, values)
         except ParameterError as exc:
             raise SweepError(f"{key}: {exc}{_logspace_hint(grid[d])}") from None
-        uniq, counts_ = np.unique(values, return_counts=True)
-        if np.any(counts_ > 1):
-            dup = ", ".join(f"{v!r}" for v in uniq[counts_ > 1][:5].tolist())
+        dup = _duplicates(values)
+        if dup:
             raise SweepError(f"{key}: duplicate value(s) {dup}; coordinate values must be unique")
         values.setflags(write=False)
         axes[d] = values
@@ -290,18 +300,41 @@ def _axis_count(value, key: str) -> int:
 def _axis_values(value, key: str) -> np.ndarray:
     """The axis as float64 in file order (shape already checked by :func:`_axis_count`)."""
     if _is_number(value):
-        out = np.array([float(value)])
+        out = np.array([_float(value, key)])
     elif isinstance(value, Mapping):
         form, (start, stop, num) = next(iter(value.items()))
         for name, x in (("start", start), ("stop", stop)):
-            if not math.isfinite(float(x)):
+            if not math.isfinite(_float(x, f"{key}: {form} {name}")):
                 raise SweepError(f"{key}: {form} {name} must be finite; got {_show(x)}")
-        fn = np.linspace if form == "linspace" else np.logspace
         with np.errstate(over="ignore"):
-            out = fn(float(start), float(stop), int(num))
+            out = np.linspace(float(start), float(stop), int(num))
+            if form == "logspace":  # np.logspace's values, without its second axis-sized array
+                np.power(10.0, out, out=out)
     else:
-        out = np.array([float(v) for v in value], dtype=np.float64)
+        out = np.array([_float(v, f"{key}[{i}]") for i, v in enumerate(value)], dtype=np.float64)
     return np.ascontiguousarray(out, dtype=np.float64)
+
+
+def _duplicates(values: np.ndarray) -> str:
+    """The first few values that ``values`` holds twice, as text ('' when none): a strictly
+    monotonic axis (every linspace and logspace of distinct ends) is known free of them without
+    a sorted copy of it."""
+    if values.size < 2 or bool(np.all(values[1:] > values[:-1])) or \
+            bool(np.all(values[1:] < values[:-1])):
+        return ""
+    ordered = np.sort(values)
+    repeated = ordered[1:][ordered[1:] == ordered[:-1]]
+    return ", ".join(f"{v!r}" for v in np.unique(repeated)[:5].tolist())
+
+
+def _float(x, key: str) -> float:
+    """``float(x)``; SweepError for an integer beyond the largest float (TOML integers are
+    unbounded; float() raises OverflowError above about 1.8e308)."""
+    try:
+        return float(x)
+    except OverflowError:
+        raise SweepError(f"{key}: {_show(x, 24)} is beyond the largest float (about "
+                         "1.8e308)") from None
 
 
 def _material(material: Mapping | None) -> dict | None:

@@ -58,6 +58,15 @@ PENDING_BYTES = 256 << 20
 GROUP_POINTS = 4 * TILE_POINTS
 SCRATCH = "scratch"
 BUCKET = np.dtype([("local", "<i4"), ("value", "<f8")])
+# The per-integration arrays (StreamWriter.per_triple, .profiles) beyond this many bytes are
+# mapped onto unlinked files in the store instead of held in memory: memory then follows the
+# groups being written, and the system pages the rest out (10^8 integrations are 13.6 GB).
+WRITER_MEMORY = 1 << 30
+
+
+def bytes_per_triple(n_xi: int) -> int:
+    """Bytes of :class:`StreamWriter`'s per-integration arrays for one integration."""
+    return 8 * layout.N_R + 16 + 8 * layout.N_PROF * n_xi
 
 
 class Tiles:
@@ -220,11 +229,13 @@ class StreamWriter:
         self.xi, self.tiles, self.compress, self.recompute = xi, tiles, compress, recompute
         self.tmp = temp_path(store.directory, output)
         n = plan.n_triples
+        mapped = n * bytes_per_triple(0 if xi is None else xi.size) > WRITER_MEMORY
         # Zeros, not empty: a tile's derivation casts the whole status column, rows of blocks
         # not yet finished included (they are never used, but garbage would warn on the cast).
-        self.per_triple = {"res": np.zeros((n, layout.N_R)),
-                           "steps": np.empty((n, 2), dtype=np.int64)}
-        self.profiles = None if xi is None else np.empty((n, layout.N_PROF, xi.size))
+        self.per_triple = {"res": self._array((n, layout.N_R), np.float64, mapped),
+                           "steps": self._array((n, 2), np.int64, mapped)}
+        self.profiles = None if xi is None else self._array((n, layout.N_PROF, xi.size),
+                                                            np.float64, mapped)
         self.need_one_minus = out_.needs_plug_edge(spec.variables)
         self._left = np.bincount(plan.block_group, minlength=len(plan.groups))
         order = np.argsort(plan.block_group, kind="stable")
@@ -242,6 +253,19 @@ class StreamWriter:
         self.cpu = 0.0  # and its CPU seconds (the tile-deriving thread's not included)
         self._thread = threading.Thread(target=self._loop, name="cc-writer", daemon=True)
         self._thread.start()
+
+    def _array(self, shape, dtype, mapped: bool) -> np.ndarray:
+        """Zeros, in memory or mapped onto a file of the store that is unlinked at once (the
+        mapping keeps its space while it lives; a killed run leaves nothing behind)."""
+        if not mapped:
+            return np.zeros(shape, dtype)
+        path = temp_path(self.store.directory, "per-triple")
+        array = np.memmap(path, dtype=dtype, mode="w+", shape=shape)
+        try:
+            os.unlink(path)
+        except OSError:  # a system that cannot unlink an open file: the store's tidying does
+            pass
+        return array
 
     # -- called by the run ----------------------------------------------------------------------
     def add(self, k: int, block: dict | None = None) -> None:

@@ -43,6 +43,11 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="compute again and replace OUT.nc if it is already a finished result "
                    "(without it a finished OUT.nc is kept)")
+    p.add_argument("--compress", choices=("zlib", "zstd", "none"),
+                   help="codec of the file: zlib (level 1 with shuffle; every netCDF-4 reader "
+                   "opens it), zstd (Zstandard: less CPU to write, needs netCDF-C >= 4.9 with "
+                   "its filter to read) or none (default: the sweep's [output] compress, else "
+                   "zlib)")
 
 
 @register("run", "solve every point of a sweep file and write a NetCDF result", _run_arguments)
@@ -82,7 +87,7 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
-                  reduce=args.reduce, block_size=args.block_size).close()
+                  reduce=args.reduce, block_size=args.block_size, compress=args.compress).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:

@@ -33,6 +33,7 @@ import numpy as np
 
 from .. import __version__
 from ..integrate import rk45
+from .. import netcdf_policy
 from .. import outputs as out_
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
@@ -55,7 +56,7 @@ log = logging.getLogger("cosserat_channel.sweep")
 
 
 def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, reduce=True,
-              block_size=None, progress=None, compress=True):
+              block_size=None, progress=None, compress=None):
     """Solve every point of a sweep and return the labelled result (and write it to NetCDF).
 
     Parameters
@@ -77,9 +78,12 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         keeps the block size it started with).
     progress : bool, optional
         Progress bar on stderr; default when stderr is a terminal.
-    compress : bool or str
-        Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level -1),
-        ``"zlib"`` (level 1, for readers without netCDF-C's zstd filter), or False.
+    compress : str or bool, optional
+        Codec of the large NetCDF variables (:mod:`cosserat_channel.netcdf_policy`):
+        ``"zlib"`` (level 1 with shuffle, what every netCDF-4 reader opens), ``"zstd"``
+        (Zstandard level -1: less CPU, for readers with netCDF-C's zstd filter) or ``"none"``;
+        True is the default codec, False none. Default: the sweep's ``[output] compress``, else
+        ``"zlib"``.
 
     Returns
     -------
@@ -104,8 +108,10 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     if workers is not None and (int(workers) != workers or workers < 1):
         raise SweepError(f"workers must be a positive integer; got {workers!r}")
     n_workers = int(workers or os.cpu_count() or 1)
-    if compress not in (True, False, "zstd", "zlib"):
-        raise SweepError(f"compress must be True, False, 'zstd' or 'zlib'; got {compress!r}")
+    try:
+        compress = netcdf_policy.codec(spec.compress if compress is None else compress)
+    except ValueError as exc:
+        raise SweepError(str(exc)) from None
     xi = _profile_xi(spec)
     try:
         plan = Plan(spec.coords(), reduce=reduce, block_size=block_size, workers=n_workers,

@@ -198,7 +198,8 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
             if client is None:
                 _run_threads(plan, todo, store, args, n_workers, progress, writer, cpu)
             else:
-                _run_distributed(plan, todo, store, args, client, progress, writer)
+                n_workers = _run_distributed(plan, todo, store, args, client, progress, writer,
+                                             cpu)
         t1 = time.perf_counter()
         during = 0 if writer is None else writer.tiles_written
         ds = assemble(spec, plan, store, xi, recompute=recompute, output=output,
@@ -210,10 +211,10 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     t2 = time.perf_counter()
     if output is not None:
         store.remove()
-    # The solving threads' CPU time (the blocks' inputs, the kernels, storing the blocks) over
-    # the workers: what the solve alone takes on free cores. The solve phase's wall time would
-    # count the writing done meanwhile as solving; what assembling and writing add is the rest
-    # of the wall time. (On a cluster the threads are elsewhere: the solve phase's wall time.)
+    # The solving threads' CPU time (the blocks' inputs, the kernels, storing the blocks; on a
+    # cluster the workers' threads, as each task measured it) over the workers: what the solve
+    # alone takes on free cores. The solve phase's wall time would count the writing done
+    # meanwhile as solving; what assembling and writing add is the rest of the wall time.
     solve = sum(cpu) / n_workers if cpu else t1 - t0
     if writer is not None:
         log.info("%s: solve phase %.2f s (solving threads %.2f s CPU on %d workers; the process %.2f s "
@@ -395,16 +396,28 @@ def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
 
 
 def _solve_remote(inp: BlockInputs, args) -> dict:
-    return solve_block(inp, *args)
+    c0 = time.thread_time()
+    out = solve_block(inp, *args)
+    out["cpu"] = time.thread_time() - c0  # the worker thread's, returned with the block
+    return out
 
 
-def _run_distributed(plan, todo, store, args, client, progress, writer=None) -> None:
+def cluster_threads(client) -> int:
+    """Threads of all the cluster's workers (at least 1): the workers of its CPU accounting."""
+    workers = client.scheduler_info().get("workers", {})
+    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+
+
+def _run_distributed(plan, todo, store, args, client, progress, writer=None, cpu=None) -> int:
+    """Run the blocks on the cluster of ``client``; returns its threads (:func:`cluster_threads`),
+    and appends each block's CPU seconds on its worker to ``cpu``."""
     from dask.distributed import CancelledError, KilledWorker
 
     address = client.scheduler.address
     try:
         with client.as_current():  # as_completed and the progress bar find it
-            _submit_and_store(plan, todo, store, args, client, progress, writer)
+            _submit_and_store(plan, todo, store, args, client, progress, writer, cpu)
+            return cluster_threads(client)
     except KilledWorker as exc:
         raise SchedulerLost(f"a block killed every worker that ran it ({exc}); see the workers' "
                             "logs") from None
@@ -416,7 +429,7 @@ def _run_distributed(plan, todo, store, args, client, progress, writer=None) -> 
                             f"({type(exc).__name__})") from None
 
 
-def _submit_and_store(plan, todo, store, args, client, progress, writer=None) -> None:
+def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cpu=None) -> None:
     from dask.distributed import as_completed
 
     client.run(warm_up)
@@ -432,6 +445,9 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None) ->
     for fut in as_completed(futures):
         k = key_to_block[fut.key]
         out = fut.result()
+        seconds = out.pop("cpu")
+        if cpu is not None:
+            cpu.append(seconds)
         out["triples"] = plan.blocks[k]
         store.put(k, out)
         if writer is not None:

@@ -547,3 +547,23 @@ def test_physical_inputs_refused_in_one_line(capsys, extra, named):
     assert cli.main(["point", "--L", "10", "--K", "0.5", "--A", "0.3", *extra]) == 2
     out, err = capsys.readouterr()
     assert out == "" and len(err.splitlines()) == 1 and named in err, err
+
+
+def test_run_compress_option_picks_the_codec(tmp_path, capsys):
+    """--compress overrides the sweep's [output] compress (default zlib): the file's filters say
+    which codec wrote it."""
+    import netCDF4
+
+    toml = tmp_path / "c.toml"
+    toml.write_text(SMALL_SWEEP.replace("K = [0.5, 5.0]", "K = {linspace = [0, 5, 3000]}")
+                    + '\n[output]\nvariables = ["Delta"]\ncompress = "zstd"\n')
+    for option, codec in ([], "zstd"), (["--compress", "zlib"], "zlib"), (["--compress", "none"],
+                                                                          None):
+        out = tmp_path / f"c-{codec}.nc"
+        assert cli.main(["run", str(toml), "-o", str(out), *option]) == 0
+        with netCDF4.Dataset(out) as nc:
+            filters = nc["Delta"].filters()
+        assert filters["fletcher32"]
+        assert [k for k in ("zlib", "zstd") if filters[k]] == ([codec] if codec else [])
+    assert cli.main(["run", str(toml), "--compress", "gzip"]) == 2
+    assert "invalid choice" in capsys.readouterr().err

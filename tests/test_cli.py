@@ -578,3 +578,72 @@ def test_example_lists_prints_and_copies_the_shipped_sweeps(capsys, tmp_path):
     capsys.readouterr()
     assert cli.main(["example", "nope"]) == 2
     assert "quickstart" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------------
+# Engineers' inputs and exact fractions
+# ---------------------------------------------------------------------------------------------
+def test_point_takes_exact_fractions(capsys, fig2_result):
+    """--eps 1/30 --A 1/3 is figure 2 exactly: the same floats as 1/30 and 1/3 in Python."""
+    args = ["point", "--eps", "1/30", "--L", "10", "--K", "1/2", "--A", "1/3", "--N", "1", "--json"]
+    assert cli.main(args) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert (data["eps"], data["A"], data["K"]) == (1 / 30, 1 / 3, 0.5)
+    assert data["Delta"] == fig2_result.Delta
+    assert cli.main(_point_args(**{"--eps": "1/x"})) == 2
+    assert "--eps" in capsys.readouterr().err
+
+
+def test_point_takes_width_and_wall_friction(capsys):
+    """Table 1 as an engineer states it: W = 0.155 m, d_p = 2.29 mm, phi = 30, delta_w = 8
+    degrees: the point of eps = d_p/W and N = sin(phi)/tan(delta_w), which the report shows."""
+    from cosserat_channel.parameters import N_from_friction
+
+    eps, N = 0.00229 / 0.155, N_from_friction(30, 8)
+    base = ["point", "--L", "10", "--K", "0.5", "--A", "1/3", "--W", "0.155", "--d-p", "0.00229",
+            "--delta-w", "8", "--phi", "30"]
+    assert cli.main(base + ["--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert (data["eps"], data["N"]) == (eps, N) and round(N, 3) == 3.558
+    assert data["inputs"] == {"W": 0.155, "d_p": 0.00229, "delta_w": 8.0, "phi": 30.0}
+    ref = solve_point(eps, 10, 0.5, 1 / 3, N)
+    assert data["Delta"] == ref.Delta and "nu" not in data or data["nu"] is None
+    # with rho_p the same inputs are also the material
+    assert cli.main(base + ["--rho-p", "1180"]) == 0
+    out = capsys.readouterr().out
+    assert "(from W and d_p)" in out and "(from delta_w and phi)" in out and "nu " in out
+    assert f"{eps:.10g}" in out and f"{N:.10g}" in out
+
+
+@pytest.mark.parametrize("extra, named", [
+    (["--W", "0.155", "--N", "1"], "--W needs --d-p"),
+    (["--W", "0.155", "--d-p", "0.002", "--eps", "0.1", "--N", "1"], "--eps and --W both give"),
+    (["--W", "0.001", "--d-p", "0.002", "--N", "1"], "eps = d_p/W = 2"),
+    (["--eps", "0.05", "--delta-w", "95", "--phi", "30"], "delta_w = 95.0 is outside"),
+    (["--eps", "0.05", "--delta-w", "8", "--phi", "30", "--rho-p", "1180"], "missing --d-p"),
+    (["--eps", "0.05"], "give --N, or --delta-w with --phi"),
+])
+def test_physical_inputs_refused_in_one_line(capsys, extra, named):
+    assert cli.main(["point", "--L", "10", "--K", "0.5", "--A", "0.3", *extra]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.splitlines()) == 1 and named in err, err
+
+
+def test_run_compress_option_picks_the_codec(tmp_path, capsys):
+    """--compress overrides the sweep's [output] compress (default zlib): the file's filters say
+    which codec wrote it."""
+    import netCDF4
+
+    toml = tmp_path / "c.toml"
+    toml.write_text(SMALL_SWEEP.replace("K = [0.5, 5.0]", "K = {linspace = [0, 5, 3000]}")
+                    + '\n[output]\nvariables = ["Delta"]\ncompress = "zstd"\n')
+    for option, codec in ([], "zstd"), (["--compress", "zlib"], "zlib"), (["--compress", "none"],
+                                                                          None):
+        out = tmp_path / f"c-{codec}.nc"
+        assert cli.main(["run", str(toml), "-o", str(out), *option]) == 0
+        with netCDF4.Dataset(out) as nc:
+            filters = nc["Delta"].filters()
+        assert filters["fletcher32"]
+        assert [k for k in ("zlib", "zstd") if filters[k]] == ([codec] if codec else [])
+    assert cli.main(["run", str(toml), "--compress", "gzip"]) == 2
+    assert "invalid choice" in capsys.readouterr().err

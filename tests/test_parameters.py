@@ -144,3 +144,50 @@ def test_statuses_do_not_depend_on_the_tolerances_for_N_below_one():
     """The corner of item 6 (N < 1 < A, small eps L): at tight rtol stage 1 gave up in the jump
     to D = 0 after xi = N and said integration_failed where the answer is eps_too_large_path."""
     assert _status_changes(_tolerance_points(corner=True)) == []
+
+
+# ---------------------------------------------------------------------------------------------
+# Engineers' inputs: W with d_p, delta_w with phi; exact fractions
+# ---------------------------------------------------------------------------------------------
+def test_eps_and_N_from_the_physical_inputs():
+    """eps = d_p/W and N = sin(phi)/tan(delta_w): the paper's table 1 (W = 0.155 m, d_p = 2.29 mm,
+    phi = 30, delta_w = 8 degrees) gives N = 3.558, and arrays convert elementwise."""
+    from cosserat_channel.parameters import N_from_friction, eps_from_width
+
+    assert eps_from_width(0.00229, 0.155) == 0.00229 / 0.155
+    assert math.isclose(N_from_friction(30, 8), 0.5 / math.tan(math.radians(8)), rel_tol=1e-15)
+    assert round(N_from_friction(30, 8), 3) == 3.558  # table 1's N
+    # N = 1 where tan(delta_w) = sin(phi): the fully rough wall
+    assert math.isclose(N_from_friction(25, math.degrees(math.atan(math.sin(math.radians(25))))),
+                        1.0, rel_tol=1e-14)
+    np.testing.assert_array_equal(eps_from_width(0.002, np.array([0.06, 0.1])),
+                                  [0.002 / 0.06, 0.002 / 0.1])
+
+
+@pytest.mark.parametrize("call, named", [
+    (lambda f, g: f(0.002, 0.001), "eps = d_p/W = 2"),           # W below d_p: eps > 1
+    (lambda f, g: f(0.002, -1.0), "W = -1.0 is outside"),
+    (lambda f, g: f(0.002, True), "W must be a number"),
+    (lambda f, g: f(20.0, 1.0), "d_p = 20.0 is outside"),
+    (lambda f, g: g(30, 0.0), "delta_w = 0.0 is outside"),
+    (lambda f, g: g(30, 90.0), "delta_w = 90.0 is outside"),
+    (lambda f, g: g(30, np.array([10.0, np.nan])), "delta_w = nan"),
+    (lambda f, g: g(60.0, 1e-5), "N = sin(phi)/tan(delta_w) = 496"),  # N above 1e6
+])
+def test_physical_inputs_out_of_range_name_themselves(call, named):
+    from cosserat_channel.parameters import N_from_friction, eps_from_width
+
+    with pytest.raises(ParameterError) as info:
+        call(eps_from_width, N_from_friction)
+    assert named in str(info.value), str(info.value)
+
+
+def test_exact_fractions_are_rounded_once():
+    from cosserat_channel.parameters import parse_number
+
+    assert parse_number("1/30") == 1 / 30 and parse_number("1/3") == 1 / 3
+    assert parse_number(" -1/600 ") == -1 / 600 and parse_number("2.5e-1") == 0.25
+    assert math.isnan(parse_number("nan")) and parse_number("inf") == math.inf
+    for bad in ("1/0", "a/3", "", "1//3", "0.1.2"):
+        with pytest.raises(ValueError):
+            parse_number(bad)

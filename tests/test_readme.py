@@ -5,10 +5,14 @@ root, where ``.venv/bin/cosserat-channel`` is a shim for this Python's package, 
 are the README's own text (run in this process through ``cli.main``, see the test). Each must
 exit 0, write every file it names (``-o``, ``--plot``), and, all together, leave nothing outside
 ``demo/`` (which git ignores). Only the set-up lines
-(``make ...``, which build a venv: CI runs ``make test`` itself) are skipped, and the report
+(``make ...``, which build a venv: CI runs ``make test`` itself; ``make notebooks`` is checked
+with ``make -n`` below) are skipped, and the report
 commands that take minutes (``bench``, ``stability``) run with ``--quick`` (the same code on a
-smaller set). The ``python``
-blocks run with this interpreter in the same directory.
+smaller set). The cluster commands are checked, not run: ``dask scheduler`` and ``dask worker``
+serve until stopped and need the other nodes, so each runs with ``--help`` (the command exists
+in the venv and takes those options), and ``run ... --scheduler ADDRESS`` is parsed by the
+command line's own parser (the cluster itself is tested in ``test_sweep_engine.py``). The
+``python`` blocks run with this interpreter in the same directory.
 """
 
 from __future__ import annotations
@@ -73,7 +77,15 @@ def scratch(tmp_path_factory):
                     f"exec {shlex.quote(sys.executable)} -m cosserat_channel.cli \"$@\"\n")
     shim.chmod(shim.stat().st_mode | stat.S_IXUSR)
     (bin_dir / "python").symlink_to(sys.executable)
+    dask = pathlib.Path(sys.executable).parent / "dask"
+    if dask.exists():
+        (bin_dir / "dask").symlink_to(dask)
     return root
+
+
+def cluster_command(words: list[str]) -> bool:
+    """A command of the cluster block: checked, not run (module docstring)."""
+    return words[0].endswith("/dask") or "--scheduler" in words
 
 
 def test_readme_has_the_commands_it_should():
@@ -82,6 +94,7 @@ def test_readme_has_the_commands_it_should():
     assert len(cmds) >= 12
     assert all(c.startswith((".venv/bin/", "make ", "mkdir ")) for c in cmds), cmds
     assert any(" plot " in c and "--hue" in c for c in cmds)
+    assert sum(cluster_command(shlex.split(c, comments=True)) for c in cmds) == 3
     assert blocks("python")
 
 
@@ -102,6 +115,18 @@ def test_every_readme_command_runs_as_written(scratch, monkeypatch, capsys):
     for line in commands():
         words = shlex.split(line, comments=True)
         if words[0] == "make":
+            continue
+        if cluster_command(words):
+            if words[0] == ".venv/bin/cosserat-channel":
+                args = cli.build_parser().parse_args(words[1:])  # raises CliError if wrong
+                assert args.scheduler and os.path.exists(args.sweep), line
+            elif not (scratch / words[0]).exists():
+                pytest.fail(f"{line}: {words[0]} is not in the venv")
+            else:
+                proc = subprocess.run([words[0], words[1], "--help"], capture_output=True,
+                                      text=True, timeout=120)
+                assert proc.returncode == 0 and all(
+                    w in proc.stdout for w in words[2:] if w.startswith("--")), proc.stderr
             continue
         if words[0] == ".venv/bin/cosserat-channel":
             if words[1] in QUICK and "--quick" not in words:

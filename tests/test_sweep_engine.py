@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 
 import netCDF4
@@ -260,14 +261,19 @@ def test_bad_arguments_raise_sweep_error():
         run_sweep(sweep(SHARED), compress="gzip")
 
 
-def test_distributed_scheduler_gives_identical_values(tmp_path):
+def test_distributed_scheduler_gives_identical_values(tmp_path, caplog):
     """Blocks run in worker processes of a dask.distributed cluster come back to the client with
-    the threaded run's values, bit for bit."""
+    the threaded run's values, bit for bit; the run counts the workers' CPU and threads (4
+    here, whatever this machine's cores), not its own idle threads'."""
     distributed = pytest.importorskip("distributed")
     spec = load_sweep(sweep(SHARED, profile_points=3))
     out = tmp_path / "d.nc"
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True,
+                                  dashboard_address=None) as cluster, \
+            caplog.at_level(logging.INFO, logger="cosserat_channel.sweep"):
         ds = run_sweep(spec, out, scheduler=cluster.scheduler_address, block_size=4)
     assert out.exists() and not (tmp_path / "d.nc.partial").exists()
     assert_same_values(ds, run_sweep(spec, workers=2))
+    phase = next(r for r in caplog.records if "solving threads" in r.msg)
+    cpu, threads = phase.args[2], phase.args[3]
+    assert cpu > 0 and threads == 4, phase.getMessage()

@@ -3,6 +3,7 @@
 import copy
 import hashlib
 import pathlib
+import re
 
 import numpy as np
 import pytest
@@ -317,3 +318,35 @@ def test_mapping_input():
     changed["grid"]["N"] = 2
     assert load_sweep(changed).sha256 != spec.sha256
     assert '"grid"' in spec.text
+
+
+def test_grid_takes_width_and_wall_friction():
+    """[grid] W (m) and delta_w (degrees) give the eps and N axes through the [material]'s d_p
+    and phi, in file order; each mistake is named by its key."""
+    from cosserat_channel.parameters import N_from_friction
+
+    material = {"d_p": 0.00229, "rho_p": 1180, "phi": 30}
+    spec = load_sweep({"grid": {"W": [0.155, 0.06], "L": 10, "K": 0.5, "A": 1 / 3,
+                                "delta_w": {"linspace": [8, 12, 3]}}, "material": material})
+    np.testing.assert_array_equal(spec.eps, [0.00229 / 0.155, 0.00229 / 0.06])
+    np.testing.assert_array_equal(spec.N, [N_from_friction(30, d) for d in (8.0, 10.0, 12.0)])
+    for grid, mat, named in [
+        ({"W": 0.1, "eps": 0.1, "N": 1}, material, "grid: eps and W both give eps"),
+        ({"W": 0.1, "N": 1}, None, "grid.W: needs a [material] table"),
+        ({"W": [0.1, 0.001], "N": 1}, material, "grid.W: eps = d_p/W = 2.29 is outside"),
+        ({"eps": 0.1, "delta_w": [10, 90]}, material, "grid.delta_w: delta_w = 90.0"),
+        ({"eps": 0.1}, material, "missing required key(s) N (or delta_w)"),
+    ]:
+        mapping = {"grid": {"L": 10, "K": 0.5, "A": 0.3, **grid}}
+        if mat:
+            mapping["material"] = mat
+        with pytest.raises(SweepError, match=re.escape(named)):
+            load_sweep(mapping)
+
+
+def test_output_compress_key():
+    grid = {"eps": 0.1, "L": 10, "K": 0.5, "A": 0.3, "N": 1}
+    assert load_sweep({"grid": grid}).compress == "zlib"
+    assert load_sweep({"grid": grid, "output": {"compress": "zstd"}}).compress == "zstd"
+    with pytest.raises(SweepError, match="output.compress: must be one of 'zlib', 'zstd', 'none'"):
+        load_sweep({"grid": grid, "output": {"compress": "gzip"}})

@@ -110,13 +110,14 @@ def test_large_file_has_those_chunks(tmp_path):
 
 
 @pytest.mark.parametrize("compress, filters", [
-    (True, {"zstd": True, "zlib": False, "complevel": -1}),  # the default: Zstandard level -1
-    ("zlib", {"zstd": False, "zlib": True, "complevel": 1, "shuffle": True}),
+    (None, {"zstd": False, "zlib": True, "complevel": 1, "shuffle": True}),  # the default
+    ("zstd", {"zstd": True, "zlib": False, "complevel": -1}),
+    ("none", {"zstd": False, "zlib": False}),
 ])
 def test_codec_of_the_file_and_its_values_read_back_identically(tmp_path, compress, filters):
-    """The default codec is Zstandard at level -1 (README, docs/performance.md), ``"zlib"`` is
-    zlib level 1 with shuffle; either file reads back through xarray's netCDF4 engine with the
-    in-memory result's values, bit for bit."""
+    """The default codec is zlib level 1 with shuffle (README, netcdf_policy), ``"zstd"`` is
+    Zstandard level -1, ``"none"`` raw chunks; each file reads back through xarray's netCDF4
+    engine with the in-memory result's values, bit for bit."""
     xr = pytest.importorskip("xarray")
     out = tmp_path / "c.nc"
     grid = {**GRID, "K": {"linspace": [0, 3, 30]}, "A": {"linspace": [0, 1, 10]}}

@@ -131,6 +131,8 @@ _API = {
     "Status": "status",
     "ParameterError": "parameters",
     "check_point": "parameters",
+    "eps_from_width": "parameters",
+    "N_from_friction": "parameters",
     "PARAMETERS": "parameters",
     "OUTPUTS": "outputs",
     "Output": "outputs",

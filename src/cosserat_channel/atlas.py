@@ -484,12 +484,11 @@ class Atlas:
 
 def save_atlas(atlas, path):
     """Write ``atlas`` to ``path`` (NetCDF, checksummed) through :func:`files.netcdf_output`."""
+    from . import netcdf_policy
     from .files import netcdf_output
 
     ds = atlas.to_dataset()
-    enc = {v: {"fletcher32": True} for v in ds.variables
-           if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
-    netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
+    netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=netcdf_policy.encoding(ds)))
 
 
 def load_atlas(path):

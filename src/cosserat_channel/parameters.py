@@ -35,6 +35,10 @@ __all__ = [
     "check_values",
     "check_tolerances",
     "check_material",
+    "PHYSICAL",
+    "eps_from_width",
+    "N_from_friction",
+    "parse_number",
 ]
 
 DIMS = ("eps", "L", "K", "A", "N")
@@ -176,7 +180,7 @@ PARAMETERS = {
     "A": Parameter("A", "yield-surface constant", "1", -1e3, 1e3, True, True, symbol="$A$",
                    description="yield-surface constant a2/a1"),
     "N": Parameter("N", "wall friction ratio", "1", 0.0, 1e6, False, True, symbol="$N$",
-                   description="wall friction ratio sin(phi)/tan(delta)"),
+                   description="wall friction ratio sin(phi)/tan(delta_w)"),
 }
 
 # The material, for nu and the dimensional stresses: the particle (required) and the
@@ -315,3 +319,73 @@ def check_material(material: Mapping | None) -> dict | None:
             f"material.nu_min = {full['nu_min']:g} must be below material.nu_max = {full['nu_max']:g}"
         )
     return full
+
+
+# Engineers' inputs, from which eps and N follow (docs/model.md, "Parameters"): the channel's
+# half-width W with the particle diameter d_p (eps = d_p/W), and the angle of wall friction
+# delta_w with the angle of internal friction phi (N = sin(phi)/tan(delta_w)). Their ranges are
+# physical; what they give is then checked against eps's and N's own.
+PHYSICAL = {
+    "W": Parameter("W", "channel half-width W in m", "m", 0.0, 1e6),
+    "delta_w": Parameter("delta_w", "angle of wall friction delta_w in degrees", "degree", 0.0,
+                         90.0),
+}
+
+
+def eps_from_width(d_p, W):
+    """``eps = d_p / W`` from the particle diameter and the channel's half-width, both in m.
+
+    ``W`` may be an array (a sweep's axis): the result has its shape. Each input is checked
+    against its own range (``MATERIAL["d_p"]``, ``PHYSICAL["W"]``) and the quotient against
+    eps's; :class:`ParameterError` names the first value outside.
+    """
+    d = MATERIAL["d_p"].check(d_p)
+    w = _checked(PHYSICAL["W"], W)
+    return _checked(PARAMETERS["eps"], d / w, "eps = d_p/W")
+
+
+def N_from_friction(phi, delta_w):
+    """``N = sin(phi) / tan(delta_w)`` (the paper's relation) from the angles of internal and of
+    wall friction, in degrees; ``delta_w`` may be an array, and everything is checked as in
+    :func:`eps_from_width`."""
+    p = MATERIAL["phi"].check(phi)
+    d = _checked(PHYSICAL["delta_w"], delta_w)
+    return _checked(PARAMETERS["N"], math.sin(math.radians(p)) / np.tan(np.radians(d)),
+                    "N = sin(phi)/tan(delta_w)")
+
+
+def _checked(param: Parameter, values, label: str | None = None):
+    """``values`` as a float (a scalar) or a float64 array, each inside ``param``'s range."""
+    if np.ndim(values) == 0:
+        if isinstance(values, np.floating):
+            values = float(values)  # named as a number in the message, not as np.float64(...)
+        return param.check(values, label)  # refuses booleans and strings, as everywhere
+    x = np.asarray(values, dtype=np.float64)
+    bad = ~param.contains(x)
+    if bad.any():
+        param.check(x.ravel()[np.flatnonzero(bad.ravel())[0]].item(), label)
+    return x
+
+
+def parse_number(text: str) -> float:
+    """A number as a person writes it: ``0.5``, ``1e-3``, ``nan``, or an exact fraction ``1/30``
+    (rounded once, to the nearest double: ``parse_number("1/30") == 1/30``).
+
+    ValueError for anything else. Ranges are not checked here (see :meth:`Parameter.check`).
+    """
+    from fractions import Fraction
+
+    text = text.strip()
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    num, sep, den = text.partition("/")
+    if sep:
+        try:
+            q = Fraction(num.strip()) / Fraction(den.strip())
+        except (ValueError, ZeroDivisionError):
+            pass
+        else:
+            return float(q)
+    raise ValueError(f"not a number or a fraction a/b: {text!r}")

@@ -32,8 +32,12 @@ from ..parameters import (  # noqa: F401 (ParameterError: for the commands)
     MATERIAL,
     MATERIAL_REQUIRED,
     PARAMETERS,
+    PHYSICAL,
     TOLERANCES,
     ParameterError,
+    N_from_friction,
+    eps_from_width,
+    parse_number,
 )
 
 PROG = "cosserat-channel"
@@ -359,36 +363,91 @@ _SOLVING = "solving " + _FIRST_RUN
 # ---------------------------------------------------------------------------------------------
 # Shared argument groups and checks
 # ---------------------------------------------------------------------------------------------
-# Numbers are parsed with float() only: nan and inf must reach parameters.check_point, whose message
-# names the parameter and its range (one message for the API and the command line).
+def number(text: str) -> float:
+    """argparse type of every numeric input: a float or an exact fraction (``--eps 1/30``).
+
+    nan and inf pass: they must reach the parameter checks, whose message names the parameter
+    and its range (one message for the API and the command line).
+    """
+    try:
+        return parse_number(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or a fraction a/b; got {text!r}") \
+            from None
+
+
 _POINT_ARGS = tuple((f"--{d}", d, f"{PARAMETERS[d].sentence}, in {PARAMETERS[d].interval}")
                     for d in DIMS)
 _MATERIAL_ARGS = tuple(("--" + k.replace("_", "-"), k, MATERIAL[k].sentence) for k in MATERIAL_REQUIRED)
+# The engineers' inputs that give eps and N (parameters.eps_from_width, N_from_friction): the
+# flag, its destination, the parameter it gives and the material input it needs.
+_PHYSICAL_ARGS = (("--W", "W", "eps", "d_p"), ("--delta-w", "delta_w", "N", "phi"))
+
 
 
 def add_point_arguments(p: argparse.ArgumentParser) -> None:
-    """``--eps --L --K --A --N`` (required) and ``--rtol --atol``."""
-    g = p.add_argument_group("point (eps, L, K, A, N)")
+    """``--eps --L --K --A --N`` (eps or --W, N or --delta-w) and ``--rtol --atol``."""
+    g = p.add_argument_group("point (eps, L, K, A, N; numbers or exact fractions such as 1/30)")
+    alternative = {gives: flag for flag, _, gives, _ in _PHYSICAL_ARGS}
     for flag, dest, text in _POINT_ARGS:
-        g.add_argument(flag, dest=dest, type=float, required=True, metavar=dest.upper(), help=text)
+        other = alternative.get(dest)
+        g.add_argument(flag, dest=dest, type=number, required=other is None,
+                       metavar=dest.upper(), help=text + (f" (or {other})" if other else ""))
+    e = p.add_argument_group("engineering inputs (instead of --eps, --N; the point's report "
+                             "gives the eps and N they make)")
+    for flag, dest, gives, needs in _PHYSICAL_ARGS:
+        param = PHYSICAL[dest]
+        how = {"eps": "eps = d_p/W", "N": "N = sin(phi)/tan(delta_w)"}[gives]
+        e.add_argument(flag, dest=dest, type=number, metavar=param.units.upper()[:3],
+                       help=f"{param.long_name}, in {param.interval}, with --"
+                       f"{needs.replace('_', '-')}: {how}")
     t = p.add_argument_group("tolerances")
     for name, param in TOLERANCES.items():
-        t.add_argument(f"--{name}", type=float,
+        t.add_argument(f"--{name}", type=number,
                        help=f"{param.sentence} of both integrations, in {param.interval} "
+
                        f"(default {param.default:g})")
 
 
+def point_from_args(args: argparse.Namespace) -> dict:
+    """Set ``args.eps`` and ``args.N`` from ``--W``/``--delta-w`` where given; returns the
+    engineers' inputs used (``{"W": ..., "d_p": ...}``, empty without them). CliError when a
+    parameter is given both ways or neither, or its material input is missing; ParameterError
+    (one line) when a value or what it makes is out of range."""
+    used = {}
+    for flag, dest, gives, needs in _PHYSICAL_ARGS:
+        value, direct = getattr(args, dest), getattr(args, gives)
+        needs_flag = "--" + needs.replace("_", "-")
+        if value is None:
+            if direct is None:
+                raise CliError(f"give --{gives}, or {flag} with {needs_flag}")
+            continue
+        if direct is not None:
+            raise CliError(f"--{gives} and {flag} both give {gives}: give one")
+        if getattr(args, needs) is None:
+            raise CliError(f"{flag} needs {needs_flag} ({MATERIAL[needs].long_name})")
+        convert = eps_from_width if gives == "eps" else N_from_friction
+        setattr(args, gives, convert(getattr(args, needs), value))
+        used.update({dest: value, needs: getattr(args, needs)})
+    return used
+
+
 def add_material_arguments(p: argparse.ArgumentParser) -> None:
-    """``--d-p --rho-p --phi``: all three or none."""
+    """``--d-p --rho-p --phi``: all three or none (d_p with --W, phi with --delta-w alone)."""
     g = p.add_argument_group("material (all three or none; adds nu and wall stresses in Pa)")
     for flag, dest, text in _MATERIAL_ARGS:
-        g.add_argument(flag, dest=dest, type=float, help=text)
+        g.add_argument(flag, dest=dest, type=number, help=text)
 
 
 def material_from_args(args: argparse.Namespace) -> dict | None:
-    """The ``material`` mapping for :func:`solve.solve_point`, or None; CliError if partial."""
+    """The ``material`` mapping for :func:`solve.solve_point`, or None; CliError if partial.
+
+    ``--d-p`` given for ``--W`` only, or ``--phi`` for ``--delta-w`` only, is no material.
+    """
     given = {dest: getattr(args, dest) for _, dest, _ in _MATERIAL_ARGS}
-    if all(v is None for v in given.values()):
+    consumed = {needs for _, dest, _, needs in _PHYSICAL_ARGS if getattr(args, dest, None)
+                is not None}
+    if all(v is None for k, v in given.items() if k not in consumed):
         return None
     missing = [flag for flag, dest, _ in _MATERIAL_ARGS if given[dest] is None]
     if missing:

@@ -24,6 +24,8 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     add_point_arguments,
     check_output_path,
     material_from_args,
+    number,
+    point_from_args,
     register,
     tolerances_from_args,
 )
@@ -42,6 +44,10 @@ def _point_arguments(p: argparse.ArgumentParser) -> None:
 
 @register("point", "solve one point (eps, L, K, A, N) and print its outputs", _point_arguments)
 def _point(args: argparse.Namespace) -> int:
+    try:
+        inputs = point_from_args(args)
+    except ParameterError as exc:
+        raise CliError(str(exc)) from None
     material = material_from_args(args)
     tolerances = tolerances_from_args(args)
     if args.plot is not None:
@@ -73,10 +79,13 @@ def _point(args: argparse.Namespace) -> int:
                 raise CliError(f"--plot: cannot write {args.plot!r}: {exc}", EXIT_FAILURE) from None
     if args.json:
         # allow_nan=False: to_dict maps NaN to null, and the output must stay strict JSON.
-        print(json.dumps(result.to_dict(), allow_nan=False))
+        data = result.to_dict()
+        if inputs:
+            data["inputs"] = inputs  # the engineers' inputs that eps and N came from
+        print(json.dumps(data, allow_nan=False))
     else:
         tol = {k: tolerances.get(k, p.default) for k, p in TOLERANCES.items()}
-        print(format_point_table(result, tol, material))
+        print(format_point_table(result, tol, material, inputs))
     return EXIT_OK
 
 
@@ -85,13 +94,29 @@ def _row(name: str, value, unit: str = "", text: str = "") -> str:
     return f"  {name:<17} {v:>18}  {unit:<19} {text}".rstrip()
 
 
-def format_point_table(result, tolerances: dict, material: dict | None) -> str:
-    """The human-readable report of one point: parameters, status, outputs, counters."""
-    from ..outputs import OUTPUTS
+def format_point_table(result, tolerances: dict, material: dict | None,
+                       inputs: dict | None = None) -> str:
+    """The human-readable report of one point: parameters, status, outputs, counters.
 
+    ``inputs``: the engineers' inputs eps and N came from (:func:`point_from_args`), listed
+    first, with eps and N marked as derived from them.
+    """
+    from ..outputs import OUTPUTS
+    from ..parameters import PHYSICAL
+
+    inputs = inputs or {}
     lines = ["parameters"]
+    for name, value in inputs.items():
+        if material is not None and name in material:
+            continue  # listed with the material below
+        param = PHYSICAL.get(name) or MATERIAL[name]
+        lines.append(_row(name, float(value), param.units, param.long_name.split(" in ")[0]))
+    derived = {"eps": "(from W and d_p)" if "W" in inputs else "",
+               "N": "(from delta_w and phi)" if "delta_w" in inputs else ""}
     for _, dest, text in _POINT_ARGS:
-        lines.append(_row(dest, getattr(result, dest), "-", text.split(",")[0]))
+        how = derived.get(dest, "")
+        lines.append(_row(dest, getattr(result, dest), "-",
+                          text.split(",")[0] + (f" {how}" if how else "")))
     for k, v in tolerances.items():
         text = "relative tolerance" if k == "rtol" else "absolute tolerance"
         lines.append(_row(k, float(v), "-", text))
@@ -116,9 +141,9 @@ def format_point_table(result, tolerances: dict, material: dict | None) -> str:
 def _phase_plane_arguments(p: argparse.ArgumentParser) -> None:
     for flag, dest, text in _POINT_ARGS:
         if dest != "K":
-            p.add_argument(flag, dest=dest, type=float, required=True, metavar=dest.upper(),
+            p.add_argument(flag, dest=dest, type=number, required=True, metavar=dest.upper(),
                            help=text)
-    p.add_argument("--nu", type=float, help="solids fraction: plot m_bar = nu m as the paper "
+    p.add_argument("--nu", type=number, help="solids fraction: plot m_bar = nu m as the paper "
                    "(figure 12: 0.603) instead of m_bar/nu")
     p.add_argument("-o", "--output", required=True, metavar="FILE.png", help="figure to write")
     add_overwrite_argument(p, "FILE.png")

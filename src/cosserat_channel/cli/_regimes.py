@@ -125,10 +125,10 @@ def _boundary(args: argparse.Namespace) -> int:
     from ..files import netcdf_output
 
     try:
-        # Checksums, as on sweep results: a damaged file fails to read instead of changing.
         if traced:
-            enc = {v: {"fletcher32": True} for v in ds.variables
-                   if ds[v].ndim > 0 and ds[v].dtype.kind in "fiub"}
+            from .. import netcdf_policy
+
+            enc = netcdf_policy.encoding(ds)
             netcdf_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
         if args.plot is not None:
             from ..plot import regimes as plot_regimes

@@ -48,6 +48,11 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="compute again and replace OUT.nc if it is already a finished result "
                    "(without it a finished OUT.nc is kept)")
+    p.add_argument("--compress", choices=("zlib", "zstd", "none"),
+                   help="codec of the file: zlib (level 1 with shuffle; every netCDF-4 reader "
+                   "opens it), zstd (Zstandard: less CPU to write, needs netCDF-C >= 4.9 with "
+                   "its filter to read) or none (default: the sweep's [output] compress, else "
+                   "zlib)")
 
 
 @register("run", "solve every point of a sweep file and write a NetCDF result", _run_arguments)
@@ -128,7 +133,7 @@ def _run_command(args: argparse.Namespace) -> int:
         with _quiet_distributed(args.scheduler is not None):
             run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
                       reduce=args.reduce, block_size=args.block_size,
-                      overwrite=args.overwrite,
+                      overwrite=args.overwrite, compress=args.compress,
                       no_workers_timeout=args.no_workers_timeout).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .. import netcdf_policy
 from ..files import atomic_output, netcdf_output
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
@@ -171,21 +172,6 @@ def subset_dataset(selection: Selection) -> xr.Dataset:
     return ds
 
 
-def _encoding(ds: xr.Dataset) -> dict:
-    enc = {}
-    for name, v in ds.variables.items():
-        if v.dtype.kind == "f":
-            e = {"_FillValue": np.nan} if name in ds.data_vars else {"_FillValue": None}
-        else:
-            e = {"_FillValue": None}  # status and counters: every value is a real code/count
-        if name in ds.data_vars and v.ndim > 0:
-            e.update(zlib=True, complevel=1)
-        if v.ndim > 0 and v.dtype.kind in "fiub":
-            e["fletcher32"] = True  # as sweep.dataset.encoding: damage fails to read
-        enc[name] = e
-    return enc
-
-
 def write_netcdf(selection: Selection, path: str) -> None:
     """Write :func:`subset_dataset` atomically (temporary file + ``os.replace``)."""
     ds = subset_dataset(selection)
@@ -197,7 +183,7 @@ def write_netcdf(selection: Selection, path: str) -> None:
     # other threads still write, and xarray's file manager reopens the temporary file after
     # atomic_output has removed it, leaving it behind.
     with dask.config.set(scheduler="synchronous"):
-        netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=_encoding(ds)))
+        netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=netcdf_policy.encoding(ds)))
 
 
 def write_text(path: str, writer) -> None:

@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from .. import __version__
+from .. import netcdf_policy
 from .. import outputs as out_
 from ..results import accessor  # noqa: F401 (registers ds.cosserat on every result Dataset)
 from ..solver import layout
@@ -23,14 +24,6 @@ from ..parameters import DIMS, PARAMETERS
 # Uncompressed bytes of one chunk of a result variable: 1 MiB, the HDF5 chunk cache's default
 # size, so one chunk is decompressed once per read however the read crosses it.
 CHUNK_BYTES = 1 << 20
-# The encoding keys of each compression ``variable_encoding`` offers (as xarray spells them).
-# Zstandard at level -1 (one of its fast levels): on a 10^8-point sweep's tiles 17 % less CPU to
-# write than level 1 for 3 % more file (docs/performance.md, "Sweeps at scale"). The netCDF4
-# library applies the HDF5 shuffle filter with zlib only (it drops it for zstd), so only zlib
-# asks for it.
-CODECS = {"zstd": {"compression": "zstd", "complevel": -1},
-          "zlib": {"zlib": True, "complevel": 1, "shuffle": True}}
-
 
 def build_dataset(spec, plan, per_triple: dict, one_minus: np.ndarray | None, xi=None,
                   profiles: np.ndarray | None = None) -> xr.Dataset:
@@ -135,43 +128,19 @@ def global_attrs(spec, reduced: bool) -> dict:
     }
 
 
-def encoding(ds: xr.Dataset, compress: bool = True) -> dict:
-    """NetCDF encoding of every variable of ``ds`` (see :func:`variable_encoding`)."""
-    return {name: variable_encoding(name, var.shape, var.dtype, name in ds.coords, compress)
-            for name, var in ds.variables.items()}
-
-
 def variable_encoding(name: str, shape: tuple, dtype, is_coord: bool, compress=True) -> dict:
-    """NetCDF encoding of one variable: no fill value on status and coordinates; large arrays
-    compressed (:data:`CODECS`) in chunks shaped for the reads people do (:func:`chunk_shape`);
-    an HDF5 Fletcher-32 checksum on every array variable.
+    """NetCDF encoding of one variable of a result: the package's policy
+    (:func:`cosserat_channel.netcdf_policy.variable_encoding`: codec, checksum, fill value) in
+    chunks shaped for the reads people do (:func:`chunk_shape`).
 
-    ``compress``: True or ``"zstd"`` (the default: Zstandard level -1), ``"zlib"`` (level 1,
-    with shuffle), or False (none). Zstandard at level 1 writes 4-5x faster than zlib at level 1
-    for about the same size, and level -1 another 17 % faster for 3 % more file (measured on
-    large_5d's outputs, docs/performance.md "Sweeps at scale"); it is one of netCDF-C's standard
-    filters (netCDF-C >= 4.9, and the netCDF4 Python wheels, carry it), and its decoder reads
-    every level. ``"zlib"`` is for readers built without it.
-
-    With the checksum, a chunk damaged on disk fails to read (netCDF4 raises ``RuntimeError:
-    NetCDF: HDF error``) instead of returning changed numbers. It needs chunked storage, which
-    HDF5 picks for variables given no chunk sizes here.
+    ``name`` is the variable's (kept for the callers' symmetry with ``to_netcdf``'s encoding).
     """
-    dtype = np.dtype(dtype)
-    size = math.prod(shape)
-    e = {}
-    if name == "status" or is_coord or dtype.kind in "iu":
-        e["_FillValue"] = None
-    if compress and dtype.kind in "fiu" and not is_coord and size > 4096:
-        # Grid variables of every type share the float64 chunks: the file is written in tiles
-        # of whole float64 chunks (.writer.Tiles), and a chunk that straddles tiles would be
-        # compressed again (and read back) each time a tile reaches it.
-        itemsize = 8 if len(shape) == len(DIMS) else dtype.itemsize
-        e.update(CODECS["zstd" if compress is True else compress],
-                 chunksizes=chunk_shape(shape, itemsize))
-    if len(shape) > 0 and dtype.kind in "fiub":
-        e["fletcher32"] = True
-    return e
+    # Grid variables of every type share the float64 chunks: the file is written in tiles of
+    # whole float64 chunks (.writer.Tiles), and a chunk that straddles tiles would be compressed
+    # again (and read back) each time a tile reaches it.
+    itemsize = 8 if len(shape) == len(DIMS) else np.dtype(dtype).itemsize
+    return netcdf_policy.variable_encoding(shape, dtype, coordinate=is_coord, compress=compress,
+                                           chunks=chunk_shape(shape, itemsize))
 
 
 def chunk_shape(shape, itemsize, target=CHUNK_BYTES) -> tuple:

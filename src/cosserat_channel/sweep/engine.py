@@ -35,6 +35,7 @@ import numpy as np
 
 from .. import __version__
 from ..integrate import stepping
+from .. import netcdf_policy
 from .. import outputs as out_
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
@@ -63,7 +64,7 @@ log = logging.getLogger("cosserat_channel.sweep")
 
 
 def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, reduce=True,
-              block_size=None, progress=None, compress=True, overwrite=False,
+              block_size=None, progress=None, compress=None, overwrite=False,
               no_workers_timeout=None):
     """Solve every point of a sweep and return the labelled result (and write it to NetCDF).
 
@@ -86,9 +87,12 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         keeps the block size it started with).
     progress : bool, optional
         Progress bar on stderr; default when stderr is a terminal.
-    compress : bool or str
-        Compression of the large NetCDF variables: True or ``"zstd"`` (Zstandard level -1),
-        ``"zlib"`` (level 1, for readers without netCDF-C's zstd filter), or False.
+    compress : str or bool, optional
+        Codec of the large NetCDF variables (:mod:`cosserat_channel.netcdf_policy`):
+        ``"zlib"`` (level 1 with shuffle, what every netCDF-4 reader opens), ``"zstd"``
+        (Zstandard level -1: less CPU, for readers with netCDF-C's zstd filter) or ``"none"``;
+        True is the default codec, False none. Default: the sweep's ``[output] compress``, else
+        ``"zlib"``.
     overwrite : bool
         Compute again and replace ``output`` when it is a file already. Without it a finished
         result of this sweep is kept and returned (nothing computed), any other file is refused;
@@ -121,8 +125,10 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     if workers is not None and (int(workers) != workers or workers < 1):
         raise SweepError(f"workers must be a positive integer; got {workers!r}")
     n_workers = int(workers or os.cpu_count() or 1)
-    if compress not in (True, False, "zstd", "zlib"):
-        raise SweepError(f"compress must be True, False, 'zstd' or 'zlib'; got {compress!r}")
+    try:
+        compress = netcdf_policy.codec(spec.compress if compress is None else compress)
+    except ValueError as exc:
+        raise SweepError(str(exc)) from None
     if no_workers_timeout is None:
         no_workers_timeout = NO_WORKERS_TIMEOUT
     if not 0 < no_workers_timeout < math.inf:
@@ -262,8 +268,8 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
             if client is None:
                 _run_threads(plan, todo, store, args, n_workers, progress, writer, cpu)
             else:
-                _run_distributed(plan, todo, store, args, client, progress, writer,
-                                 no_workers_timeout)
+                n_workers = _run_distributed(plan, todo, store, args, client, progress, writer,
+                                             cpu, no_workers_timeout)
         t1 = time.perf_counter()
         during = 0 if writer is None else writer.tiles_written
         ds = assemble(spec, plan, store, xi, recompute=recompute, output=output,
@@ -275,10 +281,10 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     t2 = time.perf_counter()
     if output is not None:
         store.remove()
-    # The solving threads' CPU time (the blocks' inputs, the kernels, storing the blocks) over
-    # the workers: what the solve alone takes on free cores. The solve phase's wall time would
-    # count the writing done meanwhile as solving; what assembling and writing add is the rest
-    # of the wall time. (On a cluster the threads are elsewhere: the solve phase's wall time.)
+    # The solving threads' CPU time (the blocks' inputs, the kernels, storing the blocks; on a
+    # cluster the workers' threads, as each task measured it) over the workers: what the solve
+    # alone takes on free cores. The solve phase's wall time would count the writing done
+    # meanwhile as solving; what assembling and writing add is the rest of the wall time.
     solve = sum(cpu) / n_workers if cpu else t1 - t0
     if writer is not None:
         log.info("%s: solve phase %.2f s (solving threads %.2f s CPU on %d workers; the process %.2f s "
@@ -593,18 +599,30 @@ def _discard(client) -> None:
 
 
 def _solve_remote(inp: BlockInputs, args) -> dict:
-    return solve_block(inp, *args)
+    c0 = time.thread_time()
+    out = solve_block(inp, *args)
+    out["cpu"] = time.thread_time() - c0  # the worker thread's, returned with the block
+    return out
 
 
-def _run_distributed(plan, todo, store, args, client, progress, writer=None,
-                     no_workers_timeout=NO_WORKERS_TIMEOUT) -> None:
+def cluster_threads(client) -> int:
+    """Threads of all the cluster's workers (at least 1): the workers of its CPU accounting."""
+    workers = client.scheduler_info().get("workers", {})
+    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+
+
+def _run_distributed(plan, todo, store, args, client, progress, writer=None, cpu=None,
+                     no_workers_timeout=NO_WORKERS_TIMEOUT) -> int:
+    """Run the blocks on the cluster of ``client``; returns its threads (:func:`cluster_threads`),
+    and appends each block's CPU seconds on its worker to ``cpu``."""
     from dask.distributed import CancelledError, KilledWorker
 
     address = client.scheduler.address
     try:
         with client.as_current():  # as_completed and the progress bar find it
-            _submit_and_store(plan, todo, store, args, client, progress, writer,
+            _submit_and_store(plan, todo, store, args, client, progress, writer, cpu,
                               _WorkerWatch(client, no_workers_timeout))
+            return cluster_threads(client)
     except KilledWorker as exc:
         raise SchedulerLost(f"a block killed every worker that ran it ({exc}); see the workers' "
                             "logs") from None
@@ -649,7 +667,7 @@ class _WorkerWatch:
                 f"{self.timeout:g} s (all lost, none started)")
 
 
-def _submit_and_store(plan, todo, store, args, client, progress, writer=None,
+def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cpu=None,
                       watch: _WorkerWatch | None = None) -> None:
     from dask.distributed import as_completed
 
@@ -674,6 +692,9 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None,
         for fut in ready:
             k = key_to_block[fut.key]
             out = _result(fut, watch)
+            seconds = out.pop("cpu")
+            if cpu is not None:
+                cpu.append(seconds)
             out["triples"] = plan.blocks[k]
             store.put(k, out)
             if writer is not None:

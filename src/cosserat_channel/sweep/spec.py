@@ -2,12 +2,15 @@
 
 A sweep file has four tables; only ``[grid]`` is required::
 
-    [grid]                      # all five, in any form below
+    [grid]                      # all five, in any form below (W for eps, delta_w for N: below)
     eps = {logspace = [-3, -1, 12]}     # 10**linspace(-3, -1, 12)
     L = [2, 5, 10, 20]                  # a list, kept in file order
     K = {linspace = [0, 300, 301]}      # numpy.linspace(0, 300, 301)
     A = 0.3333333333333333              # one number
     N = 1.0
+    # W = [0.06, 0.1, 0.155]            # channel half-width in m instead of eps: eps = d_p/W
+    # delta_w = [8, 12]                 # wall friction angle in degrees instead of N:
+                                        #   N = sin(phi)/tan(delta_w); both need [material]
 
     [material]                  # optional: adds nu and the wall stresses in Pa
     d_p = 0.002                 # m
@@ -23,6 +26,7 @@ A sweep file has four tables; only ``[grid]`` is required::
     path = "demo/quickstart.nc"
     variables = ["Delta", "slip"]
     profile_points = 201        # xi = linspace(0, 1, profile_points)
+    compress = "zlib"           # the file's codec: zlib (default), zstd or none
 
 Everything is checked here, before any solve, and every rejection is a :class:`SweepError` with a
 one-line message that names the key (``grid.eps: ...``). The ranges are the solver's own
@@ -46,6 +50,7 @@ from typing import Mapping
 import numpy as np
 
 from .. import outputs as out_
+from ..netcdf_policy import CODECS, DEFAULT_CODEC
 from ..parameters import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
@@ -53,10 +58,12 @@ from ..parameters import (
     MATERIAL,
     MAX_GRID_POINTS,
     ParameterError,
+    N_from_friction,
     check_material,
     check_eta,
     check_tolerances,
     check_values,
+    eps_from_width,
 )
 
 # A guard against a typo in ``num``, not a memory limit: results are written in tiles (see
@@ -74,7 +81,7 @@ PROFILE_POINTS_RANGE = (2, 10001)
 
 TABLES = ("grid", "material", "solver", "output")
 SOLVER_KEYS = ("rtol", "atol")
-OUTPUT_KEYS = ("path", "variables", "profile_points")
+OUTPUT_KEYS = ("path", "variables", "profile_points", "compress")
 GRID_FORMS = ("linspace", "logspace")
 # The first bytes of a NetCDF-4 (HDF5) and a classic NetCDF file: a result given where a sweep
 # file belongs.
@@ -137,6 +144,7 @@ class SweepSpec:
     text: str
     sha256: str
     source: str | None
+    compress: str = DEFAULT_CODEC
 
     def coords(self) -> dict[str, np.ndarray]:
         """``{dim: values}`` in :data:`DIMS` order."""
@@ -195,20 +203,48 @@ def _validate(data: Mapping) -> dict:
     for table in TABLES:
         if table in data and not isinstance(data[table], Mapping):
             raise SweepError(f"{table}: must be a table; got {_show(data[table])}")
-    axes = _grid(data["grid"])
     material = _material(data.get("material"))
+    axes = _grid(data["grid"], material)
     rtol, atol = _solver(data.get("solver", {}))
-    path, variables, profile_points = _output(data.get("output", {}), material is not None)
+    output = data.get("output", {})
+    path, variables, profile_points = _output(output, material is not None)
     return dict(
         **axes, material=material, rtol=rtol, atol=atol, output_path=path,
-        variables=variables, profile_points=profile_points,
+        variables=variables, profile_points=profile_points, compress=_compress(output),
     )
 
 
-def _grid(grid: Mapping) -> dict[str, np.ndarray]:
-    _check_keys(grid, DIMS, "grid", required=DIMS)
+def _compress(output: Mapping) -> str:
+    value = output.get("compress", DEFAULT_CODEC)
+    if not isinstance(value, str) or value not in CODECS:
+        raise SweepError(f"output.compress: must be one of {', '.join(map(repr, CODECS))}; "
+                         f"got {_show(value)}")
+    return value
+
+
+# The engineers' axes a grid may give instead of eps and N, and the material input each needs
+# (parameters.eps_from_width, N_from_friction).
+GRID_PHYSICAL = {"W": ("eps", "d_p"), "delta_w": ("N", "phi")}
+
+
+def _grid(grid: Mapping, material: dict | None = None) -> dict[str, np.ndarray]:
+    _check_keys(grid, DIMS + tuple(GRID_PHYSICAL), "grid")
+    grid = dict(grid)
+    given = {}  # eps or N: the key that gives it, its values made on the way below
+    for key, (gives, needs) in GRID_PHYSICAL.items():
+        if key in grid:
+            if gives in grid:
+                raise SweepError(f"grid: {gives} and {key} both give {gives}: give one")
+            if material is None:
+                raise SweepError(f"grid.{key}: needs a [material] table (its {needs})")
+            given[gives] = key
+            grid[gives] = grid.pop(key)
+    instead = {gives: key for key, (gives, _) in GRID_PHYSICAL.items()}
+    missing = [d + (f" (or {instead[d]})" if d in instead else "") for d in DIMS if d not in grid]
+    if missing:
+        raise SweepError(f"grid: missing required key(s) {', '.join(missing)}")
     # Count first, build afterwards: a huge `num` fails the size guard without allocating.
-    counts = {d: _axis_count(grid[d], f"grid.{d}") for d in DIMS}
+    counts = {d: _axis_count(grid[d], f"grid.{given.get(d, d)}") for d in DIMS}
     size = math.prod(counts.values())
     if size > MAX_POINTS:
         shape = " x ".join(str(counts[d]) for d in DIMS)
@@ -221,9 +257,13 @@ def _grid(grid: Mapping) -> dict[str, np.ndarray]:
                              "on one axis; split the sweep along it")
     axes = {}
     for d in DIMS:
-        key = f"grid.{d}"
+        key = f"grid.{given.get(d, d)}"
         values = _axis_values(grid[d], key)
         try:
+            if d in given:  # W or delta_w: eps or N from them, each value checked
+                values = np.ascontiguousarray(
+                    eps_from_width(material["d_p"], values) if d == "eps"
+                    else N_from_friction(material["phi"], values))
             check_values(d, values)
         except ParameterError as exc:
             raise SweepError(f"{key}: {exc}{_logspace_hint(grid[d])}") from None

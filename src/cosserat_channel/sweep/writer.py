@@ -42,6 +42,7 @@ from ..files import temp_path as _temp_path
 from ..solver import layout
 from ..files import write_failure
 from ..parameters import DIMS
+from .. import netcdf_policy
 from .dataset import chunk_shape, coordinates, global_attrs, grid_values, variable_encoding
 from .store import BlockDamaged
 
@@ -185,14 +186,7 @@ def create_variables(nc, spec, plan, xi, sample: dict, compress: bool) -> None:
 
 def _create(nc, name, dims, shape, dtype, attrs, is_coord, compress):
     enc = variable_encoding(name, shape, dtype, is_coord, compress)
-    # xarray's default fill value for floats is NaN; "_FillValue: None" means none at all.
-    fill = enc.pop("_FillValue", np.nan if np.dtype(dtype).kind == "f" else None)
-    codec = enc.get("compression", "zlib" if enc.get("zlib") else None)
-    var = nc.createVariable(name, dtype, dims, fill_value=fill, compression=codec,
-                            complevel=enc.get("complevel", 4), shuffle=enc.get("shuffle", False),
-                            chunksizes=enc.get("chunksizes"),
-                            fletcher32=enc.get("fletcher32", False))
-    var.set_auto_maskandscale(False)  # values go in as they are, NaN included
+    var = netcdf_policy.create_variable(nc, name, dtype, dims, enc)
     var.setncatts(attrs)
     return var
 

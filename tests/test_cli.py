@@ -427,3 +427,16 @@ def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
     assert code == 0
     assert capsys.readouterr().err == ""
     assert seen == ["1/2 edges traced", "2/2 edges traced"]
+
+
+def test_python_m_runs_the_command_and_importing_main_runs_nothing():
+    """``python -m cosserat_channel.cli`` is the command; importing its ``__main__`` (as
+    documentation tools do) parses no arguments and exits nothing."""
+    from cosserat_channel import __version__
+
+    run = subprocess.run([sys.executable, "-m", "cosserat_channel.cli", "--version"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0 and __version__ in run.stdout
+    imported = subprocess.run([sys.executable, "-c", "import cosserat_channel.cli.__main__; "
+                               "print('imported')", "html"], capture_output=True, text=True)
+    assert imported.returncode == 0 and imported.stdout == "imported\n", imported.stderr

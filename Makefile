@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-quick notebooks bench clean
+.PHONY: demo test test-quick notebooks bench docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -38,5 +38,28 @@ notebooks: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/bench_point.py
 
+# The documentation site, into docs/_build/html: installs the `docs` extra, executes the notebooks
+# into docs/_generated/notebooks (small mode; the repository keeps them without outputs), draws the
+# paper's figures into docs/_generated/paper, then builds with warnings as errors. Each step runs
+# again only when the package's sources (or the notebook) change.
+DOCS_STAMP := $(VENV)/.docs-installed
+SOURCES    := $(shell find src -name '*.py')
+NOTEBOOKS  := $(wildcard notebooks/*.ipynb)
+EXECUTED   := $(patsubst notebooks/%,docs/_generated/notebooks/%,$(NOTEBOOKS))
+
+$(DOCS_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[test,docs]'
+	touch $(DOCS_STAMP)
+
+docs/_generated/notebooks/%.ipynb: notebooks/%.ipynb $(SOURCES) $(DOCS_STAMP)
+	$(PY) docs/run_notebook.py $< docs/_generated/notebooks
+
+docs/_generated/paper/comparison.md: $(SOURCES) $(DOCS_STAMP)
+	$(VENV)/bin/cosserat-channel paper -o docs/_generated/paper --overwrite
+
+docs: $(EXECUTED) docs/_generated/paper/comparison.md
+	$(VENV)/bin/sphinx-build -W --keep-going -q -b html docs docs/_build/html
+	@echo "documentation: docs/_build/html/index.html"
+
 clean:
-	rm -rf $(VENV) demo
+	rm -rf $(VENV) demo docs/_build docs/_generated

@@ -647,3 +647,14 @@ def test_run_compress_option_picks_the_codec(tmp_path, capsys):
         assert [k for k in ("zlib", "zstd") if filters[k]] == ([codec] if codec else [])
     assert cli.main(["run", str(toml), "--compress", "gzip"]) == 2
     assert "invalid choice" in capsys.readouterr().err
+def test_python_m_runs_the_command_and_importing_main_runs_nothing():
+    """``python -m cosserat_channel.cli`` is the command; importing its ``__main__`` (as
+    documentation tools do) parses no arguments and exits nothing."""
+    from cosserat_channel import __version__
+
+    run = subprocess.run([sys.executable, "-m", "cosserat_channel.cli", "--version"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0 and __version__ in run.stdout
+    imported = subprocess.run([sys.executable, "-c", "import cosserat_channel.cli.__main__; "
+                               "print('imported')", "html"], capture_output=True, text=True)
+    assert imported.returncode == 0 and imported.stdout == "imported\n", imported.stderr

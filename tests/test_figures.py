@@ -157,6 +157,31 @@ def test_work_precision_counts_agree_colours_differ_and_legends_cover_nothing():
     assert _legend_outside_axes(left) and _legend_outside_axes(right)
 
 
+def test_work_precision_panels_each_have_a_legend_of_their_own_lines():
+    """One panel per quantity from work_precision.csv rows: every panel with lines has a legend
+    that names exactly them, so the m_wall panel names the stage-1 peers the others lack."""
+    rows = []
+    for q in ("Delta", "m_wall", "slip"):
+        for k, rtol in enumerate((1e-4, 1e-6, 1e-8)):
+            rows.append(dict(method="ours", stages="both", rtol=str(rtol), quantity=q,
+                             time_per_point_us=str(10.0 * (k + 1)), median_rel_err=str(rtol)))
+    for method in ("scipy-RK45", "scipy-LSODA"):
+        for k, rtol in enumerate((1e-4, 1e-6)):
+            rows.append(dict(method=method, stages="stage1", rtol=str(rtol), quantity="m_wall",
+                             time_per_point_us=str(1000.0 * (k + 1)), median_rel_err=str(rtol)))
+    fig = pw.quantity_panels_figure(rows)
+    panels = {ax.get_title(): ax for ax in fig.axes}
+    assert len(panels) == 3
+    for title, ax in panels.items():
+        drawn = {ln.get_label() for ln in ax.get_lines()}
+        assert ax.get_legend() is not None, title
+        assert set(_legend(ax)[1]) == drawn, title
+    m_wall = next(ax for t, ax in panels.items() if "wall couple stress" in t)
+    assert {"scipy-RK45 (stage1)", "scipy-LSODA (stage1)", "ours (both)"} == set(_legend(m_wall)[1])
+    delta = next(ax for t, ax in panels.items() if "shear-layer" in t)
+    assert set(_legend(delta)[1]) == {"ours (both)"}
+
+
 def test_point_plot_with_material_shows_nu_and_stresses_in_pa():
     """With a material: nu in the title, and right-hand axes in Pa (stress) and Pa m (couple
     stress) whose scale maps the wall value to the result's wall stress in Pa."""

@@ -36,6 +36,7 @@ __all__ = [
     "xi_bar_p",
     "Delta_asymptotic",
     "composite",
+    "composite_profile",
 ]
 
 #: Plug edge criterion u(xi_p) / u(0) = 0.95 (eq:13).
@@ -399,3 +400,21 @@ def composite(xi, eps, L, N=1):
         omega_hat = np.exp(2.0 * np.log(eai / _AI0) - (4.0 / 3.0) * xi_bar**1.5)
     J = _J_scale(eps, L) * airy_I(xi_bar)
     return CompositeProfiles(xi_bar, m, sigma_yx, omega_hat, J)
+
+
+def composite_profile(name, xi, eps, L, K):
+    """Profile ``name`` of the composite solution in the variables of ``solve_point``'s profiles.
+
+    ``name`` is one of ``u_over_u0`` (``(eps K + J)/(eps K + J(0))``, the slip of eq:7 kept),
+    ``omega_hat``, ``m``, ``sigma_xy`` (``-xi``, exact) and ``sigma_yx``; stresses over ``nu``.
+    ``N = 1`` (:func:`composite`).
+    """
+    if name == "sigma_xy":
+        return -np.asarray(xi, dtype=float)
+    c = composite(xi, eps, L)
+    if name == "u_over_u0":
+        J0 = composite(np.array([0.0]), eps, L).J[0]
+        return (eps * K + c.J) / (eps * K + J0)
+    if name not in ("omega_hat", "m", "sigma_yx"):
+        raise ValueError(f"no composite profile {name!r}")
+    return getattr(c, name)

@@ -26,16 +26,6 @@ N_MARKERS = 25
 MAX_LEGEND_HUES = 12
 
 
-def _composite_value(name, xi, eps, L, K):
-    c = asymptotics.composite(xi, eps, L)
-    if name == "u_over_u0":
-        J0 = asymptotics.composite(np.array([0.0]), eps, L).J[0]
-        return (eps * K + c.J) / (eps * K + J0)
-    if name == "sigma_xy":
-        return -np.asarray(xi, float)
-    return {"omega_hat": c.omega_hat, "m": c.m, "sigma_yx": c.sigma_yx}[name]
-
-
 def line_plot(ds, x, y="Delta", hue=None, at=None, *, asymptote=True, path=None):
     """``y`` against the coordinate ``x`` of a sweep, one line per value of ``hue``.
 
@@ -90,7 +80,7 @@ def line_plot(ds, x, y="Delta", hue=None, at=None, *, asymptote=True, path=None)
         if y == "Delta" and xdim != "xi":
             asym = np.array([asymptotics.Delta_asymptotic(pts["eps"][i], pts["L"][i]) for i in idx])
         elif xdim == "xi" and y in PROFILE_VARIABLES:
-            asym = _composite_value(y, xs[idx], p["eps"], p["L"], p["K"])
+            asym = asymptotics.composite_profile(y, xs[idx], p["eps"], p["L"], p["K"])
         else:
             continue
         ax.plot(xplot[idx], asym, "o", mfc="none", color=color, ms=6,
@@ -146,7 +136,7 @@ def profiles_figure(results, *, asymptotic=True, path=None):
         ax_m.plot(xi, pr["m"], color=color, lw=2)
         if asymptotic and r.N == 1.0:
             sel = np.unique(np.linspace(0, xi.size - 1, min(N_MARKERS, xi.size)).round().astype(int))
-            c = {v: _composite_value(v, xi[sel], r.eps, r.L, r.K)
+            c = {v: asymptotics.composite_profile(v, xi[sel], r.eps, r.L, r.K)
                  for v in ("u_over_u0", "omega_hat", "sigma_yx", "m")}
             kw = dict(ls="none", marker="o", mfc="none", color=color, ms=6)
             one = len(results) == 1

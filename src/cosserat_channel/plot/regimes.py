@@ -53,7 +53,7 @@ REGION_COLORS = {
 # ---------------------------------------------------------------------------------------------
 # Phase plane (figure 12)
 # ---------------------------------------------------------------------------------------------
-def phase_plane_figure(pp, nu=None, path=None):
+def phase_plane_figure(pp, nu=None, path=None, *, fig=None):
     """Figure 12 for any ``(eps, L, A, N)``: sign regions, ``D = 0``, nullcline, trajectories.
 
     Parameters
@@ -65,9 +65,11 @@ def phase_plane_figure(pp, nu=None, path=None):
         of ``m_bar / nu``.
     path : path-like, optional
         Where to save the figure.
+    fig : matplotlib.figure.Figure or SubFigure, optional
+        Draw into this (a panel of a larger figure) instead of a new figure.
     """
     scale = 1.0 if nu is None else float(nu)
-    fig = new_figure()
+    fig = new_figure() if fig is None else fig
     ax = fig.subplots()
     codes = sorted(REGION_COLORS)
     cmap = ListedColormap([REGION_COLORS[c] for c in codes])

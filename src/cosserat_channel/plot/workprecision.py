@@ -123,7 +123,7 @@ def work_precision_figure(ours_both, stage1_curves, comparisons=(), *, title: st
 
 def tolerance_figure(ours_both, *, factor: float = 100.0, title: str = "") -> Figure:
     """Achieved median (filled) and max (hollow) relative error against the requested rtol, with
-    the ideal ``y = x`` line and the band ``rtol / factor .. rtol * factor``."""
+    the ideal ``y = x`` line and the band from ``rtol / factor`` to ``rtol * factor``."""
     fig = new_figure((8.0, 7.0))
     ax = fig.subplots()
     rtol = np.asarray(ours_both.rtol, float)
@@ -148,4 +148,40 @@ def tolerance_figure(ours_both, *, factor: float = 100.0, title: str = "") -> Fi
     ax.legend(loc="best", fontsize="small")
     if title:
         ax.set_title(title)
+    return fig
+
+
+def quantity_panels_figure(rows, quantities=("Delta", "m_wall", "slip"), *, title="") -> Figure:
+    """Time per point against median relative error, one panel per quantity, from the rows of
+    ``work_precision.csv`` (mappings with ``method``, ``stages``, ``rtol``, ``quantity``,
+    ``time_per_point_us`` and ``median_rel_err``; strings or numbers).
+
+    One line per (method, stages) in the method's colour and marker, solid for both stages and
+    dashed for stage 1 alone. Every panel has a legend of the lines it draws: the stage-1 peers
+    answer ``m_wall`` only, so its panel names them and the others do not.
+    """
+    fig = new_figure((16.0, 6.5))
+    axes = fig.subplots(1, len(quantities), sharey=True, squeeze=False)[0]
+    curves = sorted({(r["method"], r["stages"]) for r in rows})
+    for ax, q in zip(axes, quantities):
+        for method, stages in curves:
+            sel = sorted((r for r in rows if r["quantity"] == q and r["method"] == method
+                          and r["stages"] == stages), key=lambda r: float(r["rtol"]))
+            err, t = _finite([float(r["median_rel_err"]) for r in sel],
+                             [float(r["time_per_point_us"]) for r in sel])
+            if not err.size:
+                continue
+            colour, marker, _ = STYLES.get(method, ("0.5", ".", ":"))
+            ax.plot(err, t, color=colour, marker=marker, ls="-" if stages == "both" else "--",
+                    label=f"{method} ({stages})")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(f"{OUTPUTS[q].long_name} {_symbol(q)}" if q in OUTPUTS else q)
+        ax.set_xlabel("median relative error against the reference")
+        ax.grid(alpha=0.3, which="both")
+        if ax.lines:
+            ax.legend(fontsize="small", loc="best")
+    axes[0].set_ylabel(TIME_LABEL)
+    if title:
+        fig.suptitle(title)
     return fig

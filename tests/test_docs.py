@@ -1,0 +1,65 @@
+"""The documentation site's sources: the API reference lists every name the package exports,
+the command-line reference covers every command, and CITATION.cff cites the paper as its
+manuscript names it. (The site itself is built, warnings as errors, by ``make docs``.)"""
+
+import importlib
+import importlib.util
+import re
+from pathlib import Path
+
+import cosserat_channel
+from cosserat_channel import cli
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+
+
+def _autosummary_entries(text):
+    """The entries of each ``.. autosummary::`` block of an RST text, in order, per block."""
+    blocks = re.findall(r"^\.\. autosummary::\n((?:   .*\n|\n)+)", text, flags=re.M)
+    return [[ln.strip().lstrip("~") for ln in b.splitlines()
+             if ln.strip() and not ln.strip().startswith(":")] for b in blocks]
+
+
+def test_api_reference_lists_every_exported_name():
+    """The reference's first table is cosserat_channel.__all__, each name at its home module,
+    and every entry is the very object ``cosserat_channel.<name>`` gives."""
+    namespace, modules = _autosummary_entries((DOCS / "api.rst").read_text())
+    expected = [f"cosserat_channel.{cosserat_channel._API[n]}.{n}" if n in cosserat_channel._API
+                else f"cosserat_channel.{n}" for n in cosserat_channel.__all__]
+    assert namespace == expected
+    for name, entry in zip(cosserat_channel.__all__, namespace):
+        module, _, attr = entry.rpartition(".")
+        assert getattr(importlib.import_module(module), attr) is getattr(cosserat_channel, name)
+    assert modules == ["cosserat_channel"]  # and every module below it, recursively
+
+
+def test_cli_reference_has_every_command(tmp_path, monkeypatch):
+    """The generated command-line page has a section with the --help of every command."""
+    spec = importlib.util.spec_from_file_location("docs_conf", DOCS / "conf.py")
+    conf = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(conf)
+    monkeypatch.setattr(conf, "GENERATED", tmp_path)
+    conf.write_cli_reference()
+    text = (tmp_path / "cli.md").read_text()
+    for name in cli.COMMANDS:
+        section = text.split(f"## `cosserat-channel {name}`", 1)
+        assert len(section) == 2, name
+        assert f"usage: cosserat-channel {name}" in section[1].split("## ", 1)[0], name
+
+
+def test_citation_names_the_paper_and_the_software():
+    """CITATION.cff: the software, and the paper with its title and authors as the .tex has them."""
+    text = (ROOT / "CITATION.cff").read_text()
+    assert text.startswith("cff-version: 1.2.0\n")
+    assert "title: cosserat-channel\n" in text and f"version: {_version()}\n" in text
+    assert ("title: A frictional Cosserat model for the flow of granular materials through a "
+            "vertical channel\n") in text
+    for given, family in (("L. Srinivasa", "Mohan"), ("Prabhu R.", "Nott"), ("K. Kesava", "Rao")):
+        assert f"- given-names: {given}\n      family-names: {family}\n" in text
+
+
+def _version():
+    import tomllib
+
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]

@@ -434,7 +434,7 @@ def test_info_escapes_control_characters_from_the_file(tmp_path, result_file, ca
     path = copy_of(result_file, tmp_path)
     evil = "\x1b]0;owned\x07\x1b[2J\r\u202e"
     with netCDF4.Dataset(path, "a") as nc:
-        nc["Delta"].long_name = "shear layer" + evil
+        nc["Delta"].description = "shear layer" + evil  # what info shows of a variable
         nc["eps"].units = "1" + evil
         nc.created = "2026" + evil
         nc.sweep_toml = nc.sweep_toml + "\n# " + evil

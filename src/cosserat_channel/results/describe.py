@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # imported where used: a small query never imports xarray (Li
 
 from ..files import format_size
 from .render import _python, _text
-from .selection import (QueryError, _is_flag, _show, flag_names, is_result, open_netcdf,
+from .selection import (QueryError, _is_flag, _show, check_flags, flag_names, is_result, open_netcdf,
                         printable, read_problem)
 
 SWEEP_TEXT_LINES = 12
@@ -49,6 +49,11 @@ def open_described(path) -> xr.Dataset:
         ds.close()
         raise QueryError(f"{os.fspath(path)}: not a cosserat-channel result file (nor a "
                          "boundary or atlas file of the tool)")
+    try:
+        check_flags(ds)  # the counts it reports need usable flags
+    except QueryError as exc:
+        ds.close()
+        raise QueryError(f"{os.fspath(path)}: {exc}") from None
     return ds
 
 

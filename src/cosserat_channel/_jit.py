@@ -18,12 +18,15 @@ one cache wherever they are installed.
 
 import hashlib
 import os
+import sys
 from functools import lru_cache
 from pathlib import Path
 
 from . import _numba_cache_enabled
 
 PACKAGE = Path(__file__).resolve().parent
+# Machine epsilon, for the rounding bounds of the kernels (integrators and physics alike).
+EPS = sys.float_info.epsilon
 
 
 def _install_locator() -> None:

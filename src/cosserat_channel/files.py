@@ -222,6 +222,23 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool
         raise
 
 
+def write_text(path, text) -> None:
+    """Write a text file atomically (:func:`atomic_output`): UTF-8, line ends as given.
+
+    ``text`` is a string, or a callable that writes into the open text file.
+    """
+
+    def write(tmp):
+        # newline="": the text's own line ends on every platform (a CSV's "\n" stays "\n").
+        with open(tmp, "w", encoding="utf-8", newline="") as f:
+            if callable(text):
+                text(f)
+            else:
+                f.write(text)
+
+    atomic_output(path, write)
+
+
 def _stream_output(path: str, write: Callable[[str], None], tmp_dir) -> None:
     """:func:`atomic_output` into a character device or a FIFO: ``write`` a temporary file in a
     private directory (in ``tmp_dir``, default the system's), then copy it into ``path``."""

@@ -327,7 +327,9 @@ def _query(args: argparse.Namespace) -> int:
                 writer = {"table": lambda f: f.write(render.format_table(picked)),
                           "csv": lambda f: render.write_csv(picked, f),
                           "json": lambda f: render.write_json(picked, f)}[args.format]
-                render.write_text(args.output, writer)
+                from ..files import write_text
+
+                write_text(args.output, writer)
             else:
                 sys.stdout.write(render.render(picked, args.format))
         except BrokenPipeError:

@@ -37,7 +37,8 @@ from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from .roots import find_root
-from .stepping import (EPS, STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
+from .._jit import EPS
+from .stepping import (STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_STIFF_STEPS,
                        message)
 
 __all__ = [

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
-from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import EPS, JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 __all__ = [
     "SUCCESS",
@@ -98,7 +98,6 @@ NONSTIFF_RESET = 6
 # within this many times the pair's real stability boundary (beyond_stability).
 STABLE_FACTOR = 1.5
 
-EPS = 2.220446049250313e-16
 # Shrink factor after a trial step produced NaN/inf: the step most likely left the domain of f.
 NONFINITE_SHRINK = 0.25
 # A run gives up (NONFINITE) at this many non-finite trial steps in a row: the last of them is

@@ -9,7 +9,6 @@
   scripts in ``benchmarks/``;
 - :mod:`.harness`: what the reports and the scripts in ``benchmarks/`` share: best-of timing,
   the header, PASS/FAIL verdicts and the JSON record of ``--json``;
-- :mod:`.textfile`: text files written through :func:`cosserat_channel.files.atomic_output`.
 
 Direction of the imports: these modules use the solver, :mod:`cosserat_channel.regimes` and
 :mod:`cosserat_channel.plot`; nothing else in the package imports them, except the command

@@ -229,7 +229,7 @@ class Record:
         """Write the JSON (with ``--json``) and return the exit code: 0 (a missed target is a
         result of the measurement, printed as FAIL, not a failure to measure)."""
         if self.json:
-            from .textfile import write_text
+            from ..files import write_text
 
             write_text(self.json, json.dumps(self.as_dict(), indent=1, allow_nan=False) + "\n")
             print(f"wrote {self.json}")

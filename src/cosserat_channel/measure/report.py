@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .harness import Verdict
-from .textfile import write_text
+from ..files import write_text
 
 CSV_COLUMNS = ("method", "stages", "rtol", "quantity", "n_points", "time_per_point_us",
                "median_rel_err", "max_rel_err")

@@ -37,7 +37,7 @@ from .. import status as st
 from ..physics.reference import reference
 from . import machine
 from .harness import best_of, word
-from .textfile import write_text
+from ..files import write_text
 
 L_REPORT = 10.0  # eps = eta / L; the outputs depend on eta only (model.md's similarity)
 K_REPORT = 0.5

@@ -30,7 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import machine, report, runners, textfile, validation
+from ..files import write_text
+from . import machine, report, runners, validation
 from .report import CSV_COLUMNS, Curve
 from .validation import SetSpec
 
@@ -201,7 +202,7 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
                            figures=[WP_FIGURE, TOL_FIGURE],
                            strata=report.stratum_lines(both_values, ref, vs.stratum,
                                                        validation.STRATA))
-    textfile.write_text(paths["markdown"], text)
+    write_text(paths["markdown"], text)
     return Report(settings=settings, validation_set=vs, curves=curves, ours_subsample=ours_sub,
                   comparisons=comparisons, targets=targets,
                   figures={"work_precision": fig_wp, "tolerance": fig_tol}, paths=paths,

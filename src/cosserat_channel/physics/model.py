@@ -30,15 +30,13 @@ axis edge where ``c0 -> 0``.
 from __future__ import annotations
 
 import math
-import sys
 
 from numba import njit
-from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import EPS as _EPS, JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 from . import analytic
 
 
-_EPS = sys.float_info.epsilon  # machine epsilon (the integrators' stepping.EPS)
 
 # Slots of the axis-constants array returned by `axis_constants`.
 AX_Y = 0  # mu''(0) = x / L, the curvature of the axis series (eq:20)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import netcdf_policy
-from ..files import atomic_output, netcdf_output
+from ..files import netcdf_output
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr
@@ -184,18 +184,6 @@ def write_netcdf(selection: Selection, path: str) -> None:
     # atomic_output has removed it, leaving it behind.
     with dask.config.set(scheduler="synchronous"):
         netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=netcdf_policy.encoding(ds)))
-
-
-def write_text(path: str, writer) -> None:
-    """Run ``writer(file)`` into a temporary file next to ``path``, then rename it over ``path``."""
-
-    def run(tmp):
-        with open(tmp, "w", encoding="utf-8", newline="") as f:
-            writer(f)
-
-    atomic_output(path, run)
-
-
 
 
 def render(selection: Selection, fmt: str) -> str:

@@ -39,17 +39,16 @@ REFINE_MAX_STEPS = 400
 # the two cost the same.
 DOP853_RTOL = 1e-6
 # Next to the path edge (the conditioning re-march of solve_stage1) D(1) is small and the
-# solution has a near-singularity just beyond the wall; there DOP853 crossed the whole stretch
-# from the series start to the wall in one step, good at its end but not inside, where stage 2
-# reads its interpolant (which the error estimate does not control): Delta 6e-3 off at rtol 1e-4
-# (a near-edge point of the work-precision set, eta = 3.48, A = -0.1, N = 2.29). The re-march's
-# steps are capped at this fraction of the stretch they march. Capping every march cost 30 % of
-# stage 1 on bench_point's grid, where no such error was seen.
+# solution has a near-singularity just beyond the wall: one DOP853 step across the whole stretch
+# is good at its end but not inside, where stage 2 reads its interpolant and no error estimate
+# controls it (Delta 6e-3 off at rtol 1e-4 at eta = 3.48, A = -0.1, N = 2.29). The re-march caps
+# its steps at this fraction of the stretch; capping every march costs 30 % of stage 1 on
+# bench_point's grid, where the error does not arise.
 EDGE_MAX_STEP = 0.25
-# DOP853 marches in at least two steps: one step across the whole stretch from the series start
-# (the first step's guess is xi1, clipped to the stretch) was accepted on an error estimate that
-# missed its error: on bench_point's grid at rtol 1e-6, 695 of 993 points crossed in one step and
-# J(0) came out up to 303 rtol off (m_wall 16 rtol); capped at half the stretch, 0.2 (0.1).
+# DOP853 marches in at least two steps: its error estimate misses the error of one step across
+# the whole stretch from the series start (where the first step's guess, xi1 clipped to the
+# stretch, puts it): on bench_point's grid at rtol 1e-6 such a step leaves J(0) up to 300 rtol off
+# (m_wall 16 rtol), half the stretch 0.2 rtol (0.1).
 DOP853_MAX_STEP = 0.5
 STAGE1_RTOL_FLOOR = 1e-13
 # D(1) below this many rtol-sized errors of D is zero within stage 1's resolution (solve_eta).
@@ -124,16 +123,11 @@ def use_stiff_path(eta, A, N, ax, xi1, rtol1):
       for small eta) the stiffness sits at the axis, not on the manifold, and the N factor is
       left out.
 
-    Measured with ``benchmarks/probes/probe_stiff_switch.py`` (both paths forced on bench_point's grid,
-    1000 random points and lines in eta at N = 0.9-1.3; CPU time of both stages): at rtol 1e-8
-    the crossover in ``x`` (thresholds within 2 % of the best total) lies at 880-2080 for N in
-    (0.9, 1], 110-340 for N in (1.05, 1.1], 21-87 for N in (1.2, 1.5] and 4-25 for N in (2, 3];
-    from rtol 1e-6 to 1e-10 each grows 4-15x (the rule: 10x). With this rule each set costs
-    0-6 % more in total than with the better path for every point, at each rtol from 1e-6 to
-    1e-10 (stage 1 alone: 0-11 %), against 0-37 % (0-40 %) with ``STIFF_LAMBDA sqrt(1e-6/rtol)``
-    there; the single points that cost more than 2x the better path have ``x < 20`` and meet
-    D = 0 (the same under either rule). At rtol 1e-4 and 1e-5 the Dormand-Prince threshold is within
-    4-7 % of the better path.
+    The thresholds are calibrated by ``benchmarks/probes/probe_stiff_switch.py`` (both paths
+    forced; CPU time of both stages): at rtol 1e-8 the crossover in ``x`` lies at 880-2080 for N
+    in (0.9, 1], 110-340 for N in (1.05, 1.1], 21-87 for N in (1.2, 1.5] and 4-25 for N in
+    (2, 3], and grows about 10x from rtol 1e-6 to 1e-10. With this rule each probe set costs
+    0-6 % more than the better path for every point (docs/performance.md has the table).
     """
     lam = max(2.0 / eta, ax[AX_BETA] / xi1)
     x = (1.0 - xi1) * lam
@@ -437,8 +431,8 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         # Near the path edge D(1) is small and Delta, sigma_yx(1) and stage 2 (B ~ 1/sqrt(D))
         # depend on D(1) with condition ~ sensitivity / D(1): an error rtol1 in delta is an error
         # rtol1 * sensitivity in D. March stage 1 once more at rtol * D(1)/sensitivity so that
-        # D(1), hence Delta, is good to ~rtol (before this, near-edge points at rtol 1e-5 came
-        # back with Delta 28 % off; see docs/work_precision.md).
+        # D(1), hence Delta, is good to ~rtol (a single march leaves near-edge points at rtol
+        # 1e-5 up to 28 % off in Delta; see docs/work_precision.md).
         rtol_cond = rtol * D_wall / sensitivity if sensitivity > 0.0 else rtol1
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)

@@ -13,7 +13,7 @@ from numba import njit
 
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from ..integrate import dense
-from ..integrate.stepping import EPS as _EPS
+from .._jit import EPS as _EPS
 from ..physics import model
 from ..physics.model import AX_C0
 

@@ -17,7 +17,7 @@ import xarray as xr
 
 from cosserat_channel import run_sweep
 from cosserat_channel.measure import harness
-from cosserat_channel.sweep.dataset import encoding
+from cosserat_channel.netcdf_policy import encoding
 
 ROOT = Path(__file__).resolve().parent.parent
 BIG = {"grid": {"eps": {"logspace": [-3, -1, 100]}, "L": {"linspace": [2, 20, 100]},

@@ -209,7 +209,7 @@ def read_problem(ds: xr.Dataset, names=None) -> str | None:
     """Read every variable of ``ds`` (or those in ``names``) through, in chunks, and say which one
     cannot be read, if any.
 
-    Result files carry HDF5 Fletcher-32 checksums (:func:`sweep.dataset.encoding`): a damaged
+    Result files carry HDF5 Fletcher-32 checksums (:func:`cosserat_channel.netcdf_policy.encoding`): a damaged
     chunk fails to read (netCDF4: ``RuntimeError: NetCDF: HDF error``) instead of returning
     changed numbers. Used to tell such a file from a failure to write the output, and by
     ``info`` to verify what it describes.

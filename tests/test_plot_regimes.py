@@ -94,6 +94,119 @@ def test_boundary_figure_lines(boundary_ds):
     assert ax.get_yscale() == "log" and r"\eta" in ax.get_ylabel() and "$A" in ax.get_xlabel()
 
 
+def _meshes(ax):
+    from matplotlib.collections import QuadMesh
+
+    return [c for c in ax.collections if isinstance(c, QuadMesh)]
+
+
+def test_regime_map_cells_end_on_the_computed_range(regime_ds):
+    """No cell reaches past the first or last grid value, each grid point lies in its own cell,
+    and the wall cells are exactly the points below A = 1 - 2N^2 (the line runs between them)."""
+    fig = pr.regime_map(regime_ds, "A", "N")
+    ax = fig.axes[0]
+    (mesh,) = _meshes(ax)
+    A, N = regime_ds["A"].values, regime_ds["N"].values
+    xy = mesh.get_coordinates()
+    assert xy.shape == (N.size + 1, A.size + 1, 2)
+    assert (xy[..., 0].min(), xy[..., 0].max()) == (A.min(), A.max())
+    assert (xy[..., 1].min(), xy[..., 1].max()) == (N.min(), N.max())
+    assert ax.get_xlim() == (A.min(), A.max()) and ax.get_ylim() == (N.min(), N.max())
+    assert np.all((xy[0, :-1, 0] <= A) & (A <= xy[0, 1:, 0]))
+    assert np.all((xy[:-1, 0, 1] <= N) & (N <= xy[1:, 0, 1]))
+    for cs in ax.collections:  # every line drawn stays inside the grid's extent
+        if hasattr(cs, "allsegs"):
+            for seg in (s for level in cs.allsegs for s in level):
+                assert np.all((seg[:, 0] >= A.min()) & (seg[:, 0] <= A.max()))
+                assert np.all((seg[:, 1] >= N.min()) & (seg[:, 1] <= N.max()))
+    cells = np.asarray(mesh.get_array()).reshape(N.size, A.size)
+    AA, NN = np.meshgrid(A, N)
+    margin = AA - (1.0 - 2.0 * NN**2)
+    clear = np.abs(margin) > 1e-9  # a point on the line could go either way in rounding
+    assert clear.sum() > 0.9 * clear.size and (margin < 0).sum() > 10
+    np.testing.assert_array_equal((cells == st.Status.wall_inadmissible.value)[clear],
+                                  (margin < 0)[clear])
+
+
+def test_regime_map_marks_the_points_of_a_coarse_grid(regime_ds):
+    """A coarse map marks every computed point (each cell's colour is the status there); a
+    fine one does not."""
+    coarse = regime_ds.isel(A=slice(None, None, 4), N=slice(None, None, 3))
+    ax = pr.regime_map(coarse, "A", "N").axes[0]
+    dots = [ln for ln in ax.get_lines() if ln.get_marker() == "."]
+    assert len(dots) == 1 and dots[0].get_label() in _legend_texts(ax.figure)
+    AA, NN = np.meshgrid(coarse["A"].values, coarse["N"].values)
+    assert sorted(zip(dots[0].get_xdata(), dots[0].get_ydata())) == sorted(zip(AA.ravel(),
+                                                                              NN.ravel()))
+    assert regime_ds.sizes["A"] * regime_ds.sizes["N"] > pr.MAP_NODES_SHOWN
+    fine = pr.regime_map(regime_ds, "A", "N").axes[0]
+    assert not [ln for ln in fine.get_lines() if ln.get_marker() == "."]
+
+
+def _panel_norms(fig):
+    """The norm of each panel's eta mesh (None for a panel without finite eta)."""
+    out = []
+    for ax in fig.axes[:2]:
+        shaded = [m for m in _meshes(ax) if m.get_cmap().name == "viridis"]
+        out.append(shaded[0].norm if shaded else None)
+    return out
+
+
+def _shown(bds):
+    """eta_max where bounded and eta_min where above the search range, as the panels show them."""
+    from cosserat_channel import regime_codes as rc
+
+    kind = bds["edge_kind"].values
+    lo = bds.attrs["eta_search_min"]
+    em = np.where(kind == rc.EDGE_BOUNDED, bds["eta_max"].values, np.nan)
+    en = bds["eta_min"].values
+    return em, np.where((kind != rc.EDGE_NONE) & (en > lo), en, np.nan)
+
+
+def test_solvable_region_colour_scale_fits_each_panel(boundary_ds):
+    """Each panel's colour limits are its own data's extremes, inside the search range, log
+    only where the data span more than a decade; one colourbar per shaded panel."""
+    from matplotlib.colors import LogNorm
+
+    for bds in (boundary_ds, boundary_ds.isel(A=[4, 5], N=[2, 3])):
+        fig = pr.solvable_region_figure(bds)
+        norms = _panel_norms(fig)
+        for norm, shown in zip(norms, _shown(bds)):
+            if not np.isfinite(shown).any():
+                assert norm is None
+                continue
+            assert (norm.vmin, norm.vmax) == (np.nanmin(shown), np.nanmax(shown))
+            assert bds.attrs["eta_search_min"] < norm.vmin <= norm.vmax
+            assert norm.vmax < bds.attrs["eta_search_max"]
+            assert isinstance(norm, LogNorm) == (norm.vmax > pr.LOG_SCALE_RATIO * norm.vmin)
+        assert len(fig.axes) == 2 + sum(n is not None for n in norms)
+    wide, narrow = (_panel_norms(pr.solvable_region_figure(b))[0]
+                    for b in (boundary_ds, boundary_ds.isel(A=[4, 5], N=[2, 3])))
+    assert isinstance(wide, LogNorm) and not isinstance(narrow, LogNorm)  # both kinds seen
+
+
+def test_solvable_region_one_legend_of_what_is_drawn(boundary_ds):
+    """One figure legend, no label twice, no line that misses the box, inside the saved image."""
+    fig = pr.solvable_region_figure(boundary_ds)  # A in [-0.95, 0.95], N in [0.3, 3]
+    assert not any(ax.get_legend() for ax in fig.axes) and len(fig.legends) == 1
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert len(texts) == len(set(texts))
+    assert pr.BOUNDARY_LABELS["wall"] in texts and pr.BOUNDARY_LABELS["switch"] in texts
+    assert pr.BOUNDARY_LABELS["A=-1"] not in texts and not any("$A = 1$" in t for t in texts)
+    drawn = {ln.get_label() for ax in fig.axes[:2] for ln in ax.get_lines()}
+    assert pr.BOUNDARY_LABELS["A=-1"] not in drawn
+    fig.canvas.draw()
+    box = fig.legends[0].get_window_extent(fig.canvas.get_renderer())
+    assert box.x0 >= 0 and box.y0 >= 0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1
+    for ax in fig.axes[:2]:
+        assert not box.overlaps(ax.get_window_extent())
+    # N <= 0.75: the node/focus switch (1 <= N <= 2) is outside the box, so neither drawn nor listed
+    low = pr.solvable_region_figure(boundary_ds.isel(N=[0, 1]))
+    texts = [t.get_text() for t in low.legends[0].get_texts()]
+    assert pr.BOUNDARY_LABELS["switch"] not in texts and pr.BOUNDARY_LABELS["wall"] in texts
+    assert pr.BOUNDARY_LABELS["switch"] not in {ln.get_label() for ln in low.axes[0].get_lines()}
+
+
 @pytest.fixture(scope="module")
 def fig7_ds():
     """Figure 7 on a coarse grid, with L as hue."""

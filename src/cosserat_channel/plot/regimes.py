@@ -42,6 +42,12 @@ BOUNDARY_LABELS = {
 # The analytic lines and the traced edges of a regime map are contoured on this many values per
 # axis, evenly spaced over the plotted range (regime_trace_grid(..., n=MAP_GRID) gives them).
 MAP_GRID = 400
+# A regime map marks its computed points when it has at most this many (a coarse grid, where a
+# cell is large enough that its colour could be mistaken for a region's exact extent).
+MAP_NODES_SHOWN = 400
+# A panel of the solvable region has a logarithmic colour scale when its values span more than
+# this ratio (a decade); over less a linear scale separates them better.
+LOG_SCALE_RATIO = 10.0
 REGION_COLORS = {
     rc.REGION_D_NEGATIVE: "#d9d9d9",
     rc.REGION_EP_POS_EM_NEG: "#fff2b3",
@@ -146,12 +152,17 @@ def select_slice(ds, keep, at=None):
     return sub, fixed
 
 
-def _edges(v):
+def _cell_edges(v):
+    """Edges of the cells around the grid values ``v``, clipped to the computed range.
+
+    Inner edges lie halfway between neighbours, the outer two on the first and last value, so
+    that no cell reaches past what was computed (the end cells are half cells). A single value
+    gets a unit-wide cell around it.
+    """
     v = np.asarray(v, dtype=float)
     if v.size == 1:
         return np.array([v[0] - 0.5, v[0] + 0.5])
-    mid = 0.5 * (v[1:] + v[:-1])
-    return np.r_[v[0] - (mid[0] - v[0]), mid, v[-1] + (v[-1] - mid[-1])]
+    return np.r_[v[0], 0.5 * (v[1:] + v[:-1]), v[-1]]
 
 
 def _boundary_fields(x, y, X, Y, fixed, traced):
@@ -279,8 +290,8 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, path=None):
     codes = [s.value for s in st.Status]
     cmap = ListedColormap([st.Status(c).color for c in codes])
     norm = BoundaryNorm(np.arange(len(codes) + 1) - 0.5, cmap.N)
-    ax.pcolormesh(_edges(xv), _edges(yv), status, cmap=cmap, norm=norm, shading="flat",
-                  rasterized=True)
+    xe, ye = _cell_edges(xv), _cell_edges(yv)
+    ax.pcolormesh(xe, ye, status, cmap=cmap, norm=norm, shading="flat", rasterized=True)
     handles = [Patch(facecolor=st.Status(c).color, edgecolor="0.3",
                      label=st.Status(c).name) for c in codes if np.any(status == c)]
 
@@ -301,8 +312,15 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, path=None):
                 continue
             handles.append(Line2D([], [], label=BOUNDARY_LABELS[name],
                                   **{k: v for k, v in style.items() if k != "zorder"}))
-    ax.set_xlim(_edges(xv)[[0, -1]])
-    ax.set_ylim(_edges(yv)[[0, -1]])
+    if xv.size * yv.size <= MAP_NODES_SHOWN:
+        # Each cell is the status at its centre: on a coarse grid the dots show where that was
+        # computed, and the analytic lines run between dots of different colour.
+        X0, Y0 = np.meshgrid(xv, yv)
+        handles.append(ax.plot(X0.ravel(), Y0.ravel(), ls="none", marker=".", ms=3, color="k",
+                               alpha=0.6, zorder=5, clip_on=False,
+                               label="computed point (colours its cell)")[0])
+    ax.set_xlim(xe[0], xe[-1])
+    ax.set_ylim(ye[0], ye[-1])
     ax.set_xlabel(axis_label(x))
     ax.set_ylabel(axis_label(y))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
@@ -345,17 +363,41 @@ def boundary_figure(bds, path=None):
     return fig
 
 
+def _fitted_norm(values):
+    """A colour norm spanning the finite ``values``: logarithmic when they span more than
+    :data:`LOG_SCALE_RATIO`, else linear; None when no value is finite."""
+    from matplotlib.colors import LogNorm, Normalize
+
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return None
+    lo, hi = float(v.min()), float(v.max())
+    if lo > 0.0 and hi > LOG_SCALE_RATIO * lo:
+        return LogNorm(lo, hi)
+    return Normalize(lo, hi)
+
+
+def _crosses_box(x, y, xlim, ylim):
+    """Whether the sampled curve ``(x, y)`` has a point strictly inside the box ``xlim x ylim``
+    (a line on the box's edge, or outside it, is not drawn and not in the legend)."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    return bool(np.any((x > xlim[0]) & (x < xlim[1]) & (y > ylim[0]) & (y < ylim[1])))
+
+
 def solvable_region_figure(bds, path=None):
     """Where the model has a solution in ``(A, N)``: ``eta_max`` shaded, ``eta_min`` beside it.
 
-    Left, the largest ``eta = eps L`` with a solution (log colour scale; hatched where every
-    searched ``eta`` is ok, so ``eta_max`` is beyond the range), with the node/focus switch
+    Left, the largest ``eta = eps L`` with a solution (hatched where every searched ``eta`` is ok,
+    so ``eta_max`` is beyond the range), with the node/focus switch
     (:func:`cosserat_channel.physics.analytic.node_focus_switch_N`) across which it is not analytic;
     right, the smallest, where small ``eta`` fails too (hatched where the lowest searched ``eta``
-    is ok). Both carry the analytic
-    lines ``A = 1 - 2N^2`` and ``A = -1``, and ``A = 1``, above which the axis condition never
-    binds; grey where there is no solution for any ``eta``, white where the data do not decide
-    (an unresolved atlas cell).
+    is ok). Each panel has its own colour scale fitted to the values it shows (logarithmic when
+    they span more than a decade), so that a narrow range of ``eta`` is not one flat colour. The
+    analytic lines ``A = 1 - 2N^2``, ``A = -1`` and ``A = 1`` (above which the axis condition
+    never binds) are drawn where they cross the box; grey where there is no solution for any
+    ``eta``, white where the data do not decide (an unresolved atlas cell). One legend below both
+    panels lists each thing drawn once.
 
     Parameters
     ----------
@@ -365,8 +407,6 @@ def solvable_region_figure(bds, path=None):
     path : path-like, optional
         Where to save the figure.
     """
-    from matplotlib.colors import LogNorm
-
     A = bds["A"].values.astype(float)
     N = bds["N"].values.astype(float)
     kind = bds["edge_kind"].values.T
@@ -374,57 +414,69 @@ def solvable_region_figure(bds, path=None):
     lo = float(bds.attrs.get("eta_search_min", rc.ETA_SEARCH_MIN))
     hi = float(bds.attrs.get("eta_search_max", rc.ETA_SEARCH_MAX))
     eta_max = np.where(kind == rc.EDGE_BOUNDED, bds["eta_max"].values.T, np.nan)
-    eta_min = bds["eta_min"].values.T
-    eta_min = np.where((kind != rc.EDGE_NONE) & (eta_min > lo), eta_min, np.nan)
+    eta_min_all = bds["eta_min"].values.T
+    eta_min = np.where((kind != rc.EDGE_NONE) & (eta_min_all > lo), eta_min_all, np.nan)
     fig = new_figure(figsize=(13.0, 7.5))
     axes = fig.subplots(1, 2, sharey=True)
-    norm = LogNorm(lo, hi)
+    A_lim, N_lim = (A.min(), A.max()), (N.min(), N.max())
+    A_edges, N_edges = _cell_edges(A), _cell_edges(N)
     AA, NN = np.meshgrid(A, N)
     none = resolved & (kind == rc.EDGE_NONE)
-    for ax, field, name in ((axes[0], eta_max, r"$\eta_{\max}$"), (axes[1], eta_min, r"$\eta_{\min}$")):
-        ax.pcolormesh(A, N, np.where(none, 1.0, np.nan), cmap=ListedColormap(["#d9d9d9"]),
-                      shading="nearest", rasterized=True)
-        mesh = ax.pcolormesh(A, N, field, norm=norm, cmap="viridis", shading="nearest",
-                             rasterized=True)
-        handles = [Patch(facecolor="#d9d9d9", edgecolor="0.5", label="no solution for any "
-                         r"$\eta$ in range")]
+    N_wall = np.linspace(*N_lim, MAP_GRID)
+    A_wall = 1.0 - 2.0 * N_wall**2
+    A_sw = np.linspace(max(A_lim[0], -1.0), min(A_lim[1], 1.0), MAP_GRID)
+    N_sw = analytic.node_focus_switch_N(A_sw) if A_sw[0] < A_sw[-1] else np.full(A_sw.shape, np.nan)
+    # One legend for the figure: the panels share the lines, each is listed once.
+    handles = {}
+
+    def keep(handle):
+        handles.setdefault(handle.get_label(), handle)
+
+    panels = (
+        (axes[0], eta_max, r"$\eta_{\max}$", kind == rc.EDGE_UNBOUNDED, "//",
+         rf"ok up to $\eta$ = {hi:g}", r": largest $\varepsilon L$ with a solution"),
+        (axes[1], eta_min, r"$\eta_{\min}$", (kind != rc.EDGE_NONE) & (eta_min_all <= lo), "\\\\",
+         rf"ok down to $\eta$ = {lo:g}",
+         rf": smallest $\varepsilon L$ with a solution (where > {lo:g})"),
+    )
+    for ax, field, name, beyond, hatch, text, title in panels:
+        if none.any():
+            ax.pcolormesh(A_edges, N_edges, np.where(none, 1.0, np.nan),
+                          cmap=ListedColormap(["#d9d9d9"]), shading="flat", rasterized=True)
+            keep(Patch(facecolor="#d9d9d9", edgecolor="0.5",
+                       label=r"no solution for any $\eta$ in range"))
+        norm = _fitted_norm(field)
+        if norm is not None:
+            mesh = ax.pcolormesh(A_edges, N_edges, field, norm=norm, cmap="viridis",
+                                 shading="flat", rasterized=True)
+            fig.colorbar(mesh, ax=ax, label=name + r" (-)", shrink=0.9)
         # Beyond the searched range: hatched, so that it is not mistaken for undecided (white).
-        if ax is axes[0]:
-            beyond, hatch, text = kind == rc.EDGE_UNBOUNDED, "//", rf"ok up to $\eta$ = {hi:g}"
-        else:
-            beyond = (kind != rc.EDGE_NONE) & (bds["eta_min"].values.T <= lo)
-            hatch, text = "\\\\", rf"ok down to $\eta$ = {lo:g}"
         beyond = np.where(resolved & beyond, 1.0, np.nan)
         if np.isfinite(beyond).any():
             ax.contourf(AA, NN, beyond, levels=[0.5, 1.5], colors="none", hatches=[hatch])
-            handles.append(Patch(facecolor="none", edgecolor="0.3", hatch=hatch, label=text))
+            keep(Patch(facecolor="none", edgecolor="0.3", hatch=hatch, label=text))
         if (~resolved).any():
-            handles.append(Patch(facecolor="white", edgecolor="0.5", label="undecided (atlas)"))
-        wall = ax.plot(1.0 - 2.0 * N**2, N, **{k: v for k, v in BOUNDARY_STYLES["wall"].items()},
-                       label=BOUNDARY_LABELS["wall"])[0]
-        handles.append(wall)
-        if ax is axes[0]:
+            keep(Patch(facecolor="white", edgecolor="0.5", label="undecided (atlas)"))
+        if _crosses_box(A_wall, N_wall, A_lim, N_lim):
+            keep(ax.plot(A_wall, N_wall, label=BOUNDARY_LABELS["wall"], **BOUNDARY_STYLES["wall"])[0])
+        if ax is axes[0] and _crosses_box(A_sw, N_sw, A_lim, N_lim):
             # eta_max is not analytic across this curve (a kink in its contours)
-            A_sw = np.linspace(max(A.min(), -1.0), min(A.max(), 1.0), 200)
-            if A_sw.size and A_sw[0] < A_sw[-1]:
-                handles.append(ax.plot(A_sw, analytic.node_focus_switch_N(A_sw),
-                                       label=BOUNDARY_LABELS["switch"],
-                                       **BOUNDARY_STYLES["switch"])[0])
+            keep(ax.plot(A_sw, N_sw, label=BOUNDARY_LABELS["switch"], **BOUNDARY_STYLES["switch"])[0])
         for value, label, style in ((-1.0, BOUNDARY_LABELS["A=-1"], BOUNDARY_STYLES["A=-1"]),
                                     (1.0, r"$A = 1$ (axis condition binds only for $A < 1$)",
                                      dict(color="#0033cc", ls="--", lw=1.5, zorder=4))):
-            if A.min() <= value <= A.max():
-                handles.append(ax.axvline(value, label=label, **style))
-        ax.set_xlim(A.min(), A.max())
-        ax.set_ylim(N.min(), N.max())
+            if A_lim[0] < value < A_lim[1]:
+                keep(ax.axvline(value, label=label, **style))
+        ax.set_xlim(*A_lim)
+        ax.set_ylim(*N_lim)
         ax.set_xlabel(axis_label("A"))
-        ax.set_title(f"{name}" + (r": largest $\varepsilon L$ with a solution" if ax is axes[0]
-                                  else r": smallest $\varepsilon L$ with a solution (where > "
-                                  rf"{lo:g})"))
-        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=2,
-                  fontsize="small", frameon=False)
+        ax.set_title(name + title)
     axes[0].set_ylabel(axis_label("N"))
-    fig.colorbar(mesh, ax=axes, label=r"$\eta = \varepsilon L$ (-)", shrink=0.9)
+    # Below the panels, inside the figure: constrained layout makes room for an "outside" legend.
+    # Areas first, then lines, each in the order drawn.
+    if handles:
+        fig.legend(handles=sorted(handles.values(), key=lambda h: not isinstance(h, Patch)),
+                   loc="outside lower center", ncols=2, fontsize="small", frameon=False)
     tol = bds.attrs.get("atlas_tol")
     fig.suptitle("Solvable region in (A, N)" + (f" (atlas, tolerance {tol:g})" if tol else ""))
     if path is not None:

@@ -40,7 +40,7 @@ import dask
 import numpy as np
 
 from cosserat_channel.measure import harness
-from cosserat_channel.sweep import engine
+from cosserat_channel.sweep import block
 from cosserat_channel.sweep.plan import COST_FIXED, COST_PER_INV_ETA, BlockInputs, block_plan
 from cosserat_channel.sweep.spec import load_sweep
 
@@ -97,7 +97,7 @@ def subsample(n: int, seed: int = 0):
 
 def run_unreduced(inputs, rtol, atol, workers: int) -> float:
     """(b): the engine's block function on dask's threaded scheduler; seconds."""
-    tasks = [dask.delayed(engine.solve_block)(inp, rtol, atol) for inp in inputs]
+    tasks = [dask.delayed(block.solve_block)(inp, rtol, atol) for inp in inputs]
     t0 = time.perf_counter()
     dask.compute(*tasks, scheduler="threads", num_workers=workers)
     return time.perf_counter() - t0
@@ -112,7 +112,7 @@ def main() -> int:
     args = ap.parse_args()
 
     rec = harness.Record("bench_sweep", args.json, dask=dask.__version__)
-    engine.warm_up()  # compile (or load) the kernels here, not inside a timing
+    block.warm_up()  # compile (or load) the kernels here, not inside a timing
     with tempfile.TemporaryDirectory(dir=ROOT / "benchmarks") as tmp_name:
         tmp = Path(tmp_name)
         # A tiny run first so that (a) measures a warm Numba cache, as every run but the first does.

@@ -34,7 +34,7 @@ import xarray as xr
 from cosserat_channel import cli, solve_point
 from cosserat_channel import status as st
 from cosserat_channel.parameters import ETA_MIN, ParameterError
-from cosserat_channel.sweep import engine, run_sweep
+from cosserat_channel.sweep import budget, engine, run_sweep, schedulers
 from cosserat_channel.sweep.plan import Plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import partial_dir
@@ -655,7 +655,7 @@ def test_bad_scheduler_is_one_line_before_any_store(tmp_path, sweep_file, capsys
     out = tmp_path / "out.nc"
     t0 = time.perf_counter()
     assert cli.main(["run", str(sweep_file), "-o", str(out), "--scheduler", address]) == 2
-    assert time.perf_counter() - t0 < engine.CONNECT_TIMEOUT + 10
+    assert time.perf_counter() - t0 < schedulers.CONNECT_TIMEOUT + 10
     assert words in one_line_error(capsys.readouterr().err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
@@ -674,7 +674,7 @@ def test_unusable_scheduler_address_is_one_line_and_quiet_at_exit(tmp_path, swee
     assert proc.returncode == 2, proc.stderr
     assert "scheduler:" in one_line_error(proc.stderr)
     assert proc.stderr.count("\n") == 1, proc.stderr
-    assert time.perf_counter() - t0 < engine.CONNECT_TIMEOUT + 15  # a loaded machine included
+    assert time.perf_counter() - t0 < schedulers.CONNECT_TIMEOUT + 15  # a loaded machine included
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 
@@ -906,9 +906,9 @@ def test_memory_and_disk_are_checked_before_the_plan(tmp_path, monkeypatch, shor
     spec = load_sweep({"grid": {"eps": {"logspace": [-3, -1, 10_000_000]}, "L": 10.0,
                                 "K": 0.5, "A": 1.0, "N": 1.0}})
     if short == "memory":
-        monkeypatch.setattr(engine, "available_memory", lambda: 100 << 20)
+        monkeypatch.setattr(budget, "available_memory", lambda: 100 << 20)
     else:
-        monkeypatch.setattr(engine, "available_memory", lambda: None)
+        monkeypatch.setattr(budget, "available_memory", lambda: None)
         real = files.shutil.disk_usage
         monkeypatch.setattr(files.shutil, "disk_usage", lambda p: real(p)._replace(free=1000))
     tracemalloc.start()

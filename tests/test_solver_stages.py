@@ -10,7 +10,7 @@ from cosserat_channel import solve_point
 from cosserat_channel.solver import batch, layout, plug_edge, stage1, stage2, stress_path
 from cosserat_channel import status as st
 from cosserat_channel.solver.point import Workspace
-from cosserat_channel.sweep.engine import solve_block
+from cosserat_channel.sweep.block import solve_block
 from cosserat_channel.sweep.plan import Plan
 
 STAGE1_OUTPUTS = ["m_wall", "sigma_yx_wall", "xi_stop"]

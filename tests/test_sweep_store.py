@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from cosserat_channel import cli
-from cosserat_channel.sweep import engine, run_sweep
+from cosserat_channel.sweep import block, engine, run_sweep
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import WorkStore, partial_dir
 from support import assert_identical
@@ -199,7 +199,7 @@ def test_run_finished_meanwhile_is_decided_under_the_lock(tmp_path, monkeypatch,
     second = tmp_path / "second.toml"
     second.write_text(SMALL.replace("K = [0.5, 5.0]", "K = [0.5, 6.0]"))
     out = tmp_path / "out.nc"
-    real_warm_up = engine.warm_up
+    real_warm_up = block.warm_up
     finished = []
 
     def first_run_finishes():
@@ -208,7 +208,7 @@ def test_run_finished_meanwhile_is_decided_under_the_lock(tmp_path, monkeypatch,
             run_sweep(str(first), str(out), workers=1).close()
         real_warm_up()
 
-    monkeypatch.setattr(engine, "warm_up", first_run_finishes)
+    monkeypatch.setattr(block, "warm_up", first_run_finishes)  # the command's, before the run
     for toml, code, words in ((second, 2, ("another sweep", "--overwrite")),
                               (first, 0, ("already the finished result", "--overwrite"))):
         finished.clear()

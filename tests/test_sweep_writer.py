@@ -12,7 +12,7 @@ import pytest
 
 from cosserat_channel import cli
 from cosserat_channel import files
-from cosserat_channel.sweep import engine, run_sweep, writer
+from cosserat_channel.sweep import block, budget, engine, run_sweep, writer
 from cosserat_channel.sweep.dataset import chunk_shape, variable_encoding
 from cosserat_channel.sweep.plan import block_plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
@@ -69,9 +69,9 @@ def test_mapped_per_triple_arrays_give_the_in_memory_values(tmp_path, monkeypatc
     spec = load_sweep({"grid": GRID, "output": {
         "variables": ["Delta", "slip", "stage1_steps"], "profile_points": 4}})
     xi = engine._profile_xi(spec)
-    kept = engine.disk_needed(spec, 72, xi, str(tmp_path / "r.nc"))
+    kept = budget.disk_needed(spec, 72, xi, str(tmp_path / "r.nc"))
     monkeypatch.setattr(writer, "WRITER_MEMORY", 0)
-    assert engine.disk_needed(spec, 72, xi, str(tmp_path / "r.nc")) == \
+    assert budget.disk_needed(spec, 72, xi, str(tmp_path / "r.nc")) == \
         kept + 72 * writer.bytes_per_triple(4)
     arrays = []
     real = writer.StreamWriter._array
@@ -170,11 +170,11 @@ def test_too_little_disk_space_is_refused_before_any_work(tmp_path, monkeypatch,
 def test_disk_estimate_grows_with_the_grid_and_counts_what_is_stored():
     spec = load_sweep({"grid": GRID, "output": {"variables": ["Delta", "slip"]}})
     plan = engine.Plan(spec.coords())
-    need = engine.disk_needed(spec, plan.n_triples, None, "/nonexistent/out.nc")
+    need = budget.disk_needed(spec, plan.n_triples, None, "/nonexistent/out.nc")
     assert need >= spec.size * (8 + 8 + 1)  # two float64 outputs and status, uncompressed
     big = load_sweep({"grid": {**GRID, "K": {"linspace": [0, 3, 300]}},
                       "output": {"variables": ["Delta", "slip"]}})
-    assert engine.disk_needed(big, engine.Plan(big.coords()).n_triples, None, "/x") > 50 * need
+    assert budget.disk_needed(big, engine.Plan(big.coords()).n_triples, None, "/x") > 50 * need
 
 
 # ---------------------------------------------------------------------------------------------
@@ -262,7 +262,7 @@ def test_tiles_are_written_while_blocks_are_still_solved(tmp_path, monkeypatch):
     monkeypatch.setattr(writer, "TILE_POINTS", 16)
     monkeypatch.setattr(writer, "chunk_shape", lambda shape, size: (1, 1, 3, 2, 3))
     events = []
-    real_solve, real_write = engine.solve_block, writer.StreamWriter._write_group
+    real_solve, real_write = block.solve_block, writer.StreamWriter._write_group
 
     def slow_solve(*args, **kwargs):
         out = real_solve(*args, **kwargs)
@@ -274,7 +274,7 @@ def test_tiles_are_written_while_blocks_are_still_solved(tmp_path, monkeypatch):
         events.append("write")
         real_write(self, g)
 
-    monkeypatch.setattr(engine, "solve_block", slow_solve)
+    monkeypatch.setattr(block, "solve_block", slow_solve)
     monkeypatch.setattr(writer.StreamWriter, "_write_group", write_group)
     spec = load_sweep({"grid": GRID})
     run_sweep(spec, tmp_path / "r.nc", workers=1, block_size=2).close()

@@ -118,11 +118,11 @@ def _run_command(args: argparse.Namespace) -> int:
     logger = logging.getLogger("cosserat_channel.sweep")
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
-    from ..sweep.engine import SchedulerLost
+    from ..sweep.schedulers import SchedulerLost
 
     try:
         if args.scheduler is None:
-            from ..sweep.engine import warm_up
+            from ..sweep.block import warm_up
 
             # Here, not inside the run: on a terminal the minute a new version spends compiling
             # shows as such, before the run's own progress bar starts.

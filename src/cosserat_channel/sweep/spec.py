@@ -73,7 +73,7 @@ from ..parameters import (
 MAX_POINTS = MAX_GRID_POINTS
 # The most values on one axis, checked before any is made. Every value of eps, L, A or N is at
 # least one integration, and every value of K an entry of each block, and a run keeps some 100
-# bytes per integration and per entry of a block (:func:`.engine.memory_needed`): an axis beyond
+# bytes per integration and per entry of a block (:func:`.budget.memory_needed`): an axis beyond
 # this needs tens of GB whatever the rest of the grid (10^10 values, within MAX_POINTS, were a
 # 74.5 GiB allocation before anything was checked).
 MAX_AXIS_POINTS = 100_000_000

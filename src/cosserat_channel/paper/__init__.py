@@ -1,0 +1,124 @@
+"""The paper's figures 2-12, table 1 and Appendix A's ``eps = 0.33``, computed beside what the
+paper prints.
+
+Each function solves what one figure (or the table) of Mohan, Nott & Rao shows, with the
+parameters of its caption, and returns a :class:`PaperFigure`: the data to draw
+(:mod:`cosserat_channel.plot.paper` draws it and never solves) and the paper's stated numbers
+next to ours, each with a sentence where they differ. :func:`paper_figures` computes them all;
+``python -m cosserat_channel.paper -o DIR`` (or ``cosserat-channel paper -o DIR``) writes every
+figure as a PNG and the comparison as Markdown, without a notebook.
+
+The paper's figure numbers are used (its ``\\label``s differ: ``fig:new`` is figure 9,
+``fig:9`` figure 10, ``fig:10`` figure 11 and ``fig:11`` figure 12). Stresses are drawn divided
+by ``nu`` (the package's scaled variables; the paper's bars are ``nu`` times them).
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+from .figures import (figure2, figure3, figure4, figure5, figure6, figure7, figure8, figure9,
+                      figure10, figure11, figure12)
+from .record import PaperFigure, Row
+from .tables import appendix_a, printed_march, table1
+
+__all__ = ["PaperFigure", "Row", "KEYS", "paper_figures", "write_paper_figures", "table1",
+           "appendix_a", "printed_march", "figure2", "figure3", "figure4", "figure5", "figure6",
+           "figure7", "figure8", "figure9", "figure10", "figure11", "figure12"]
+
+
+# ---------------------------------------------------------------------------------------------
+# All of them
+# ---------------------------------------------------------------------------------------------
+KEYS = tuple(f"figure{n}" for n in range(2, 13)) + ("table1", "appendix_a")
+
+
+def paper_figures(coarse: bool = False, keys=KEYS, progress=None) -> dict[str, PaperFigure]:
+    """Every figure of :data:`KEYS` (``coarse``: small grids, the same code paths);
+    ``progress(key)``, if given, is called before each."""
+    n_xi = 101 if coarse else 401
+    out = {}
+    for key in keys:
+        if progress is not None:
+            progress(key)
+        if key == "figure2":
+            out[key] = figure2(n_xi)
+        elif key == "figure3":
+            out[key] = figure3(n_xi, out.get("figure2"))
+        elif key in ("figure4", "figure5", "figure6", "figure10", "figure11"):
+            out[key] = globals()[key](n_xi)
+        elif key == "figure7":
+            out[key] = figure7(15 if coarse else 120)
+        elif key == "figure8":
+            out[key] = figure8(12 if coarse else 117)
+        elif key == "figure9":
+            out[key] = figure9(301 if coarse else 3001)
+        elif key == "figure12":
+            out[key] = figure12(*((61, 81) if coarse else (301, 401)))
+        elif key == "table1":
+            out[key] = table1()
+        elif key == "appendix_a":
+            out[key] = (appendix_a(np.r_[1 / 30, 0.2, 0.31, 0.32, 0.33, 0.332],
+                                   np.array([1e-8, 1e-11, 1e-13])) if coarse else appendix_a())
+        else:
+            raise ValueError(f"unknown paper figure {key!r}; have {', '.join(KEYS)}")
+    return out
+
+
+def write_paper_figures(directory, *, coarse=False, overwrite=False, keys=KEYS,
+                        progress=None) -> list[str]:
+    """Compute and draw every figure into ``directory`` (created if missing): ``<key>.png`` and
+    ``comparison.md``. Existing files are kept (ValueError before any work) unless
+    ``overwrite``. Returns the paths written."""
+    from ..files import output_problem
+    from ..plot import paper as plot_paper
+    from ..plot import save_figure
+
+    directory = os.fspath(directory)
+    if os.path.lexists(directory) and not os.path.isdir(directory):
+        raise ValueError(f"{directory}: exists and is not a directory")
+    targets = [os.path.join(directory, n) for n in [f"{k}.png" for k in keys] + ["comparison.md"]]
+    for t in targets:
+        if os.path.lexists(t) and not (overwrite and os.path.isfile(t) and not os.path.islink(t)):
+            what = "exists" if os.path.isfile(t) else "exists and is not a regular file"
+            raise ValueError(f"{t} {what}; kept" + (": give --overwrite or another directory"
+                                                    if os.path.isfile(t) else ""))
+    if not os.path.isdir(directory):
+        parent = os.path.dirname(os.path.abspath(directory))
+        if not os.path.isdir(parent):
+            raise ValueError(f"cannot create {directory!r}: directory {parent!r} does not exist")
+        os.mkdir(directory)  # one level, as -o FILE needs its directory to exist
+    for t in targets:
+        problem = output_problem(t)
+        if problem:
+            raise ValueError(problem)
+    figures = paper_figures(coarse, keys, progress)
+    written = []
+    for key, pf in figures.items():
+        path = os.path.join(directory, f"{key}.png")
+        save_figure(plot_paper.draw(pf), path)
+        written.append(path)
+    text = ["# The paper's figures and table 1 beside ours", ""]
+    for pf in figures.values():
+        text += [f"## {pf.title}", "", f"![{pf.key}]({pf.key}.png)", "", pf.rows_markdown(), ""]
+    path = os.path.join(directory, "comparison.md")
+    from ..files import atomic_output
+
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write("\n".join(text))
+
+    atomic_output(path, write)
+    written.append(path)
+    return written
+
+
+def main(argv=None) -> int:
+    """``python -m cosserat_channel.paper -o DIR [--coarse] [--overwrite]``: the command line's
+    ``paper`` command."""
+    from ..cli import main as cli_main
+
+    return cli_main(["paper", *(sys.argv[1:] if argv is None else argv)])
+

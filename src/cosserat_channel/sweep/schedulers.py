@@ -1,0 +1,249 @@
+"""Where the blocks run: dask's threads on this machine, or a ``dask.distributed`` cluster.
+
+Each block is one :func:`.block.solve_block` call, which holds no GIL, so the threaded scheduler
+keeps every core busy without pickling anything. On a cluster each task carries its own block's
+inputs (:meth:`.plan.Plan.inputs`), nothing scattered: a task whose worker dies is simply run
+again on another. The results come back to this process, which alone writes the store and the
+file. Losing the scheduler, or every worker for ``no_workers_timeout`` seconds, ends the run with
+:class:`SchedulerLost`; the finished blocks are in the store and the same command resumes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import re
+import sys
+import threading
+import time
+
+import numpy as np
+
+from .block import _block_task, solve_block, warm_up
+from .plan import BlockInputs
+from .spec import SweepError
+
+log = logging.getLogger("cosserat_channel.sweep")
+
+
+# Seconds to wait for a scheduler to answer before the run is refused (nothing created yet).
+CONNECT_TIMEOUT = 5.0
+# Seconds a cluster may have no worker at all before the run ends (SchedulerLost): long enough
+# for a nanny or a batch system to bring lost workers back, short enough not to look hung.
+NO_WORKERS_TIMEOUT = 120.0
+_ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
+
+
+class SchedulerLost(RuntimeError):
+    """The dask cluster can no longer run the blocks: its scheduler went away mid-run, or it has
+    had no worker for ``no_workers_timeout`` seconds. The finished blocks are kept in the store."""
+
+
+def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=None) -> None:
+    import dask
+    from dask.diagnostics import ProgressBar
+
+    warm_up()
+
+    failure = []
+
+    def task(k):
+        # Once writing has failed the run ends with that error, but only after the blocks in
+        # flight are stored: raising from one task would return while other threads still write
+        # theirs, leaving temporary files in the store.
+        if failure:
+            return
+        c0 = time.thread_time()
+        out = _block_task(plan, k, args)
+        store.put(k, out)
+        if cpu is not None:
+            cpu.append(time.thread_time() - c0)
+        if writer is not None:
+            try:
+                writer.add(k, out)
+            except BaseException as exc:  # noqa: BLE001 (raised below, once every task is done)
+                failure.append(exc)
+
+    # dask's threaded scheduler runs independent tasks in descending order of their keys: the
+    # keys count down so that blocks run in plan order, group after group, and each group's
+    # tiles are written soon after it starts.
+    n = len(todo)
+    tasks = [dask.delayed(task, pure=False)(k, dask_key_name=f"block-{n - 1 - i:09d}-{k}")
+             for i, k in enumerate(todo)]
+    if progress:
+        with ProgressBar(out=sys.stderr, dt=0.5):
+            dask.compute(*tasks, scheduler="threads", num_workers=workers)
+    else:
+        dask.compute(*tasks, scheduler="threads", num_workers=workers)
+    if failure:
+        raise failure[0]
+
+
+def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
+    """``(client, own)`` for a scheduler address (or a ``distributed.Client``, ``own`` False).
+
+    SweepError in one line when the address is malformed or nothing answers there within
+    ``timeout`` seconds.
+    """
+    from dask.distributed import Client
+
+    if isinstance(scheduler, Client):
+        return scheduler, False
+    address = scheduler.strip() if isinstance(scheduler, str) else scheduler
+    if not isinstance(address, str) or not _ADDRESS.match(address):
+        raise SweepError(f"scheduler: {scheduler!r} is not a dask scheduler address; expected "
+                         "e.g. tcp://host:8786")
+    client = Client.__new__(Client)
+    try:
+        client.__init__(address, timeout=timeout, set_as_default=False)
+        return client, True
+    # Whatever the comm layer raises for an address it cannot use: TypeError for tls:// without
+    # dask's TLS configuration, for ucx:// without UCX, ValueError for a malformed host.
+    except Exception as exc:  # noqa: BLE001
+        _discard(client)
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        if isinstance(exc, (OSError, TimeoutError)):
+            raise SweepError(f"scheduler: no dask scheduler answers at {address!r} within "
+                             f"{timeout:g} s ({reason}); start one (dask scheduler) or check "
+                             "the address") from None
+        raise SweepError(f"scheduler: cannot connect to {address!r} ({reason}); check the "
+                         "address and its protocol (tcp:// needs no set-up)") from None
+
+
+def _discard(client) -> None:
+    """Stop a client whose constructor failed. Left alone, its ``__del__`` waits for a
+    connection that never came (10 s at exit) and prints a traceback."""
+    try:
+        client.status = "closed"  # close() and __del__ then have nothing to do
+        client._loop_runner.stop()
+    except Exception:  # noqa: BLE001 (failed before these existed: nothing to stop)
+        pass
+
+
+def _solve_remote(inp: BlockInputs, args) -> dict:
+    c0 = time.thread_time()
+    out = solve_block(inp, *args)
+    out["cpu"] = time.thread_time() - c0  # the worker thread's, returned with the block
+    return out
+
+
+def cluster_threads(client) -> int:
+    """Threads of all the cluster's workers (at least 1): the workers of its CPU accounting."""
+    workers = client.scheduler_info().get("workers", {})
+    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+
+
+def _run_distributed(plan, todo, store, args, client, progress, writer=None, cpu=None,
+                     no_workers_timeout=NO_WORKERS_TIMEOUT) -> int:
+    """Run the blocks on the cluster of ``client``; returns its threads (:func:`cluster_threads`),
+    and appends each block's CPU seconds on its worker to ``cpu``."""
+    from dask.distributed import CancelledError, KilledWorker
+
+    address = client.scheduler.address
+    try:
+        with client.as_current():  # as_completed and the progress bar find it
+            _submit_and_store(plan, todo, store, args, client, progress, writer, cpu,
+                              _WorkerWatch(client, no_workers_timeout))
+            return cluster_threads(client)
+    except KilledWorker as exc:
+        raise SchedulerLost(f"a block killed every worker that ran it ({exc}); see the workers' "
+                            "logs") from None
+    except (CancelledError, OSError, TimeoutError) as exc:
+        # A block that cannot be written (a full disk) is the store's error, not the cluster's.
+        if client.status == "running" and not isinstance(exc, CancelledError):
+            raise
+        raise SchedulerLost(f"lost the dask scheduler at {address} "
+                            f"({type(exc).__name__})") from None
+
+
+class _WorkerWatch:
+    """Whether a cluster has had no worker for ``timeout`` seconds (asked at most once a second).
+
+    Tasks wait on a cluster without workers for ever, silently: the run would hang. A scheduler
+    that does not answer is not this watch's concern (its futures are cancelled, see
+    :func:`_run_distributed`).
+    """
+
+    def __init__(self, client, timeout: float):
+        self.client, self.timeout = client, timeout
+        self._asked = -math.inf
+        self._since = None  # when the cluster was first seen without a worker
+
+    def check(self) -> None:
+        """Raise :class:`SchedulerLost` once the cluster has had no worker for ``timeout``."""
+        now = time.monotonic()
+        if now - self._asked < min(1.0, self.timeout / 4) or self.client.status != "running":
+            return
+        self._asked = now
+        try:
+            n = len(self.client.nthreads())
+        except Exception:  # noqa: BLE001 (an unreachable scheduler: the futures say so)
+            return
+        if n:
+            self._since = None
+        elif self._since is None:
+            self._since = now
+        elif now - self._since >= self.timeout:
+            raise SchedulerLost(
+                f"the dask cluster at {self.client.scheduler.address} has had no worker for "
+                f"{self.timeout:g} s (all lost, none started)")
+
+
+def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cpu=None,
+                      watch: _WorkerWatch | None = None) -> None:
+    from dask.distributed import as_completed
+
+    client.run(warm_up)
+    tag = plan.digest()[:12]  # keys unique per plan: a shared cluster may hold older runs
+    futures = []
+    for k in todo:
+        # The block's own inputs, without the grid indices only this process needs.
+        inp = dataclasses.replace(plan.inputs(k), flat=np.empty(0, dtype=np.int64))
+        futures.append(client.submit(_solve_remote, inp, args, key=f"cc-block-{tag}-{k}"))
+    key_to_block = {f.key: k for f, k in zip(futures, todo)}
+    if progress:
+        _progress_thread(futures)
+    pending = as_completed(futures)
+    while not pending.is_empty():
+        ready = pending.next_batch(block=False)
+        if not ready:
+            if watch is not None:
+                watch.check()
+            time.sleep(0.05)
+            continue
+        for fut in ready:
+            k = key_to_block[fut.key]
+            out = _result(fut, watch)
+            seconds = out.pop("cpu")
+            if cpu is not None:
+                cpu.append(seconds)
+            out["triples"] = plan.blocks[k]
+            store.put(k, out)
+            if writer is not None:
+                writer.add(k, out)
+            fut.release()
+
+
+def _result(fut, watch: _WorkerWatch | None):
+    """``fut.result()``, watching the cluster meanwhile: a finished task whose worker is lost
+    before its result is fetched runs again, and waits for a worker like any other."""
+    while True:
+        try:
+            return fut.result(timeout=0.5)
+        except TimeoutError:  # dask.distributed's is the built-in one
+            if watch is not None:
+                watch.check()
+
+
+def _progress_thread(futures) -> None:
+    """dask.distributed's own progress bar, in a thread while this one stores the blocks."""
+    from dask.distributed import progress
+
+    def show():
+        try:
+            progress(futures, multi=False)
+        except Exception:  # noqa: BLE001 (a lost scheduler ends the bar; the run says why)
+            pass
+
+    threading.Thread(target=show, name="cc-progress", daemon=True).start()

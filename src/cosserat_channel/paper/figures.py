@@ -290,7 +290,7 @@ def figure11(n_xi=401) -> PaperFigure:
 
 def figure12(n_xi=301, n_m=401) -> PaperFigure:
     """Figure 12 (fig:11): the phase plane of eq:a1/eq:a2 at eps = 1/30, L = 10, A = 1/3, N = 1."""
-    from . import regimes
+    from .. import regimes
 
     pp = regimes.phase_plane(EPS2, L, A, N, n_xi=n_xi, n_m=n_m)
     ends = {tr.root: tr for tr in pp.trajectories if tr.start < 0}

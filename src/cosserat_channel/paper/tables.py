@@ -95,7 +95,7 @@ def appendix_a(eps_values=None, rtols=None) -> PaperFigure:
     Our solver and scipy's reference (rtol 1e-12) find the solution at ``eps = 0.33``; the march
     in the printed formulation (:func:`printed_march`) decides it by the digits it keeps.
     """
-    from . import regimes
+    from .. import regimes
     from ..physics import reference
     from ..solver.point import solve_point
 

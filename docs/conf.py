@@ -73,6 +73,11 @@ def write_cli_reference() -> None:
              "Generated from the program's own argument parser (`cosserat_channel.cli`). Exit "
              "codes: 0 for an answer, 1 for a failure after the input was accepted, 2 for input "
              "the program rejects; every error is one line on stderr.", "",
+             "A parameter is a number or an exact fraction (`--eps 1/30`). `point` also takes an "
+             "engineer's inputs: the half-width `--W` (m) with `--d-p` for eps = d_p/W, and the "
+             "wall friction angle `--delta-w` (degrees) with `--phi` for N = sin(phi)/tan(delta_w) "
+             "(a sweep's `[grid]` takes `W` and `delta_w`). `run --compress` picks the result's "
+             "codec: zlib by default (every netCDF-4 reader opens it), zstd, or none.", "",
              "```text", parser.format_help().rstrip(), "```", ""]
     for name, p in sub.choices.items():
         lines += [f"## `cosserat-channel {name}`", "", "```text", p.format_help().rstrip(), "```",

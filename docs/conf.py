@@ -9,6 +9,7 @@ paper's figures page shows what ``cosserat-channel paper`` wrote into ``_generat
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 from pathlib import Path
@@ -102,6 +103,22 @@ def write_paper_page() -> None:
     _write(GENERATED / "paper.md", first + intro + rest)
 
 
+def remove_stale_api_pages() -> None:
+    """Drop the pages autosummary wrote into ``_generated/api/`` for modules that no longer exist.
+
+    A checkout that built the site before a module was removed or renamed keeps its page, which
+    no toctree includes any more: Sphinx warns, and the build (warnings as errors) stops. The
+    pages of existing modules stay, so Sphinx reads again only what changed.
+    """
+    for page in (GENERATED / "api").glob("*.rst"):
+        try:
+            exists = importlib.util.find_spec(page.stem) is not None
+        except ImportError:  # a parent package that is gone too
+            exists = False
+        if not exists:
+            page.unlink()
+
+
 def _write(path: Path, text: str) -> None:
     # Written only when changed, so that Sphinx does not rebuild every page each time.
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -127,5 +144,6 @@ def _own_members_only(app, what, name, obj, skip, options):
 def setup(app):
     write_cli_reference()
     write_paper_page()
+    remove_stale_api_pages()
     app.connect("source-read", _math_fences)
     app.connect("autodoc-skip-member", _own_members_only)

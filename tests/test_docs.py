@@ -63,3 +63,21 @@ def _version():
     import tomllib
 
     return tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+
+
+def test_every_module_imports_without_running_anything(monkeypatch):
+    """The API reference's recursive autosummary imports every module of the package, private
+    ones and ``__main__`` included, with sphinx-build's own command line in ``sys.argv``: a
+    module that runs a command on import (a ``__main__.py`` without its ``__name__`` guard)
+    would stop the build."""
+    import pkgutil
+    import sys
+
+    monkeypatch.setattr(sys, "argv", ["sphinx-build", "--keep-going", "docs", "docs/_build"])
+    names = [m.name for m in pkgutil.walk_packages(cosserat_channel.__path__, "cosserat_channel.")]
+    assert "cosserat_channel.cli.__main__" in names
+    for name in names:
+        try:
+            importlib.import_module(name)
+        except SystemExit as exc:
+            raise AssertionError(f"importing {name} ran a command (exit {exc.code})") from None

@@ -2,6 +2,7 @@
 
 import sys
 
-from . import main
+if __name__ == "__main__":  # only as a command: documentation tools import every module
+    from . import main
 
-sys.exit(main())
+    sys.exit(main())

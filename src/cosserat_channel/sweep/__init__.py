@@ -2,7 +2,7 @@
 
 The pipeline is :mod:`.engine`; it plans the blocks (:mod:`.plan`), checks the disk and memory
 they need (:mod:`.budget`), solves them (:mod:`.block`) on threads or a cluster
-(:mod:`.schedulers`), keeps each in the working store (:mod:`.store`) and writes the file tile by
+(:mod:`.schedulers`), keeps each in the working store (:mod:`~cosserat_channel.sweep.store`) and writes the file tile by
 tile (:mod:`.writer`, :mod:`.dataset`).
 
 ``run_sweep`` is imported on first use, so that parsing a sweep file (:mod:`.spec`) never loads

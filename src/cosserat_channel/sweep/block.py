@@ -1,7 +1,7 @@
 """One block of a sweep: the batch kernel on a block's integrations, and the kernels' warm-up.
 
 :func:`solve_block` is what a thread or a cluster worker runs; it returns the arrays the working
-store keeps (:mod:`.store`).
+store keeps (:mod:`~cosserat_channel.sweep.store`).
 """
 
 from __future__ import annotations

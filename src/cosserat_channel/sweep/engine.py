@@ -6,7 +6,7 @@ The pieces: a block is solved by :mod:`.block`, the blocks run on dask's threads
 ``dask.distributed`` cluster (:mod:`.schedulers`), the disk and memory a run needs are checked
 first (:mod:`.budget`). The results come back to this process, which alone writes the store and
 the file (workers need no shared file system). Every finished block is saved at once (see
-:mod:`.store`), so a killed run resumes where it stopped.
+:mod:`~cosserat_channel.sweep.store`), so a killed run resumes where it stopped.
 
 The result file is written tile by tile (:mod:`.writer`), so memory follows the block and the
 tile sizes, not the grid; the disk space it needs is checked before anything is computed. Blocks

@@ -33,9 +33,13 @@ def draw(pf):
         drawer = DRAWERS[pf.key]
     except KeyError:
         raise ValueError(f"no drawing for {pf.key!r}; have {', '.join(DRAWERS)}") from None
-    fig = new_figure(TABLE_FIGSIZE if pf.key == "table1" else FIGSIZE)
+    width, height = TABLE_FIGSIZE if pf.key == "table1" else FIGSIZE
     lines = _caption_lines(pf)
-    top, bottom = fig.subfigures(2, 1, height_ratios=[5.2, 0.25 + 0.12 * len(lines)])
+    # The comparison's lines get their own inches below the drawing (7.5 pt monospace, about
+    # 0.13 in a line), so a long comparison never clips at the figure's edge.
+    footer = 0.25 + 0.13 * len(lines)
+    fig = new_figure((width, height + footer))
+    top, bottom = fig.subfigures(2, 1, height_ratios=[height, footer])
     drawer(pf, top)
     bottom.text(0.02, 0.97, "\n".join(lines), va="top", ha="left", fontsize=7.5,
                 family="monospace")

@@ -468,6 +468,17 @@ def test_progress_draws_on_a_terminal_and_clears_its_line():
     assert term.text.endswith("\r\x1b[K")  # the status line is gone at the end
 
 
+def test_progress_report_is_the_one_progress_protocol():
+    """report(done, total, text): the line every long command shows, from any library callback."""
+    term = _Terminal()
+    with cli.Progress("paper", "solving", stream=term) as bar:
+        bar.report(3, 13, "figure5")
+        assert bar.text == "3/13 figure5"
+        bar.report(7, None, "cells traced")
+        assert bar.text == "7 cells traced"
+    assert "cosserat-channel: paper: 3/13 figure5 (0:00)" in term.text
+
+
 def test_progress_is_silent_when_not_a_terminal_or_before_its_delay():
     """Redirected stderr: only line() output; within the delay: nothing."""
     pipe = _Terminal(tty=False)

@@ -307,6 +307,12 @@ class Progress:
         self.text = text
         self._draw()
 
+    def report(self, done: int, total: int | None, text: str = "") -> None:
+        """The package's one progress protocol, ``progress(done, total, text)``, as the line
+        ``done/total text`` (``done text`` where the total is not known yet)."""
+        count = f"{done}/{total}" if total is not None else f"{done}"
+        self.update(f"{count} {text}".rstrip())
+
     def line(self, message: str) -> None:
         """Print ``message`` as a line of its own (always, terminal or not)."""
         with self._lock:

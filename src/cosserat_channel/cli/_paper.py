@@ -26,7 +26,7 @@ def _paper(args: argparse.Namespace) -> int:
         with Progress("paper", "solving " + _FIRST_RUN, delay=1.0) as bar:
             paths = paper.write_paper_figures(args.output, coarse=args.coarse,
                                               overwrite=args.overwrite,
-                                              progress=lambda key: bar.update(key))
+                                              progress=bar.report)
     except ValueError as exc:  # the output directory or its files: checked before any work
         raise CliError(f"-o: {exc}") from None
     except OSError as exc:

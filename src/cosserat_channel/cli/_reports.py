@@ -46,12 +46,8 @@ def _stability(args: argparse.Namespace) -> int:
     repeats = 1 if args.quick else args.repeats
     try:
         with interruptible(), Progress("stability", "finding the edges of the series") as bar:
-            def progress(i, n, row):
-                bar.update(f"{i}/{n} points; last: {row['case']} eta = {row['eta']:.3g}: "
-                           f"{row['status']}, {row['path']} path")
-
             rep = write_report(args.output_dir, quick=args.quick, repeats=repeats,
-                               progress=progress)
+                               progress=bar.report)
     except KeyboardInterrupt as exc:
         from ..measure.stability import PARTIAL_NAME, kept
 

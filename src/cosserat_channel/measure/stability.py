@@ -195,7 +195,8 @@ def kept(directory, quick=False, repeats=5) -> int:
 
 
 def build_report(quick=False, repeats=5, progress=None, partial=None) -> Report:
-    """Measure every row; ``progress(i, n, row)`` is called after each (optional).
+    """Measure every row; ``progress(done, total, text)`` (the package's progress protocol) is
+    called after each, ``text`` naming the row just measured (optional).
 
     ``partial``: a path where the rows are kept as they are measured, and read back from: rows
     of a run with the same sources and settings are taken from it instead of measured again.
@@ -235,7 +236,8 @@ def build_report(quick=False, repeats=5, progress=None, partial=None) -> Report:
             write_text(partial, json.dumps({"key": key, "rows": rep.rows},
                                            default=lambda x: x.item()) + "\n")
         if progress is not None:
-            progress(i + 1, len(plan), row)
+            progress(i + 1, len(plan), f"points; last: {row['case']} eta = {row['eta']:.3g}: "
+                     f"{row['status']}, {row['path']} path")
     rep.verdict = verdict(rep.rows)
     return rep
 

@@ -37,12 +37,13 @@ KEYS = tuple(f"figure{n}" for n in range(2, 13)) + ("table1", "appendix_a")
 
 def paper_figures(coarse: bool = False, keys=KEYS, progress=None) -> dict[str, PaperFigure]:
     """Every figure of :data:`KEYS` (``coarse``: small grids, the same code paths);
-    ``progress(key)``, if given, is called before each."""
+    ``progress(done, total, text)`` (the package's progress protocol), if given, is called
+    before each, ``text`` naming it."""
     n_xi = 101 if coarse else 401
     out = {}
-    for key in keys:
+    for i, key in enumerate(keys):
         if progress is not None:
-            progress(key)
+            progress(i, len(keys), key)
         if key == "figure2":
             out[key] = figure2(n_xi)
         elif key == "figure3":

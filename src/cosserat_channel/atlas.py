@@ -88,13 +88,18 @@ MAX_DEPTH = 6  # splits of a root cell; the raster of leaves is (roots * 2^depth
 MAX_DEPTH_LIMIT = 8
 SAFETY = 2.0  # undecided band: SAFETY * max(tol, the cell's error estimate), relative in eta
 TRACE_WIDEN = 2.0  # traces search [lo / TRACE_WIDEN, hi * TRACE_WIDEN] (see the module notes)
+TAU_OF_TOL = 0.125  # continued transitions are verified by a bracket this many tol either side
+NEAR_NODE = 0.03  # a node with no interpolant over it continues from a traced one this close (A, N)
+NEAR_SPREAD = 0.05  # ... with this relative uncertainty
 DEFAULT_A = (-1.0, 5.0)
 DEFAULT_N = (0.3, 3.0)
 ROOT_CELL = 1.0  # the root cells are about this wide in A and N
-FORMAT = "cosserat-channel atlas 3"  # 3: noise bands of the traces (sample_bands, leaf_band)
+FORMAT = "cosserat-channel atlas 4"  # 4: an error per transition (leaf_transition_error)
+# 3: noise bands of the traces (sample_bands, leaf_band)
 # 1: every leaf of the atlas's degree; 2: leaves of their own degrees (leaf_degree). Both are read
 # with zero bands: their traces bisected the status at tangential edges (see the module notes).
-FORMATS = ("cosserat-channel atlas 1", "cosserat-channel atlas 2", FORMAT)
+FORMATS = ("cosserat-channel atlas 1", "cosserat-channel atlas 2", "cosserat-channel atlas 3",
+           FORMAT)
 
 
 def cache_path():
@@ -220,6 +225,9 @@ class Atlas:
         ``leaf_n``.
     leaf_degree : ndarray of int
         ``(leaf, 2)``: each leaf's Chebyshev degree along A and N.
+    leaf_transition_error : ndarray of float
+        ``(leaf, transition)``: the error of each transition (an envelope leaf's clusters have
+        their own widths; elsewhere the leaf's estimate); NaN beyond ``leaf_n``.
     leaf_band : ndarray of float
         The largest noise band (``regimes.Edge.bands``, relative) of the traces at the leaf's
         nodes: how close to a transition the solver's own status stops being reliable.
@@ -246,12 +254,17 @@ class Atlas:
     attrs: dict
     leaf_degree: np.ndarray = None
     leaf_band: np.ndarray = None
+    leaf_transition_error: np.ndarray = None
 
     def __post_init__(self):
         if self.leaf_degree is None:
             self.leaf_degree = np.full((self.leaf_n.size, 2), self.degree, dtype=np.int64)
         if self.leaf_band is None:
             self.leaf_band = np.zeros(self.leaf_n.size)
+        if self.leaf_transition_error is None:
+            k = np.arange(self.coef.shape[1])
+            self.leaf_transition_error = np.where(k < self.leaf_n[:, None],
+                                                  self.leaf_error[:, None], np.nan)
         if "bands" not in self.samples:
             self.samples["bands"] = np.zeros_like(self.samples["transitions"])
 
@@ -444,6 +457,8 @@ class Atlas:
                     "long_name": "tensor Chebyshev coefficients of log eta on the leaf"}),
                 "leaf_degree": (("leaf", "direction"), self.leaf_degree.astype(np.int8), {
                     "long_name": "Chebyshev degree of the leaf along A and N"}),
+                "leaf_transition_error": (("leaf", "transition"), self.leaf_transition_error, {
+                    "long_name": "error estimate of each transition of the leaf"}),
                 "leaf_band": ("leaf", self.leaf_band, {
                     "long_name": "largest noise band of the traces at the leaf's nodes"}),
             },
@@ -479,6 +494,8 @@ class Atlas:
             attrs={k: val for k, val in a.items() if k not in keys},
             leaf_degree=v["leaf_degree"].astype(np.int64) if "leaf_degree" in v else None,
             leaf_band=v["leaf_band"].astype(float) if "leaf_band" in v else None,
+            leaf_transition_error=(v["leaf_transition_error"].astype(float)
+                                   if "leaf_transition_error" in v else None),
         )
 
 
@@ -569,10 +586,11 @@ def classify(eps, L, K, A, N, atlas):
     lo, hi = atlas.eta_range
     known = (low >= 0) & (e >= lo) & (e <= hi)
     noise = np.where(leaf >= 0, atlas.leaf_band[np.maximum(leaf, 0)], 0.0)
-    band = SAFETY * np.fmax(atlas.tol, np.fmax(err, noise))
+    terr = np.where((leaf >= 0)[:, None], atlas.leaf_transition_error[np.maximum(leaf, 0)], np.nan)
+    band = SAFETY * np.fmax(atlas.tol, np.fmax(terr, noise[:, None]))
     with np.errstate(invalid="ignore"):
         dist = np.abs(np.log(e)[:, None] - np.log(t))
-        near = np.any(dist <= band[:, None], axis=-1)
+        near = np.any(dist <= band, axis=-1)
         flips = np.sum(t < e[:, None], axis=-1)
     feasible = (low == 1) ^ (flips % 2 == 1)
     code = np.where(feasible, st.OK, st.EPS_TOO_LARGE_PATH).astype(np.int8)
@@ -592,11 +610,6 @@ def _crosses_switch(a_lo, a_hi, n_lo, n_hi):
     lo, hi = max(a_lo, -1.0), min(a_hi, 1.0)
     return bool(lo < hi and analytic.node_focus_switch_N(lo) < n_hi
                 and analytic.node_focus_switch_N(hi) > n_lo)
-
-
-def _signatures(trace, na, nn):
-    """The set of ``(feasible_low, n_transitions)`` over the grid ``na x nn``."""
-    return {(low, t.size) for low, t, *_ in (trace(a, n) for a in na for n in nn)}
 
 
 class _Counting:
@@ -642,6 +655,155 @@ def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
     return (a0, a1), (n0, n1), float(tol), int(degree), int(max_depth), (lo, hi)
 
 
+@dataclass
+class _Trace:
+    """One traced ``(A, N)``: feasibility at the lowest traced ``eta``, the transitions, their
+    noise bands, and the :class:`regimes.Edge` behind them (its kinds and slopes seed the
+    neighbours' predictions)."""
+
+    low: bool
+    transitions: np.ndarray
+    bands: np.ndarray
+    edge: object = None
+
+    @property
+    def signature(self):
+        return (self.low, self.transitions.size)
+
+
+@dataclass
+class _Predictor:
+    """The interpolant of ``log eta`` over a cell: predicts the transitions anywhere inside it."""
+
+    bounds: tuple
+    coef: np.ndarray  # (transition, p + 1, q + 1)
+    low: bool
+    err: float
+
+    def __call__(self, a, n):
+        a_lo, a_hi, n_lo, n_hi = self.bounds
+        ta = _vandermonde(np.array(2.0 * (a - a_lo) / (a_hi - a_lo) - 1.0), self.coef.shape[1] - 1)
+        tn = _vandermonde(np.array(2.0 * (n - n_lo) / (n_hi - n_lo) - 1.0), self.coef.shape[2] - 1)
+        return np.einsum("i,kij,j->k", ta, self.coef, tn)
+
+
+@dataclass
+class _Cell:
+    """A cell waiting in the build's queue."""
+
+    level: int
+    i: int
+    j: int
+    pa: int  # degree along A
+    pn: int  # degree along N
+    before: float = math.inf  # its raw tail at its previous degree
+    parent: float = math.inf  # its parent's raw tail
+    predictor: _Predictor = None  # its own interpolant at the previous degree, or its parent's
+
+
+@dataclass
+class _Leaf:
+    """A finished cell: its signature, interpolant, error estimate, degrees and noise band."""
+
+    level: int
+    i: int
+    j: int
+    low: int
+    n: int  # transitions; -1: unresolved
+    err: float
+    coef: np.ndarray
+    degree: tuple
+    band: float = 0.0
+    errors: np.ndarray = None  # per transition (an envelope's clusters); else err for each
+
+
+def _levels(pa, pn):
+    """The nested node grids of a fresh cell, coarsest first: ``(2, 2)``, then doublings up to
+    ``(pa, pn)``; each is traced with predictions from the one before, and a grid that already
+    mixes signatures ends the cell's tracing."""
+    out = [(pa, pn)]
+    p, q = pa, pn
+    while p % 2 == 0 and q % 2 == 0 and min(p, q) > 2:
+        p, q = p // 2, q // 2
+        out.append((p, q))
+    if out[-1] != (2, 2) and pa % 2 == 0 and pn % 2 == 0:
+        out.append((2, 2))
+    return out[::-1]
+
+
+def _envelope(traces, lo, hi):
+    """A mixed cell that may not be split again, as a leaf with its reached error.
+
+    ``traces``: its nodes' ``(low, transitions)``. Every gap between the nodes' transitions
+    (in ``log eta``) where the nodes agree on feasibility is decided; runs of gaps where they do
+    not, with the transitions around them, form clusters, each widened by half its width for
+    what lies between the nodes (at least ``TOL_MIN``). A cluster across which feasibility
+    changes becomes one transition at its centre, one across which it does not two; the error
+    of each is its cluster's half-width (over ``SAFETY``, which :func:`classify` applies).
+    Returns ``(low, log_transitions, errors)``, an error per transition.
+    """
+    logs = np.unique(np.concatenate([np.log(t) for _, t in traces] + [np.empty(0)]))
+    edges = np.r_[math.log(lo), logs, math.log(hi)]
+    mids = 0.5 * (edges[:-1] + edges[1:])
+    agree = []
+    for x in mids:
+        s = {bool(low) ^ (int(np.sum(np.log(t) < x)) % 2 == 1) for low, t in traces}
+        agree.append(s.pop() if len(s) == 1 else None)
+    decided = [k for k, a in enumerate(agree) if a is not None]
+    if not decided:
+        half = 0.75 * (edges[-1] - edges[0])
+        return False, np.full(2, 0.5 * (edges[0] + edges[-1])), np.full(2, half / SAFETY)
+    clusters = []  # (log start, log end, feasible below, feasible above; None: the range's end)
+    first, last = decided[0], decided[-1]
+    if first > 0:
+        clusters.append((edges[0], edges[first], None, agree[first]))
+    for k1, k2 in zip(decided, decided[1:]):
+        if agree[k1] != agree[k2] or k2 > k1 + 1:
+            clusters.append((edges[k1 + 1], edges[k2], agree[k1], agree[k2]))
+    if last < len(agree) - 1:
+        clusters.append((edges[last + 1], edges[-1], agree[last], None))
+    low = agree[0] if first == 0 else not agree[first]
+    centres, errs = [], []
+    for c0, c1, below, above in clusters:
+        flips = below is None or above is None or below != above
+        centres.extend([0.5 * (c0 + c1)] * (1 if flips else 2))
+        errs.extend([max(0.75 * (c1 - c0), TOL_MIN) / SAFETY] * (1 if flips else 2))
+    return bool(low), np.array(centres), np.array(errs)
+
+
+ANSWERED_GRID = 17  # points per direction where a transition's distance from the range is read
+
+
+def _answered(coef, log_range):
+    """The transitions of a cell that its error estimate must hold to ``tol``: all but those
+    whose interpolant stays outside the ``eta`` the atlas answers for, on an
+    ``ANSWERED_GRID`` square grid, by at least twice their own error estimate (then the true
+    transition stays outside too, and no answered point depends on where it is)."""
+    x = np.linspace(-1.0, 1.0, ANSWERED_GRID)
+    keep = []
+    for k, c in enumerate(coef):
+        t = _vandermonde(x, c.shape[0] - 1) @ c @ _vandermonde(x, c.shape[1] - 1).T
+        out = float(np.min(np.maximum(log_range[0] - t, t - log_range[1])))
+        if not (out > 0.0 and 2.0 * _estimate(c[None])[0] <= out):
+            keep.append(k)
+    return keep
+
+
+def _nearest(index, cell_size, key):
+    """The traced nodes nearest ``key`` within the index's neighbouring buckets, one per
+    signature, nearest first."""
+    a, n = key
+    ia, jn = int(math.floor(a / cell_size[0])), int(math.floor(n / cell_size[1]))
+    best = {}
+    for da in (-1, 0, 1):
+        for dn in (-1, 0, 1):
+            for k, tr in index.get((ia + da, jn + dn), ()):
+                d = ((k[0] - a) / cell_size[0]) ** 2 + ((k[1] - n) / cell_size[1]) ** 2
+                if tr.signature not in best or d < best[tr.signature][0]:
+                    best[tr.signature] = (d, tr)
+    return [tr for _, tr in sorted(best.values(), key=lambda v: v[0])]
+
+
 def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE,
                 max_depth=MAX_DEPTH, max_degree=MAX_DEGREE, roots=None,
                 eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX), uniform=False, progress=None,
@@ -659,6 +821,18 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
       traces are then noisier than ``tol`` there (the solver's edge is not smooth at that level),
       and the leaf keeps its estimate, which :func:`classify` uses in place of ``tol``.
 
+    A cell that still mixes signatures at ``max_depth`` becomes an *envelope* leaf
+    (:func:`_envelope`): where its nodes agree it decides, elsewhere it states the width of the
+    band it leaves undecided as its error. No leaf is left without an answer.
+
+    Traces are continued, not made afresh: a fresh cell traces its nodes grid by grid
+    (:func:`_levels`), each grid predicted by the interpolant of the grid before (or by the
+    parent's interpolant, whichever estimates itself better), a refined cell by its interpolant
+    at the previous degree, and a node with no interpolant over it by its nearest traced
+    neighbour (within :data:`NEAR_NODE`). :func:`regimes.trace_edge` corrects each predicted
+    transition on the smooth ``D(1)`` and verifies it by a sign bracket ``TAU_OF_TOL * tol``
+    wide either side (:func:`regimes.continue_edge`); where that fails it traces afresh.
+
     Parameters
     ----------
     A_range, N_range : (float, float)
@@ -666,8 +840,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     tol : float
         Target relative error of the transitions in ``eta``, in ``[TOL_MIN, TOL_MAX]``.
     degree : int
-        Chebyshev degree per direction a cell starts with (even: the 3 x 3 sub-grid checked first
-        is then part of the cell's nodes).
+        Chebyshev degree per direction a cell starts with (even: its ``(2, 2)`` sub-grid is
+        traced first).
     max_depth : int
         Splits allowed below a root cell.
     max_degree : int
@@ -683,9 +857,9 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     progress : callable, optional
         ``progress(leaves, cells_queued, traces)`` after each cell.
     workers : int
-        Threads that trace a cell's nodes at once (the kernels release the GIL); the atlas is
-        the same whatever their number (each trace depends on its ``(A, N)`` only, and the
-        traces are kept in the order of a single thread).
+        Threads that trace a grid's nodes at once (the kernels release the GIL); the atlas is
+        the same whatever their number (each trace depends on its ``(A, N)`` and on predictions
+        made before the grid is traced, and the traces are kept in the order of one thread).
 
     Returns
     -------
@@ -703,30 +877,61 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
     if not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise ParameterError(f"workers must be a positive integer; got {workers!r}")
     trace_range = (eta_range[0] / TRACE_WIDEN, eta_range[1] * TRACE_WIDEN)
+    tau = TAU_OF_TOL * tol
     local, counters = threading.local(), []
     cache = {}
+    # Traced nodes by bucket (a root cell's eighth): the nearest neighbour of a node with no
+    # interpolant over it.
+    bucket = ((A_range[1] - A_range[0]) / (8 * roots[0]), (N_range[1] - N_range[0]) / (8 * roots[1]))
+    index = {}
+    tally = {"predicted": 0, "fallback": 0}
 
-    def traced(key):
+    def traced(job):
+        key, prediction = job
         if not hasattr(local, "ws"):  # a Workspace per thread: its arrays are the solver's
             local.ws = _Counting(Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS))
             counters.append(local.ws)
-        e = regimes.trace_edge(key[0], key[1], eta_range=trace_range, workspace=local.ws)
+        e = regimes.trace_edge(key[0], key[1], eta_range=trace_range, workspace=local.ws,
+                               prediction=prediction, tau=tau)
         low = e.kind != rc.EDGE_NONE and e.eta_min == trace_range[0]
-        return (bool(low), np.asarray(e.transitions, dtype=float),
-                np.asarray(e.bands, dtype=float))
+        return _Trace(bool(low), np.asarray(e.transitions, dtype=float),
+                      np.asarray(e.bands, dtype=float), e)
+
+    def prediction_for(key, predictor):
+        # The interpolant's transitions (with the kinds and slopes of the nearest node of its
+        # signature), then each other signature traced nearby: tried in that order.
+        out = []
+        near = [tr for tr in _nearest(index, bucket, key) if tr.edge is not None and max(
+            abs(tr.edge.A - key[0]), abs(tr.edge.N - key[1])) <= NEAR_NODE]
+        if predictor is not None:
+            sig = (predictor.low, predictor.coef.shape[0])
+            src = next((tr for tr in near if tr.signature == sig), None)
+            if src is not None:
+                low, guesses = regimes.guesses_from(src.edge)
+                spread = min(max(10.0 * predictor.err, 1e3 * tau), NEAR_SPREAD)
+                for g, lt in zip(guesses, predictor(*key)):
+                    g.eta, g.spread = float(np.exp(lt)), spread
+                out.append((low, guesses))
+                near = [tr for tr in near if tr is not src]
+        out += [regimes.guesses_from(tr.edge, NEAR_SPREAD) for tr in near]
+        return out or None
 
     pool = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
 
-    def prefetch(na, nn):
-        # The nodes not traced yet, in the order one thread would trace them.
+    def prefetch(na, nn, predictor):
+        # The nodes not traced yet, in the order one thread would trace them, with predictions
+        # made before any of them is traced.
         missing = list(dict.fromkeys(k for k in ((a, n) for a in na for n in nn)
                                      if k not in cache))
-        results = map(traced, missing) if pool is None else pool.map(traced, missing)
-        cache.update(zip(missing, results))
-
-    def trace(a, n):
-        return cache[(a, n)]
-
+        jobs = [(k, prediction_for(k, predictor)) for k in missing]
+        results = map(traced, jobs) if pool is None else pool.map(traced, jobs)
+        for (k, pred), tr in zip(jobs, results):
+            cache[k] = tr
+            index.setdefault((int(math.floor(k[0] / bucket[0])),
+                              int(math.floor(k[1] / bucket[1]))), []).append((k, tr))
+            if pred is not None:
+                tally["predicted"] += 1
+                tally["fallback"] += not tr.edge.continued
     ma, mn = roots[0] << max_depth, roots[1] << max_depth
     box = (A_range[0], A_range[1], N_range[0], N_range[1])
 
@@ -739,47 +944,73 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
         x[0], x[-1] = lo, hi
         return x
 
-    no_coef = np.empty((0, 1, 1))
+    def grid_fit(na, nn, pa, pn, bounds):
+        """The signature set of a grid; where it is one with transitions, its interpolant."""
+        sig = {cache[(a, b)].signature for a in na for b in nn}
+        if len(sig) != 1:
+            return sig, None, None
+        low, n_tr = next(iter(sig))
+        if not n_tr:
+            return sig, None, None
+        logt = np.log([[cache[(a, b)].transitions for b in nn] for a in na])  # (p, q, k)
+        coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
+        est = _estimate(coef[_answered(coef, log_range)])
+        return sig, coef, (_Predictor(bounds, coef, low, _estimate(coef)[0]), est)
+
+    log_range = (math.log(eta_range[0]), math.log(eta_range[1]))
+
     leaves = []
-    # (level, i, j, degree along A, along N, the cell's raw tail at its previous degree, the
-    # parent's raw tail; inf where there is none)
-    queue = [(0, i, j, degree, degree, math.inf, math.inf)
-             for i in range(roots[0]) for j in range(roots[1])]
+    queue = [_Cell(0, i, j, degree, degree) for i in range(roots[0]) for j in range(roots[1])]
     try:
         while queue:
-            level, i, j, pa, pn, before, parent = queue.pop(0)
+            cell = queue.pop(0)
+            level, i, j, pa, pn = cell.level, cell.i, cell.j, cell.pa, cell.pn
             s = 1 << (max_depth - level)
             a_lo, a_hi = coord(*A_range, i * s, ma), coord(*A_range, (i + 1) * s, ma)
             n_lo, n_hi = coord(*N_range, j * s, mn), coord(*N_range, (j + 1) * s, mn)
-            na, nn = nodes(a_lo, a_hi, pa), nodes(n_lo, n_hi, pn)
+            bounds = (a_lo, a_hi, n_lo, n_hi)
             can_split = level < max_depth
-            children = [(level + 1, 2 * i + di, 2 * j + dj, degree, degree, math.inf, math.inf)
+            refined = math.isfinite(cell.before)
+            predictor = cell.predictor
+            sig, fit = set(), None
+            for p, q in ([(pa, pn)] if refined else _levels(pa, pn)):
+                na, nn = nodes(a_lo, a_hi, p), nodes(n_lo, n_hi, q)
+                prefetch(na, nn, predictor)
+                sig, coef, fit = grid_fit(na, nn, p, q, bounds)
+                if len(sig) > 1 or (uniform and can_split):
+                    break  # mixed (or the uniform baseline): split before tracing finer grids
+                if fit is not None and (predictor is None or fit[0].err < predictor.err):
+                    predictor = fit[0]
+            children = [_Cell(level + 1, 2 * i + di, 2 * j + dj, degree, degree)
                         for di in (0, 1) for dj in (0, 1)]
-            sig = set()
-            if pa == pn == degree:
-                # A cell whose 3 x 3 sub-grid already mixes signatures is split before its full grid
-                # is traced: along a curve where the signature changes only these nine are spent.
-                sub = np.array([0, degree // 2, degree])
-                prefetch(na[sub], nn[sub])
-                sig = _signatures(trace, na[sub], nn[sub])
-            if len(sig) <= 1 and not (uniform and can_split):
-                prefetch(na, nn)
-                sig = _signatures(trace, na, nn)
             if len(sig) > 1 or (uniform and can_split):
                 if can_split:
+                    own = fit[0] if fit is not None else (
+                        cell.predictor if len(sig) == 1 else None)
+                    for c in children:
+                        c.predictor = own
                     queue.extend(children)
                 else:
-                    leaves.append((level, i, j, 0, -1, math.inf, no_coef, (pa, pn), 0.0))
+                    lo_t, hi_t = trace_range
+                    traces = [(cache[(a, b)].low, cache[(a, b)].transitions)
+                              for a in na for b in nn]
+                    low, logt, errs = _envelope(traces, lo_t, hi_t)
+                    coef = logt.reshape(-1, 1, 1)
+                    band = max([float(np.nanmax(cache[(a, b)].bands, initial=0.0))
+                                for a in na for b in nn])
+                    leaves.append(_Leaf(level, i, j, int(low), logt.size,
+                                        float(np.max(errs, initial=0.0)), coef, (0, 0), band,
+                                        errs))
             else:
                 low, n_tr = next(iter(sig))
                 coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
                 tails, rates = np.zeros(2), np.zeros(2)
                 band = 0.0
                 if n_tr:
-                    logt = np.log([[trace(a, b)[1] for b in nn] for a in na])  # (p, q, k)
-                    band = max(float(trace(a, b)[2].max()) for a in na for b in nn)
-                    coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
-                    err, tails, rates, raw = _estimate(coef)
+                    _, err_tails_rates_raw = fit
+                    coef = fit[0].coef
+                    err, tails, rates, raw = err_tails_rates_raw
+                    band = max(float(cache[(a, b)].bands.max()) for a in na for b in nn)
                 # Across the node/focus switch the edge is not analytic: a higher degree buys little
                 # there (the tail of a degree-8 cell fell 2-4x at degree 16, against 130-1000x beside
                 # it), so such a cell is split while it can be.
@@ -792,51 +1023,71 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
                 # A split cuts a degree-p tail by about 2^(p+1) where the edge is smooth: at low
                 # degrees ask for less than REFINE_GAIN.
                 gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
-                stalled = raw > before / gain or (raw > parent / gain and not any(grow))
+                stalled = raw > cell.before / gain or (raw > cell.parent / gain and not any(grow))
+                own = fit[0] if fit is not None else None
                 if err <= tol or stalled:
-                    leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
+                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
                 elif any(grow):
-                    queue.insert(0, (level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]), raw,
-                                     parent))
+                    queue.insert(0, _Cell(level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]),
+                                          raw, cell.parent, own))
                 elif can_split:
-                    queue.extend(c[:5] + (math.inf, raw) for c in children)
+                    for c in children:
+                        c.parent, c.predictor = raw, own
+                    queue.extend(children)
                 else:
-                    leaves.append((level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
+                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
             if progress is not None:
                 progress(len(leaves), len(queue), len(cache))
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
+    return _assemble(leaves, cache, box=box, roots=roots, degree=degree, max_depth=max_depth,
+                     tol=tol, eta_range=eta_range, trace_range=trace_range, uniform=uniform,
+                     max_degree=max_degree, solves=sum(c.solves for c in counters), tally=tally,
+                     tau=tau, version=__version__)
 
-    kmax = max([lf[4] for lf in leaves] + [0])
-    P = max([lf[7][0] for lf in leaves] + [degree])
-    Q = max([lf[7][1] for lf in leaves] + [degree])
+
+def _assemble(leaves, cache, *, box, roots, degree, max_depth, tol, eta_range, trace_range,
+              uniform, max_degree, solves, tally, tau, version):
+    """The :class:`Atlas` of the leaves and every trace made."""
+    from . import regimes
+
+    kmax = max([lf.n for lf in leaves] + [0])
+    P = max([lf.degree[0] for lf in leaves] + [degree])
+    Q = max([lf.degree[1] for lf in leaves] + [degree])
     coef = np.full((len(leaves), kmax, P + 1, Q + 1), np.nan)
+    terr = np.full((len(leaves), kmax), np.nan)
     for k, lf in enumerate(leaves):
-        c = lf[6]
+        terr[k, :lf.n] = lf.errors if lf.errors is not None else lf.err
+        c = lf.coef
         coef[k, :c.shape[0]] = 0.0
         coef[k, :c.shape[0], :c.shape[1], :c.shape[2]] = c
     keys = list(cache)
-    smax = max([cache[k][1].size for k in keys] + [0])
+    smax = max([cache[k].transitions.size for k in keys] + [0])
     transitions = np.full((len(keys), smax), np.nan)
     bands = np.full((len(keys), smax), np.nan)
     for k, key in enumerate(keys):
-        transitions[k, :cache[key][1].size] = cache[key][1]
-        bands[k, :cache[key][2].size] = cache[key][2]
+        transitions[k, :cache[key].transitions.size] = cache[key].transitions
+        bands[k, :cache[key].bands.size] = cache[key].bands
+    n_points = sum(max(cache[k].transitions.size, 1) for k in keys)
     return Atlas(
         box=box, roots=roots, degree=degree, max_depth=max_depth, tol=tol, eta_range=eta_range,
-        leaf_level=np.array([lf[0] for lf in leaves], dtype=np.int64),
-        leaf_i=np.array([lf[1] for lf in leaves], dtype=np.int64),
-        leaf_j=np.array([lf[2] for lf in leaves], dtype=np.int64),
-        leaf_low=np.array([lf[3] for lf in leaves], dtype=np.int8),
-        leaf_n=np.array([lf[4] for lf in leaves], dtype=np.int8),
-        leaf_error=np.array([lf[5] for lf in leaves], dtype=float),
+        leaf_level=np.array([lf.level for lf in leaves], dtype=np.int64),
+        leaf_i=np.array([lf.i for lf in leaves], dtype=np.int64),
+        leaf_j=np.array([lf.j for lf in leaves], dtype=np.int64),
+        leaf_low=np.array([lf.low for lf in leaves], dtype=np.int8),
+        leaf_n=np.array([lf.n for lf in leaves], dtype=np.int8),
+        leaf_error=np.array([lf.err for lf in leaves], dtype=float),
         coef=coef,
         samples={"A": np.array([k[0] for k in keys]), "N": np.array([k[1] for k in keys]),
-                 "low": np.array([cache[k][0] for k in keys], dtype=np.int8),
-                 "n": np.array([cache[k][1].size for k in keys], dtype=np.int8),
+                 "low": np.array([cache[k].low for k in keys], dtype=np.int8),
+                 "n": np.array([cache[k].transitions.size for k in keys], dtype=np.int8),
                  "transitions": transitions, "bands": bands},
-        attrs={"n_traces": len(cache), "n_solves": sum(c.solves for c in counters),
+        attrs={"n_traces": len(cache), "n_solves": solves,
+               "n_edge_points": n_points,
+               "solves_per_edge_point": solves / max(n_points, 1),
+               "n_predicted": tally["predicted"], "n_fallback": tally["fallback"],
+               "continuation_tau": tau,
                "uniform": int(uniform),
                "max_degree": int(max_degree),
                "trace_eta_min": trace_range[0], "trace_eta_max": trace_range[1],
@@ -844,7 +1095,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE
                "edge_xtol": regimes.ETA_XTOL, "n_coarse": regimes.ETA_COARSE,
                "probe_xtol": regimes.PROBE_XTOL, "d_noise": regimes.D_NOISE,
                "smooth_band": regimes.SMOOTH_BAND, "smooth_xtol": regimes.SMOOTH_XTOL,
-               "cosserat_channel_version": __version__},
-        leaf_degree=np.array([lf[7] for lf in leaves], dtype=np.int64).reshape(-1, 2),
-        leaf_band=np.array([lf[8] for lf in leaves], dtype=float),
+               "cosserat_channel_version": version},
+        leaf_degree=np.array([lf.degree for lf in leaves], dtype=np.int64).reshape(-1, 2),
+        leaf_band=np.array([lf.band for lf in leaves], dtype=float),
+        leaf_transition_error=terr,
     )

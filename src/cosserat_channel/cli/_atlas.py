@@ -108,8 +108,11 @@ def _atlas(args: argparse.Namespace) -> int:
                                       workers=workers)
     n_unres = int((atlas.leaf_n < 0).sum())
     over = int((atlas.leaf_error > atlas.tol).sum()) - n_unres
+    a = atlas.attrs
     print(f"{atlas.leaf_n.size} cells ({n_unres} unresolved, {over} above the tolerance), "
-          f"{atlas.attrs['n_traces']} edges traced, {atlas.attrs['n_solves']} solves")
+          f"{a['n_traces']} edges traced, {a['n_solves']} solves "
+          f"({a['solves_per_edge_point']:.2f} per edge point; {a['n_fallback']} of "
+          f"{a['n_predicted']} predicted traces made afresh)")
     try:
         atlas_mod.save_atlas(atlas, output)
         if args.plot is not None:

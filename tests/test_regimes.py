@@ -344,16 +344,16 @@ def test_probe_edge_on_synthetic_wall_values(monkeypatch):
 
     noise = regimes.D_NOISE * 1e-13 * sens
     x = lambda eta: eta0 / eta - 1  # noqa: E731  (relative distance below eta0, ~)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: 0.1 * x(e) ** 2 * (1 + 3 * x(e))))
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: 0.1 * x(e) ** 2 * (1 + 3 * x(e))))
     p = regimes.probe_edge(None, eta0 * (1 - 2e-7), -1, 0.0, 2.0)
     assert abs(p.root3 / eta0 - 1) < 1e-11 and abs(p.root2 / eta0 - 1) < 1e-7
     assert abs(p.exponent - 2) < 0.01
     assert p.band == pytest.approx(math.sqrt(noise / 0.1), rel=0.05)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: 1e-3 * x(e)))
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: 1e-3 * x(e)))
     p = regimes.probe_edge(None, eta0 * (1 - 2e-7), -1, 0.0, 2.0)
     assert abs(p.exponent - 1) < 0.05
     assert p.band == pytest.approx(noise / 1e-3, rel=0.5)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: -x(e)))  # not ok: no probe
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: -x(e)))  # not ok: no probe
     assert regimes.probe_edge(None, eta0, -1, 0.0, 2.0) is None
 
 

@@ -457,11 +457,11 @@ def _reference_ok(eta, A, N):
 @pytest.mark.parametrize("A,N,k", [(1 / 3, 1.0, 0), (2.0, 0.6, 0), (0.25, 0.85, 0),
                                    (0.25, 0.85, 1)])
 def test_corrector_on_a_transversal_edge_against_an_independent_solver(A, N, k):
-    """Continued from a neighbour 0.01 away in A and N, each transition agrees with a fresh status
+    """Continued from a neighbour 0.002 away in A and N, each transition agrees with a fresh status
     bisection to 1e-8 (its edge holds to ~1e-8 at regimes.EDGE_RTOL) and an independent scipy
     solver (rtol 1e-12) has a solution 1e-8 (relative) on its ok side and none 1e-8 beyond it:
     upper edges (ok below) and lower ones (ok above) alike."""
-    near = regimes.trace_edge(A + 0.01, N + 0.01)
+    near = regimes.trace_edge(A + 0.002, N + 0.002)
     low, guesses = regimes.guesses_from(near, spread=0.05)
     c = regimes.continue_edge(A, N, low, guesses, workspace=_Count())
     fresh = regimes.trace_edge(A, N)

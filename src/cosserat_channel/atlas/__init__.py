@@ -19,9 +19,18 @@ trace is kept), else the cell is split. A cell that the node/focus switch crosse
 than raised in degree while it can be: the edge is not analytic across that curve, so a higher
 degree buys little there; and a refinement that does not cut the tail (the raw
 two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
-smooth at that level). Splits go down to ``max_depth``. A cell still mixed there is *unresolved*
-(every point in it is undecided); a leaf whose estimate is still above ``tol`` keeps its own
-estimate, which :func:`classify` uses in place of ``tol``.
+smooth at that level). Splits go down to ``max_depth``. A cell still mixed there becomes an
+*envelope* leaf: it decides wherever its nodes agree and states, per cluster of transitions
+between, the width it leaves undecided (``leaf_transition_error``); a leaf whose estimate is still
+above ``tol`` keeps its own estimate, which :func:`classify` uses in place of ``tol``. No leaf is
+left without an answer (``leaf_n = -1``, unresolved, appears only in files of older formats). A
+transition whose interpolant stays outside the answered ``eta`` range by twice its estimate need
+not meet ``tol``: no answered point depends on where it is.
+
+The traces are continued (:func:`regimes.continue_edge`): each node's transitions are predicted
+(by the interpolant of the cell's coarser grid, its parent's, or the nearest traced node),
+corrected on the smooth ``D(1)`` and verified by a sign bracket ``TAU_OF_TOL * tol`` wide; a
+trace is made afresh only where that fails. ``attrs["solves_per_edge_point"]`` records the cost.
 
 Why not python-adaptive's ``Learner2D``: it interpolates piecewise-linearly on a triangulation, so
 its error falls like ``h^2``; the edge is analytic, and the Chebyshev cells reach 1e-8 with a few

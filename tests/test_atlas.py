@@ -291,7 +291,7 @@ def _synthetic_edge(monkeypatch, noise=0.0, switch=False):
 
     monkeypatch.setattr(regimes, "trace_edge", fake)
     if not switch:
-        monkeypatch.setattr(at, "_crosses_switch", lambda *cell: False)
+        monkeypatch.setattr(at.build, "_crosses_switch", lambda *cell: False)
     return log_eta
 
 

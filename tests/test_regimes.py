@@ -374,16 +374,16 @@ def test_probe_edge_on_synthetic_wall_values(monkeypatch):
 
     noise = regimes.D_NOISE * 1e-13 * sens
     x = lambda eta: eta0 / eta - 1  # noqa: E731  (relative distance below eta0, ~)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: 0.1 * x(e) ** 2 * (1 + 3 * x(e))))
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: 0.1 * x(e) ** 2 * (1 + 3 * x(e))))
     p = regimes.probe_edge(None, eta0 * (1 - 2e-7), -1, 0.0, 2.0)
     assert abs(p.root3 / eta0 - 1) < 1e-11 and abs(p.root2 / eta0 - 1) < 1e-7
     assert abs(p.exponent - 2) < 0.01
     assert p.band == pytest.approx(math.sqrt(noise / 0.1), rel=0.05)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: 1e-3 * x(e)))
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: 1e-3 * x(e)))
     p = regimes.probe_edge(None, eta0 * (1 - 2e-7), -1, 0.0, 2.0)
     assert abs(p.exponent - 1) < 0.05
     assert p.band == pytest.approx(noise / 1e-3, rel=0.5)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: -x(e)))  # not ok: no probe
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: -x(e)))  # not ok: no probe
     assert regimes.probe_edge(None, eta0, -1, 0.0, 2.0) is None
 
 
@@ -489,11 +489,11 @@ def _reference_ok(eta, A, N):
 @pytest.mark.parametrize("A,N,k", [(1 / 3, 1.0, 0), (2.0, 0.6, 0), (0.25, 0.85, 0),
                                    (0.25, 0.85, 1)])
 def test_corrector_on_a_transversal_edge_against_an_independent_solver(A, N, k):
-    """Continued from a neighbour 0.01 away in A and N, each transition agrees with a fresh status
+    """Continued from a neighbour 0.002 away in A and N, each transition agrees with a fresh status
     bisection to 1e-8 (its edge holds to ~1e-8 at regimes.EDGE_RTOL) and an independent scipy
     solver (rtol 1e-12) has a solution 1e-8 (relative) on its ok side and none 1e-8 beyond it:
     upper edges (ok below) and lower ones (ok above) alike."""
-    near = regimes.trace_edge(A + 0.01, N + 0.01)
+    near = regimes.trace_edge(A + 0.002, N + 0.002)
     low, guesses = regimes.guesses_from(near, spread=0.05)
     c = regimes.continue_edge(A, N, low, guesses, workspace=_Count())
     fresh = regimes.trace_edge(A, N)

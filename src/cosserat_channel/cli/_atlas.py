@@ -17,6 +17,8 @@ from . import (
     _note,
     check_not_input,
     check_output_path,
+    interruptible,
+    interrupted,
     register,
 )
 
@@ -98,14 +100,19 @@ def _atlas(args: argparse.Namespace) -> int:
     if args.plot is not None:
         check_not_input(args.plot, [output], "--plot")
         _figure_output(args.plot, "--plot", overwrite=args.overwrite)
-    with Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
-        def progress(leaves, queued, traces):
-            bar.update(f"{leaves} cells done, {queued} queued, {traces} edges traced")
+    try:
+        with interruptible(), Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+            def progress(leaves, queued, traces):
+                bar.update(f"{leaves} cells done, {queued} queued, {traces} edges traced")
 
-        atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
-                                      max_depth=args.max_depth, max_degree=args.max_degree,
-                                      eta_range=eta_range, progress=progress,
-                                      workers=workers)
+            atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
+                                          max_depth=args.max_depth, max_degree=args.max_degree,
+                                          eta_range=eta_range, progress=progress,
+                                          workers=workers)
+    except KeyboardInterrupt as exc:
+        # The traces live in memory until the atlas is whole: nothing is written, nothing lost.
+        return interrupted(exc, f"nothing written to {output} (the traces are kept in memory "
+                           "until the atlas is whole: a rerun traces them again)")
     n_unres = int((atlas.leaf_n < 0).sum())
     over = int((atlas.leaf_error > atlas.tol).sum()) - n_unres
     a = atlas.attrs

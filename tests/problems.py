@@ -65,3 +65,10 @@ def osc_exact(t, w):
 
 
 OSC_ARGS = (3.0,)
+
+
+@njit(cache=True)
+def stiff_then_flat(t, y, args, out):
+    # y' = -1000 y up to t = args[0], then y' = t: the Jacobian is -1000, then exactly 0, so the
+    # stiffness estimate of every step past args[0] is exactly 0.
+    out[0] = -1000.0 * y[0] if t < args[0] else t

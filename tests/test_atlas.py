@@ -5,6 +5,7 @@ The atlases here are coarse (one cell of degree 6, tolerance 1e-3, a box of 0.25
 costs about a hundred traces; ``benchmarks/bench_atlas.py`` measures the full-size targets.
 """
 
+import math
 import subprocess
 import sys
 
@@ -112,13 +113,18 @@ def test_classify_decides_analytic_regimes_exactly(atlas):
                               st.OK, at.UNDECIDED, at.UNDECIDED]
 
 
-def test_unresolved_cell_is_undecided():
-    """A box across N = 1 (where eta_min leaves the range) at depth 0 stays unresolved."""
+def test_a_mixed_cell_at_the_deepest_level_is_an_envelope():
+    """A box across N = 1 (where eta_min leaves the range) at depth 0 is not left unresolved: its
+    leaf decides where every node agrees (eta = 0.5: a solution, as a solve says) and leaves the
+    cluster of eta_min's undecided (eta = 0.005), with its width as its error."""
     a = at.build_atlas((0.25, 0.5), (0.9, 1.1), tol=1e-3, degree=2, max_depth=0)
-    assert a.leaf_n.tolist() == [-1]
-    assert (at.classify(0.1, 1.0, 0.5, [0.3, 0.4], [0.95, 1.05], atlas=a) == at.UNDECIDED).all()
-    bds = a.boundary([0.3], [0.95, 1.05])
-    assert not bds["resolved"].values.any() and np.isnan(bds["eta_max"].values).all()
+    assert (a.leaf_n >= 0).all() and a.leaf_degree.tolist() == [[0, 0]] and a.leaf_error[0] > 1e-3
+    A, N = [0.3, 0.4], [0.95, 1.05]
+    codes = at.classify(0.5, 1.0, 0.5, A, N, atlas=a)
+    ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
+    assert codes.tolist() == [_status(0.5, x, y, ws) for x, y in zip(A, N)] == [st.OK] * 2
+    assert (at.classify(0.005, 1.0, 0.5, A, N, atlas=a) == at.UNDECIDED).all()
+    assert a.boundary([0.3], [0.95, 1.05])["resolved"].values.all()
 
 
 def test_boundary_dataset_matches_traced_boundary(atlas):
@@ -285,7 +291,7 @@ def _synthetic_edge(monkeypatch, noise=0.0, switch=False):
 
     monkeypatch.setattr(regimes, "trace_edge", fake)
     if not switch:
-        monkeypatch.setattr(at, "_crosses_switch", lambda *cell: False)
+        monkeypatch.setattr(at.build, "_crosses_switch", lambda *cell: False)
     return log_eta
 
 
@@ -484,3 +490,49 @@ def test_classify_next_to_a_tangential_edge(node_atlas):
     assert np.array_equal(codes[decided], direct[decided])
     assert not decided[np.abs(rel) < a.leaf_band[0]].any()
     assert decided[np.abs(rel) > 1e-5].mean() > 0.9
+
+
+# ---------------------------------------------------------------------------------------------
+# Continuation: accuracy against an independent solver, leaves that may not be split
+# ---------------------------------------------------------------------------------------------
+def test_continued_atlas_against_an_independent_solver():
+    """An atlas at tol 1e-8 over a box with an upper and a lower edge, built by continuation
+    (almost every trace predicted and corrected): at random (A, N) an independent scipy solver
+    (reference.py, rtol 1e-12) has a solution 2 tol inside each interpolated transition and none
+    2 tol beyond it; the file states the cost per edge point."""
+    from cosserat_channel.physics.reference import reference
+
+    box = ((0.3, 0.35), (0.84, 0.86))
+    a = at.build_atlas(*box, tol=1e-8, degree=6, max_depth=0)
+    # Every node but the first 3 x 3 grid's continues from a traced neighbour (the neighbour
+    # search must reach NEAR_NODE on a box narrower than that: 24 of 49 when it did not).
+    assert a.attrs["n_predicted"] >= a.attrs["n_traces"] - 9
+    assert a.attrs["solves_per_edge_point"] == a.attrs["n_solves"] / a.attrs["n_edge_points"]
+    assert a.leaf_n.tolist() == [2] and a.leaf_error.max() <= 1e-8
+    rng = np.random.default_rng(25)
+    A, N = rng.uniform(*box[0], 3), rng.uniform(*box[1], 3)
+    _, low, eta, _ = a.transitions(A, N)
+    for k in range(A.size):
+        for t, ok_below in zip(eta[k], (False, True)):
+            for f, ok in ((1 - 2e-8, ok_below), (1 + 2e-8, not ok_below)):
+                e = t * f
+                got = reference(e / 10.0, 10.0, 0.5, A[k], N[k], method="Radau")["status"]
+                assert (got == "ok") == ok, (A[k], N[k], t, f, got)
+
+
+def test_envelope_leaf_decides_where_its_nodes_agree():
+    """A cell mixed at the deepest level becomes a leaf that decides where every node agrees
+    (here: below the lowest and above the highest transition of any node) and leaves the
+    cluster of transitions between undecided, with its width as the error."""
+    traces = [(False, np.array([0.01, 2.0])), (False, np.array([0.012, 2.1])),
+              (True, np.array([2.05]))]  # eta_min left the range at the third node
+    low, logt, err = at._envelope(traces, 5e-4, 200.0)
+    assert logt.size == 2 and (err > 0).all()
+    # the cluster at the low end (5e-4 .. 0.012) and the one at 2.0 .. 2.1
+    assert math.log(5e-4) <= logt[0] <= math.log(0.012)
+    assert math.log(2.0) <= logt[1] <= math.log(2.1)
+    assert at.SAFETY * err[0] >= 0.5 * (math.log(0.012) - math.log(5e-4))
+    assert at.SAFETY * err[1] >= 0.5 * (math.log(2.1) - math.log(2.0)) and err[1] < err[0]
+    # above 2.1 nobody has a solution, between 0.012 and 2.0 everybody has
+    status = lambda x: bool(low) ^ (int(np.sum(logt < math.log(x))) % 2 == 1)  # noqa: E731
+    assert status(0.5) and not status(50.0)

@@ -316,6 +316,28 @@ def test_boundary_reuses_its_own_file_and_keeps_another(capsys, tmp_path, monkey
     assert cli.main(args("2", "--overwrite")) == 0
 
 
+@pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
+                                               (cli.Terminated, 143, "terminated")])
+def test_atlas_stopped_while_tracing_ends_in_one_line_and_writes_nothing(
+        capsys, tmp_path, monkeypatch, stop, code, word):
+    """Ctrl-C (SIGTERM) while the atlas traces: exit 130 (143) with one line saying that nothing
+    was written, and a file already at -o (replaced only once an atlas is whole) as it was."""
+    from cosserat_channel import atlas
+
+    def tracing(*args, progress=None, **kwargs):
+        progress(1, 3, 25)
+        raise stop
+
+    monkeypatch.setattr(atlas, "build_atlas", tracing)
+    out = tmp_path / "atlas.nc"
+    out.write_bytes(b"an earlier atlas")
+    assert cli.main(["atlas", "-o", str(out), "--overwrite", "--workers", "1"]) == code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"cosserat-channel: error: {word}; nothing written")
+    assert out.read_bytes() == b"an earlier atlas"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["atlas.nc"]
+
+
 def test_every_command_keeps_an_existing_file_unless_overwrite(capsys, small_result, tmp_path):
     """query -o (a finished result too), plot -o, point --plot, phase-plane -o, boundary --plot
     and atlas -o/--plot: an existing file (or a symbolic link) is kept, exit 2 in one line

@@ -11,7 +11,7 @@ from numba import njit
 from cosserat_channel.integrate import dense, dop853, rk45, rosenbrock, stepping
 from cosserat_channel.integrate.stepping import (all_finite, count_trial, error_norm, initial_guess,
                                                  initial_step, rms_norm, step_too_small)
-from problems import nan_after_t0, vdp
+from problems import nan_after_t0, stiff_then_flat, vdp
 
 
 def test_error_norm_closed_form():
@@ -140,3 +140,23 @@ def test_initial_guess_is_hinit_first_estimate():
     assert h == pytest.approx(0.01 * rms_norm(y0, y0, atol, rtol) / d1, rel=1e-15)
     assert initial_guess(np.zeros(2), f0, atol, rtol)[0] == 1e-6
     assert initial_guess(y0, np.array([math.nan, 0.0]), atol, rtol)[0] == 1e-6
+
+
+@pytest.mark.parametrize("pair", ["dopri5", "dop853"])
+def test_a_stiffness_estimate_of_zero_replaces_the_last_one(pair):
+    """Past a stiff stretch (y' = -1000 y up to t = 0.01, then y' = t: Jacobian 0) the steps grow
+    again: each step's estimate of |lambda| (0 there) replaces the last, so the stability check
+    does not keep the steps at the stiff stretch's boundary (~3000 of them over [0.01, 10])."""
+    t_s, t_end = 0.01, 10.0
+    T, Q = np.empty(100_001), np.empty((100_000, dense.N_DENSE, 1))
+    stats = np.zeros(stepping.N_STATS, np.int64)
+    march = rk45.dopri5 if pair == "dopri5" else dop853.dop853
+    status, n, _ = march(stiff_then_flat, stepping.no_event, 0.0, np.array([1.0]), t_end,
+                         (t_s,), 1e-8, np.array([1e-10]), 0.0, 0.0, T, Q, stats)
+    assert status == stepping.SUCCESS
+    # at the stiff stretch's boundary the rest would take 1000 (t_end - t_s) / (1.5 x 3.3) steps
+    assert np.count_nonzero(T[1:n + 1] > 2 * t_s) < 100
+    y = np.empty(1)
+    dense.dense_eval_step(T, Q, n - 1, t_end, y)
+    # y(t_s) = exp(-10) up to the tolerance, then y grows by (t_end^2 - t_s^2) / 2
+    assert y[0] == pytest.approx(math.exp(-1000.0 * t_s) + 0.5 * (t_end**2 - t_s**2), rel=1e-6)

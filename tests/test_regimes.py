@@ -374,16 +374,16 @@ def test_probe_edge_on_synthetic_wall_values(monkeypatch):
 
     noise = regimes.D_NOISE * 1e-13 * sens
     x = lambda eta: eta0 / eta - 1  # noqa: E731  (relative distance below eta0, ~)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: 0.1 * x(e) ** 2 * (1 + 3 * x(e))))
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: 0.1 * x(e) ** 2 * (1 + 3 * x(e))))
     p = regimes.probe_edge(None, eta0 * (1 - 2e-7), -1, 0.0, 2.0)
     assert abs(p.root3 / eta0 - 1) < 1e-11 and abs(p.root2 / eta0 - 1) < 1e-7
     assert abs(p.exponent - 2) < 0.01
     assert p.band == pytest.approx(math.sqrt(noise / 0.1), rel=0.05)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: 1e-3 * x(e)))
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: 1e-3 * x(e)))
     p = regimes.probe_edge(None, eta0 * (1 - 2e-7), -1, 0.0, 2.0)
     assert abs(p.exponent - 1) < 0.05
     assert p.band == pytest.approx(noise / 1e-3, rel=0.5)
-    monkeypatch.setattr(regimes, "wall_D", fake(lambda e: -x(e)))  # not ok: no probe
+    monkeypatch.setattr(regimes.wall, "wall_D", fake(lambda e: -x(e)))  # not ok: no probe
     assert regimes.probe_edge(None, eta0, -1, 0.0, 2.0) is None
 
 
@@ -458,3 +458,91 @@ def test_smooth_wall_D_is_smooth_in_eta():
     fit = np.polyval(np.polyfit(r / 1e-8, v, 3), r / 1e-8)
     assert np.max(np.abs(v - fit)) < 1e-15
     assert v[0] > 0 > v[-1]
+
+
+# ---------------------------------------------------------------------------------------------
+# Continuation: a transition predicted from a neighbour, corrected on the smooth D(1)
+# ---------------------------------------------------------------------------------------------
+class _Count:
+    """Workspace stand-in that counts stage-1 marches (status solves and regimes' own)."""
+
+    def __init__(self):
+        self.ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
+        self.solves = 0
+
+    def status(self, *args):
+        self.solves += 1
+        return self.ws.status(*args)
+
+    def count(self, n):
+        self.solves += n
+
+
+def _reference_ok(eta, A, N):
+    """Status of an independent scipy solve (reference.py, rtol 1e-12) at eta: ok or not."""
+    from cosserat_channel.physics.reference import reference
+
+    L = max(10.0, 4.0 * eta)
+    return reference(eta / L, L, 0.5, A, N, method="Radau")["status"] == "ok"
+
+
+@pytest.mark.parametrize("A,N,k", [(1 / 3, 1.0, 0), (2.0, 0.6, 0), (0.25, 0.85, 0),
+                                   (0.25, 0.85, 1)])
+def test_corrector_on_a_transversal_edge_against_an_independent_solver(A, N, k):
+    """Continued from a neighbour 0.002 away in A and N, each transition agrees with a fresh status
+    bisection to 1e-8 (its edge holds to ~1e-8 at regimes.EDGE_RTOL) and an independent scipy
+    solver (rtol 1e-12) has a solution 1e-8 (relative) on its ok side and none 1e-8 beyond it:
+    upper edges (ok below) and lower ones (ok above) alike."""
+    near = regimes.trace_edge(A + 0.002, N + 0.002)
+    low, guesses = regimes.guesses_from(near, spread=0.05)
+    c = regimes.continue_edge(A, N, low, guesses, workspace=_Count())
+    fresh = regimes.trace_edge(A, N)
+    assert c is not None and c.continued and c.transitions.size == fresh.transitions.size
+    t = c.transitions[k]
+    assert abs(t / fresh.transitions[k] - 1) < 1e-8
+    ok_below = guesses[k].side == -1
+    assert _reference_ok(t * (1 - 1e-8), A, N) == ok_below
+    assert _reference_ok(t * (1 + 1e-8), A, N) != ok_below
+
+
+def test_corrector_on_the_node_edge():
+    """At a tangential edge the continued transition is the node's closed form, flagged so, and
+    costs two checks of it and the low end's status."""
+    A, N = 0.0, 2.0
+    low, guesses = regimes.guesses_from(regimes.trace_edge(A + 0.02, N - 0.02))
+    ws = _Count()
+    c = regimes.continue_edge(A, N, low, guesses, workspace=ws)
+    assert c.transitions.tolist() == [regimes.node_edge_eta(A, N)[0]]
+    assert c.tangential.tolist() == [True] and ws.solves <= 5
+    assert 3e-7 < c.bands[0] < 1e-5
+
+
+def test_corrector_costs_few_marches_from_a_good_prediction():
+    """From a prediction 1e-6 off with a slope, a transversal transition costs at most four
+    marches, the status at the low end of the range one more; the root is bracketed to tau."""
+    A, N = 1 / 3, 1.0
+    fresh = regimes.trace_edge(A, N)
+    low, guesses = regimes.guesses_from(regimes.continue_edge(
+        A, N, *regimes.guesses_from(regimes.trace_edge(A + 1e-3, N)), workspace=_Count()))
+    guesses[0].eta = fresh.eta_max * (1 + 1e-6)
+    ws = _Count()
+    c = regimes.continue_edge(A, N, low, guesses, workspace=ws, tau=1e-9)
+    assert ws.solves <= 5
+    assert abs(c.eta_max / fresh.eta_max - 1) < 1e-8
+
+
+def test_a_wrong_prediction_is_never_accepted():
+    """A prediction with a transition too many, or on the wrong side, is rejected by the
+    corrector or the checks of the range's ends; trace_edge then traces afresh."""
+    A, N = 1 / 3, 1.0
+    fresh = regimes.trace_edge(A, N)
+    t = fresh.eta_max
+    wrong = [
+        (True, [regimes.Guess(0.01, 1), regimes.Guess(0.02, -1), regimes.Guess(t, -1)]),
+        (False, [regimes.Guess(t, 1)]),
+        (True, []),
+    ]
+    for low, guesses in wrong:
+        assert regimes.continue_edge(A, N, low, guesses) is None
+        e = regimes.trace_edge(A, N, prediction=(low, guesses))
+        assert not e.continued and np.array_equal(e.transitions, fresh.transitions)

@@ -17,6 +17,8 @@ from . import (
     _note,
     check_not_input,
     check_output_path,
+    interruptible,
+    interrupted,
     register,
 )
 
@@ -98,18 +100,26 @@ def _atlas(args: argparse.Namespace) -> int:
     if args.plot is not None:
         check_not_input(args.plot, [output], "--plot")
         _figure_output(args.plot, "--plot", overwrite=args.overwrite)
-    with Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
-        def progress(leaves, queued, traces):
-            bar.update(f"{leaves} cells done, {queued} queued, {traces} edges traced")
+    try:
+        with interruptible(), Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+            def progress(leaves, queued, traces):
+                bar.update(f"{leaves} cells done, {queued} queued, {traces} edges traced")
 
-        atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
-                                      max_depth=args.max_depth, max_degree=args.max_degree,
-                                      eta_range=eta_range, progress=progress,
-                                      workers=workers)
+            atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
+                                          max_depth=args.max_depth, max_degree=args.max_degree,
+                                          eta_range=eta_range, progress=progress,
+                                          workers=workers)
+    except KeyboardInterrupt as exc:
+        # The traces live in memory until the atlas is whole: nothing is written, nothing lost.
+        return interrupted(exc, f"nothing written to {output} (the traces are kept in memory "
+                           "until the atlas is whole: a rerun traces them again)")
     n_unres = int((atlas.leaf_n < 0).sum())
     over = int((atlas.leaf_error > atlas.tol).sum()) - n_unres
+    a = atlas.attrs
     print(f"{atlas.leaf_n.size} cells ({n_unres} unresolved, {over} above the tolerance), "
-          f"{atlas.attrs['n_traces']} edges traced, {atlas.attrs['n_solves']} solves")
+          f"{a['n_traces']} edges traced, {a['n_solves']} solves "
+          f"({a['solves_per_edge_point']:.2f} per edge point; {a['n_fallback']} of "
+          f"{a['n_predicted']} predicted traces made afresh)")
     try:
         atlas_mod.save_atlas(atlas, output)
         if args.plot is not None:

@@ -125,7 +125,9 @@ def explicit_rk(trial, control, dense, n_rows, k_new, order, memory0, stiff_dy, 
             continue
         h_rho = stiffness_ratio(h, K, k_new, stiff_dy)
         iasti, nonsti = count_stiffness(h_rho, stiff_threshold, iasti, nonsti, stats)
-        if h_rho > 0.0:
+        # An estimate of 0 (f unchanged across the last stage) replaces the last one too: kept,
+        # a stiff stretch's |lambda| pins every later step at that stretch's boundary.
+        if h_rho >= 0.0:
             rho = h_rho / abs(h)
         dense(fun, t, y, y_new, h, args, K, w, Q[nsteps])
         stats[STAT_FEV] += n_rows - k_new - 1

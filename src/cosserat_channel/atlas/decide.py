@@ -1,0 +1,84 @@
+"""Deciding points from an atlas (:func:`classify`), Appendix A's regimes exactly
+(:func:`classify_analytic`). Imports numpy (xarray to read a file), never numba."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..physics import analytic
+from .. import status as st
+from ..parameters import ETA_MAX, ETA_MIN, check_values
+from .interpolant import Atlas
+from .settings import SAFETY, UNDECIDED
+from .store import load_atlas
+
+
+def classify_analytic(eta, A, N):
+    """:func:`analytic.classify_margin` on arrays: the status Appendix A decides, else ``OK``."""
+    eta, A, N = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (eta, A, N)))
+    if eta.size == 0:
+        return np.zeros(eta.shape, dtype=np.int8)
+    return analytic.classify_margins(analytic.axis_margin(eta, A, N), A, N)
+
+
+def classify(eps, L, K, A, N, atlas):
+    """The status of every point ``(eps, L, K, A, N)`` (broadcast) from the atlas, without solving.
+
+    Appendix A's regimes (the wall line, ``A < -1``, ``A = -1``, the axis condition) are decided
+    exactly, by :mod:`cosserat_channel.physics.analytic`. Every other point is decided from the atlas's
+    transitions: ``ok`` or ``eps_too_large_path`` (the status of the solver beyond a traced edge).
+    A point is :data:`UNDECIDED` (-1) when it lies within ``SAFETY * max(tol, error estimate,
+    noise band)`` (relative) of an interpolated transition, in an unresolved leaf, outside the
+    atlas's box or outside its ``eta_range``: a solve decides those. The noise band
+    (:attr:`Atlas.leaf_band`) is where the solver's own status is decided by the noise of
+    ``D(1)``: up to a few 1e-6 at tangential edges, where the transition is the node's ``eta``
+    (``regimes.trace_edge``) and a solve that close may come out either way.
+
+    Parameters
+    ----------
+    eps, L, K, A, N : array_like
+        Points; validated as :func:`parameters.check_point` does (``K`` does not enter).
+    atlas : Atlas or path-like
+        An atlas, or the file of one.
+
+    Returns
+    -------
+    ndarray of int8
+        Status codes (:class:`status.Status`) or :data:`UNDECIDED`, of the broadcast shape.
+
+    Notes
+    -----
+    The transitions are the solver's at ``regimes.EDGE_RTOL``. A solve at a looser tolerance moves
+    the edge by up to ~2e-6 relative (regimes.py): such a solve may disagree with a decided
+    point that close to an edge.
+    """
+    if not isinstance(atlas, Atlas):
+        atlas = load_atlas(atlas)
+    eps, L, K, A, N = np.broadcast_arrays(
+        *(check_values(d, v) for d, v in zip(("eps", "L", "K", "A", "N"), (eps, L, K, A, N))))
+    eta = eps * L
+    bad = ~((eta >= ETA_MIN) & (eta <= ETA_MAX))
+    if bad.any():
+        from ..parameters import check_eta
+
+        k = np.flatnonzero(bad.ravel())[0]
+        check_eta(float(eps.ravel()[k]), float(L.ravel()[k]))
+    out = classify_analytic(eta, A, N)
+    need = (out == st.OK) & (A != -1.0)
+    if not need.any():
+        return out
+    e, a, n = eta[need], A[need], N[need]
+    leaf, low, t, err = atlas.transitions(a, n)
+    lo, hi = atlas.eta_range
+    known = (low >= 0) & (e >= lo) & (e <= hi)
+    noise = np.where(leaf >= 0, atlas.leaf_band[np.maximum(leaf, 0)], 0.0)
+    terr = np.where((leaf >= 0)[:, None], atlas.leaf_transition_error[np.maximum(leaf, 0)], np.nan)
+    band = SAFETY * np.fmax(atlas.tol, np.fmax(terr, noise[:, None]))
+    with np.errstate(invalid="ignore"):
+        dist = np.abs(np.log(e)[:, None] - np.log(t))
+        near = np.any(dist <= band, axis=-1)
+        flips = np.sum(t < e[:, None], axis=-1)
+    feasible = (low == 1) ^ (flips % 2 == 1)
+    code = np.where(feasible, st.OK, st.EPS_TOO_LARGE_PATH).astype(np.int8)
+    out[need] = np.where(known & ~near, code, UNDECIDED)
+    return out

@@ -96,7 +96,7 @@ def write_paper_page() -> None:
     else:
         body = ("# The paper's figures 2-12 and table 1\n\nNot generated in this build: run "
                 "`make docs` (it runs `cosserat-channel paper -o docs/_generated/paper`).\n")
-    intro = ("\n\nDrawn by `cosserat-channel paper -o DIR` (`python -m cosserat_channel.paper`), "
+    intro = ("\n\nDrawn by `cosserat-channel paper -o DIR` (`python -m cosserat_channel.cli paper -o DIR`), "
              "the same figures as notebook 02: each of the paper's figures one for one with "
              "the parameters of its caption, and what the paper states beside what we compute.\n")
     first, _, rest = body.partition("\n")

@@ -443,9 +443,9 @@ def test_noise_bands_widen_the_undecided_band(monkeypatch, tmp_path):
     b = at.load_atlas(path)
     np.testing.assert_array_equal(b.leaf_band, a.leaf_band)
     np.testing.assert_array_equal(b.samples["bands"], a.samples["bands"])
-    ds = a.to_dataset().drop_vars(["leaf_band", "sample_bands"])
+    ds = at.to_dataset(a).drop_vars(["leaf_band", "sample_bands"])
     ds.attrs["format"] = "cosserat-channel atlas 2"
-    old = at.Atlas.from_dataset(ds)
+    old = at.from_dataset(ds)
     assert not old.leaf_band.any() and not old.samples["bands"].any()
 
 

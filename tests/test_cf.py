@@ -152,5 +152,5 @@ def test_every_file_of_the_tool_carries_conventions(boundary, tmp_path):
 
     assert boundary.attrs["Conventions"] == "CF-1.8"
     a = atlas.build_atlas((0.25, 0.5), (0.8, 0.9), tol=1e-3, degree=2, max_depth=0)
-    assert a.to_dataset().attrs["Conventions"] == "CF-1.8"
+    assert atlas.to_dataset(a).attrs["Conventions"] == "CF-1.8"
     assert a.boundary([0.3], [1.0]).attrs["Conventions"] == "CF-1.8"

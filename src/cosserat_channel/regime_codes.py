@@ -12,6 +12,8 @@ from __future__ import annotations
 # traced boundary Dataset records the range it searched in its attributes; these are the defaults.
 ETA_SEARCH_MIN = 1e-3
 ETA_SEARCH_MAX = 100.0
+# Log-spaced samples of a fresh trace's coarse pass over that range, before bisection.
+ETA_COARSE = 48
 
 # Kinds of a traced edge (int8 flag in the boundary Dataset).
 EDGE_BOUNDED = 0  # ok just below eta_max, not ok just above: a true edge inside the range

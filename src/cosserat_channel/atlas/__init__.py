@@ -81,7 +81,7 @@ from .build import (  # noqa: F401
     check_build_arguments,
 )
 from .chebyshev import _coefficients, _direction_tail, _estimate, _tail, _vandermonde, lobatto  # noqa: F401
-from .decide import classify, classify_analytic  # noqa: F401
-from .interpolant import Atlas  # noqa: F401
+from .decide import classify  # noqa: F401
+from .interpolant import Atlas, classify_analytic  # noqa: F401
 from .settings import *  # noqa: F401,F403 (the atlas's constants, under the names callers use)
 from .store import cache_path, from_dataset, load_atlas, save_atlas, to_dataset  # noqa: F401

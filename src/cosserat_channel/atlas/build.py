@@ -20,6 +20,7 @@ from .settings import (
     ANSWERED_GRID,
     DEFAULT_A,
     DEFAULT_N,
+    DEFAULT_TOL,
     DEGREE,
     MAX_DEGREE,
     MAX_DEPTH,
@@ -237,7 +238,7 @@ def _nearest(index, cell_size, key):
     return [tr for _, tr in sorted(best.values(), key=lambda v: v[0])]
 
 
-def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=1e-8, degree=DEGREE,
+def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree=DEGREE,
                 max_depth=MAX_DEPTH, max_degree=MAX_DEGREE, roots=None,
                 eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX), uniform=False, progress=None,
                 workers=1):

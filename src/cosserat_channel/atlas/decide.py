@@ -5,20 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics import analytic
 from .. import status as st
 from ..parameters import ETA_MAX, ETA_MIN, check_values
-from .interpolant import Atlas
+from .interpolant import Atlas, classify_analytic
 from .settings import SAFETY, UNDECIDED
 from .store import load_atlas
-
-
-def classify_analytic(eta, A, N):
-    """:func:`analytic.classify_margin` on arrays: the status Appendix A decides, else ``OK``."""
-    eta, A, N = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (eta, A, N)))
-    if eta.size == 0:
-        return np.zeros(eta.shape, dtype=np.int8)
-    return analytic.classify_margins(analytic.axis_margin(eta, A, N), A, N)
 
 
 def classify(eps, L, K, A, N, atlas):

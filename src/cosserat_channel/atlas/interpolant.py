@@ -8,8 +8,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import regime_codes as rc
+from ..physics import analytic
 from .. import status as st
 from .chebyshev import _vandermonde
+
+
+def classify_analytic(eta, A, N):
+    """:func:`analytic.classify_margin` on arrays: the status Appendix A decides, else ``OK``."""
+    eta, A, N = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (eta, A, N)))
+    if eta.size == 0:
+        return np.zeros(eta.shape, dtype=np.int8)
+    return analytic.classify_margins(analytic.axis_margin(eta, A, N), A, N)
 
 
 @dataclass
@@ -180,7 +189,6 @@ class Atlas:
         the status beyond an edge).
         """
         from ..regimes.boundary import boundary_dataset
-        from .decide import classify_analytic
 
         A = np.atleast_1d(np.asarray(A, dtype=float))
         N = np.atleast_1d(np.asarray(N, dtype=float))
@@ -225,16 +233,3 @@ class Atlas:
         a0, a1, n0, n1 = self.box
         return a0 <= min(A_range) and max(A_range) <= a1 and n0 <= min(N_range) and max(N_range) <= n1
 
-    # -- files -----------------------------------------------------------------------------
-    def to_dataset(self):
-        """The atlas as an :class:`xarray.Dataset` (:func:`.store.to_dataset`)."""
-        from .store import to_dataset
-
-        return to_dataset(self)
-
-    @classmethod
-    def from_dataset(cls, ds):
-        """The inverse of :meth:`to_dataset` (:func:`.store.from_dataset`)."""
-        from .store import from_dataset
-
-        return from_dataset(ds)

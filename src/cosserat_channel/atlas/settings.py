@@ -24,6 +24,7 @@ TRACE_WIDEN = 2.0  # traces search [lo / TRACE_WIDEN, hi * TRACE_WIDEN] (see the
 TAU_OF_TOL = 0.125  # continued transitions are verified by a bracket this many tol either side
 NEAR_NODE = 0.03  # a node with no interpolant over it continues from a traced one this close (A, N)
 NEAR_SPREAD = 0.05  # ... with this relative uncertainty
+DEFAULT_TOL = 1e-8  # the edge itself is known to ~1e-8 (TOL_MIN)
 DEFAULT_A = (-1.0, 5.0)
 DEFAULT_N = (0.3, 3.0)
 ROOT_CELL = 1.0  # the root cells are about this wide in A and N

@@ -96,7 +96,7 @@ def save_atlas(atlas, path):
     from .. import netcdf_policy
     from ..files import netcdf_output
 
-    ds = atlas.to_dataset()
+    ds = to_dataset(atlas)
     netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=netcdf_policy.encoding(ds)))
 
 
@@ -110,6 +110,6 @@ def load_atlas(path):
         raise ParameterError(f"cannot read atlas {str(path)!r}: {' '.join(str(exc).split())}") \
             from None
     try:
-        return Atlas.from_dataset(ds)
+        return from_dataset(ds)
     except (KeyError, ParameterError) as exc:
         raise ParameterError(f"{str(path)!r} is not a solvability atlas ({exc})") from None

@@ -39,8 +39,11 @@ from ..parameters import (  # noqa: F401 (ParameterError: for the commands)
     eps_from_width,
     parse_number,
 )
+from ..regime_codes import ETA_SEARCH_MAX, ETA_SEARCH_MIN
 
 PROG = "cosserat-channel"
+# The eta range that boundary and atlas search by default, as their --eta-range option reads it.
+ETA_RANGE = f"{ETA_SEARCH_MIN:g}:{ETA_SEARCH_MAX:g}"
 DESCRIPTION = ("Solve the frictional Cosserat model of dense granular flow in a vertical channel "
                "(Mohan, Nott & Rao)\nfor one point or a sweep over (eps, L, K, A, N), and query "
                "and plot the results.")
@@ -220,7 +223,7 @@ def _note(message: str) -> None:
 def _one_line(message: str) -> str:
     """``message`` on one line, with what a terminal would obey (a file's names and attributes
     quoted in it) escaped."""
-    from ..results.selection import printable
+    from ..results.flags import printable
 
     return printable(" ".join(str(message).split()))
 

@@ -9,6 +9,7 @@ import os
 from . import (
     EXIT_FAILURE,
     EXIT_OK,
+    ETA_RANGE,
     CliError,
     ParameterError,
     Progress,
@@ -38,6 +39,7 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
     from ..atlas import (
         DEFAULT_A,
         DEFAULT_N,
+        DEFAULT_TOL,
         DEGREE,
         MAX_DEGREE,
         MAX_DEPTH,
@@ -56,11 +58,11 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
                    "it starts below 0; A <= -1 and the wall line are analytic)")
     p.add_argument("--N", default=f"{DEFAULT_N[0]:g}:{DEFAULT_N[1]:g}", metavar="LO:HI",
                    help=f"range of N > 0 (default {DEFAULT_N[0]:g}:{DEFAULT_N[1]:g})")
-    p.add_argument("--tol", type=float, default=1e-8,
+    p.add_argument("--tol", type=float, default=DEFAULT_TOL,
                    help=f"relative error of the edges in eps L, in [{TOL_MIN:g}, {TOL_MAX:g}] "
-                   "(default 1e-8: the edge itself is known to ~1e-8)")
-    p.add_argument("--eta-range", default="0.001:100", metavar="LO:HI",
-                   help="range of eta = eps L the atlas answers for (default 0.001:100)")
+                   f"(default {DEFAULT_TOL:g}: the edge itself is known to ~{TOL_MIN:g})")
+    p.add_argument("--eta-range", default=ETA_RANGE, metavar="LO:HI",
+                   help=f"range of eta = eps L the atlas answers for (default {ETA_RANGE})")
     p.add_argument("--degree", type=int, default=DEGREE,
                    help=f"Chebyshev degree a cell starts with, even (default {DEGREE})")
     p.add_argument("--max-degree", type=int, default=MAX_DEGREE,

@@ -12,6 +12,7 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     DIMS,
     EXIT_FAILURE,
     EXIT_OK,
+    ETA_RANGE,
     ParameterError,
     Progress,
     _FIRST_RUN,
@@ -23,8 +24,10 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     check_output_path,
     register,
 )
+from ..regime_codes import ETA_COARSE
+
 # ---------------------------------------------------------------------------------------------
-# phase-plane, boundary, plot (data in regimes.py, figures in plot/regimes.py and plot/lines.py)
+# phase-plane, boundary, plot (data in regimes/, figures in plot/regimes.py and plot/lines.py)
 # ---------------------------------------------------------------------------------------------
 # boundary: values per list and (A, N) pairs. One pair costs ~80 solves (tens of ms), so the
 # largest accepted run takes about an hour; without a bound 'start:stop:1000000000' built a list
@@ -67,10 +70,10 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
                    help="values of A, e.g. -0.9:0.9:19 or 0,0.3333333333333333")
     p.add_argument("--N", required=True, metavar="LIST|START:STOP:NUM",
                    help="values of N (> 0), e.g. 0.5,1,2")
-    p.add_argument("--eta-range", default="0.001:100", metavar="LO:HI",
-                   help="searched range of eta = eps L (default 0.001:100: eps <= 1, L <= 100)")
-    p.add_argument("--coarse", type=int, default=48, metavar="M",
-                   help="log-spaced samples before bisection (default 48)")
+    p.add_argument("--eta-range", default=ETA_RANGE, metavar="LO:HI",
+                   help=f"searched range of eta = eps L (default {ETA_RANGE}: eps <= 1, L <= 100)")
+    p.add_argument("--coarse", type=int, default=ETA_COARSE, metavar="M",
+                   help=f"log-spaced samples before bisection (default {ETA_COARSE})")
     p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
     p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
     p.add_argument("--atlas", metavar="ATLAS.nc",
@@ -121,7 +124,7 @@ def _boundary(args: argparse.Namespace) -> int:
     if ds is None:
         with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
             ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
-                                        progress=lambda k, n: bar.update(f"{k}/{n} edges traced"))
+                                        progress=bar.report)
     from ..files import netcdf_output
 
     try:
@@ -289,7 +292,8 @@ def _open_whole(path):
     """
     import xarray as xr
 
-    from ..results.selection import OPEN_ERRORS, QueryError, check_flags, check_storage
+    from ..results.flags import QueryError, check_flags
+    from ..results.selection import OPEN_ERRORS, check_storage
 
     try:
         check_storage(path)  # it is read whole: its declared sizes first
@@ -357,10 +361,7 @@ def _plot(args: argparse.Namespace) -> int:
                         if grid is not None:
                             from .. import regimes
 
-                            def traced(k, n):
-                                bar.update(f"tracing the edge eta_max: {k}/{n} (A, N) pairs")
-
-                            boundary = regimes.trace_boundary(*grid, progress=traced)
+                            boundary = regimes.trace_boundary(*grid, progress=bar.report)
                     plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
                                             path=args.output)
                 else:

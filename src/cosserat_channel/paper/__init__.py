@@ -5,7 +5,7 @@ Each function solves what one figure (or the table) of Mohan, Nott & Rao shows, 
 parameters of its caption, and returns a :class:`PaperFigure`: the data to draw
 (:mod:`cosserat_channel.plot.paper` draws it and never solves) and the paper's stated numbers
 next to ours, each with a sentence where they differ. :func:`paper_figures` computes them all;
-``python -m cosserat_channel.paper -o DIR`` (or ``cosserat-channel paper -o DIR``) writes every
+``cosserat-channel paper -o DIR`` (or ``python -m cosserat_channel.cli paper -o DIR``) writes every
 figure as a PNG and the comparison as Markdown, without a notebook.
 
 The paper's figure numbers are used (its ``\\label``s differ: ``fig:new`` is figure 9,
@@ -15,7 +15,6 @@ by ``nu`` (the package's scaled variables; the paper's bars are ``nu`` times the
 from __future__ import annotations
 
 import os
-import sys
 
 import numpy as np
 
@@ -114,12 +113,3 @@ def write_paper_figures(directory, *, coarse=False, overwrite=False, keys=KEYS,
     atomic_output(path, write)
     written.append(path)
     return written
-
-
-def main(argv=None) -> int:
-    """``python -m cosserat_channel.paper -o DIR [--coarse] [--overwrite]``: the command line's
-    ``paper`` command."""
-    from ..cli import main as cli_main
-
-    return cli_main(["paper", *(sys.argv[1:] if argv is None else argv)])
-

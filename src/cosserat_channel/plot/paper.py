@@ -127,22 +127,22 @@ def figure6(pf, sub):
 # ---------------------------------------------------------------------------------------------
 # Figures 7-9
 # ---------------------------------------------------------------------------------------------
-def figure7(pf, sub):
+def _Delta_against(pf, sub, x):
+    """Delta against the data's ``x`` with the asymptote's markers (figures 7 and 8)."""
     d = pf.data
-    ax = _axes(sub, pf, axis_label("W_over_d_p"), axis_label("Delta"))
-    ax.plot(d["W_over_d_p"], d["Delta"], color="k", lw=1.6, label="numerical")
-    ax.plot(*_markers(d["W_over_d_p"], d["asymptotic"], 15), label=ASYMPTOTIC, **CIRCLE)
-    ax.set_xscale("log")
+    ax = _axes(sub, pf, axis_label(x), axis_label("Delta"))
+    ax.plot(d[x], d["Delta"], color="k", lw=1.6, label="numerical")
+    ax.plot(*_markers(d[x], d["asymptotic"], 15), label=ASYMPTOTIC, **CIRCLE)
     ax.legend(loc="upper left")
+    return ax
+
+
+def figure7(pf, sub):
+    _Delta_against(pf, sub, "W_over_d_p").set_xscale("log")
 
 
 def figure8(pf, sub):
-    d = pf.data
-    ax = _axes(sub, pf, axis_label("L"), axis_label("Delta"))
-    ax.plot(d["L"], d["Delta"], color="k", lw=1.6, label="numerical")
-    ax.plot(*_markers(d["L"], d["asymptotic"], 15), label=ASYMPTOTIC, **CIRCLE)
-    ax.set_xlim(0.0, float(np.max(d["L"])))
-    ax.legend(loc="upper left")
+    _Delta_against(pf, sub, "L").set_xlim(0.0, float(np.max(pf.data["L"])))
 
 
 def figure9(pf, sub):

@@ -16,6 +16,7 @@ from ..regime_codes import (
     EDGE_BOUNDED,
     EDGE_NONE,
     EDGE_UNBOUNDED,
+    ETA_COARSE,
     ETA_SEARCH_MAX,
     ETA_SEARCH_MIN,
 )
@@ -35,7 +36,6 @@ from .wall import (
     wall_scalar,
 )
 
-ETA_COARSE = 48  # log-spaced samples of the coarse pass
 ETA_XTOL = 1e-10  # relative width of the final bracket
 # The node's eta is taken as the edge when the status bisection lies within this many noise bands
 # of it and the extrapolation of sqrt(D(1)) puts the zero there too.
@@ -249,8 +249,9 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
 
     Variables: ``eta_max``, ``eta_min``, ``edge_kind`` (int8 flag: bounded, unbounded_in_range,
     no_solution), ``status_above`` (int8 status code just above a bounded edge, otherwise -1, the
-    flag ``no_edge``), ``n_transitions`` and the analytic ``axis_edge_eta``. ``progress(k, n)``,
-    if given, is called after each of the ``n`` edges.
+    flag ``no_edge``), ``n_transitions`` and the analytic ``axis_edge_eta``.
+    ``progress(done, total, text)`` (the package's progress protocol), if given, is called after
+    each edge.
 
     Each edge is continued (:func:`continue_edge`, verified to ``xtol``) from the edges traced
     before it at the grid's neighbours within ``BOUNDARY_NEAR`` in A and N (the previous ``N``,
@@ -282,7 +283,7 @@ def trace_boundary(A, N, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_MAX), n_coarse
             eta_max[i, j], eta_min[i, j], kind[i, j] = e.eta_max, e.eta_min, e.kind
             above[i, j], n_tr[i, j] = e.status_above, e.transitions.size
             if progress is not None:
-                progress(i * N.size + j + 1, A.size * N.size)
+                progress(i * N.size + j + 1, A.size * N.size, "edges traced")
     return boundary_dataset(
         A, N, eta_max=eta_max, eta_min=eta_min, edge_kind=kind, status_above=above,
         n_transitions=n_tr, title="cosserat-channel boundary: edge of solvability in eta = eps L",

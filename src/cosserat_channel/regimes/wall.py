@@ -92,14 +92,7 @@ def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
     D1, delta1 : ndarray
         ``D(1)`` and ``delta(1) = (m(1)/nu + N L)/L`` where stage 1 reached the wall, else NaN.
     """
-    ws = getattr(workspace, "ws", workspace)
-    count = getattr(workspace, "count", None)
-    etas = np.ascontiguousarray(np.atleast_1d(np.asarray(etas, dtype=float)))
-    if count is not None:
-        count(etas.size)
-    status = np.empty(etas.size, dtype=np.int8)
-    D1 = np.empty(etas.size)
-    delta1 = np.empty(etas.size)
+    ws, etas, status, D1, delta1 = _counted_slots(workspace, etas)
     _wall_D_kernel(etas, float(A), float(N), float(rtol), float(atol), ws.ax, ws.T1, ws.Q1,
                    ws.stats1, ws.res, status, D1, delta1)
     return status, D1, delta1
@@ -422,14 +415,18 @@ def wall_scalar(workspace, etas, A, N):
         ``|dD/d delta| delta`` there: stage 1's noise in ``G`` is ``D_NOISE * STAGE1_RTOL_FLOOR``
         times it.
     """
+    ws, etas, status, G, sens = _counted_slots(workspace, etas)
+    _wall_scalar_kernel(etas, float(A), float(N), ws.ax, ws.T1, ws.Q1, ws.stats1, ws.res, status,
+                        G, sens)
+    return status, G, sens
+
+
+def _counted_slots(workspace, etas):
+    """The kernels' workspace, ``etas`` as a contiguous array (counted as that many solves when
+    ``workspace`` counts them), and the status and two value arrays a wall kernel fills."""
     ws = getattr(workspace, "ws", workspace)
     count = getattr(workspace, "count", None)
     etas = np.ascontiguousarray(np.atleast_1d(np.asarray(etas, dtype=float)))
     if count is not None:
         count(etas.size)
-    status = np.empty(etas.size, dtype=np.int8)
-    G = np.empty(etas.size)
-    sens = np.empty(etas.size)
-    _wall_scalar_kernel(etas, float(A), float(N), ws.ax, ws.T1, ws.Q1, ws.stats1, ws.res, status,
-                        G, sens)
-    return status, G, sens
+    return ws, etas, np.empty(etas.size, dtype=np.int8), np.empty(etas.size), np.empty(etas.size)

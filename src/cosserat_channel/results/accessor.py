@@ -24,7 +24,7 @@ import xarray as xr
 from .. import outputs
 from .. import status as st
 from ..parameters import ParameterError, check_material
-from .selection import flag_names
+from .flags import flag_names, status_counts
 
 
 @xr.register_dataset_accessor("cosserat")
@@ -66,7 +66,6 @@ class CosseratAccessor:
 
     def status_counts(self) -> dict[str, int]:
         """Points per status name."""
-        from .describe import status_counts
 
         return status_counts(self._ds)
 

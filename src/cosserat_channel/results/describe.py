@@ -19,8 +19,9 @@ if TYPE_CHECKING:  # imported where used: a small query never imports xarray (Li
 
 from ..files import format_size
 from .render import _python, _text
-from .selection import (QueryError, _is_flag, _show, check_flags, flag_names, is_result, open_netcdf,
-                        printable, read_problem)
+from .flags import (QueryError, _is_flag, _show, check_flags, flag_counts, printable,
+                    status_counts)
+from .selection import is_result, open_netcdf, read_problem
 
 SWEEP_TEXT_LINES = 12
 PROVENANCE = ("cosserat_channel_version", "created", "rtol", "atol", "sweep_sha256", "Conventions")
@@ -60,25 +61,6 @@ def open_described(path) -> xr.Dataset:
 # ---------------------------------------------------------------------------------------------
 # info
 # ---------------------------------------------------------------------------------------------
-def flag_counts(da: xr.DataArray) -> dict[str, int]:
-    """Points per flag name of a CF flag variable (lazy reduction; values outside the flags
-    count as 'other')."""
-    import xarray as xr
-
-    flags = flag_names(da)
-    sums = xr.Dataset({n: (da == v).sum() for n, v in flags.items()}).compute()
-    counts = {n: int(sums[n]) for n in flags}
-    other = int(da.size) - sum(counts.values())
-    if other:
-        counts["other"] = other
-    return counts
-
-
-def status_counts(ds: xr.Dataset) -> dict[str, int]:
-    """Points per status name of a result (:func:`flag_counts` of its ``status``)."""
-    return flag_counts(ds["status"])
-
-
 def _counts(title: str, counts: dict[str, int], total: int) -> list[str]:
     lines = [title]
     for name, n in counts.items():
@@ -111,7 +93,7 @@ def describe(ds: xr.Dataset, path: str = "", skipped=None) -> str:
     """The ``info`` report: kind, dimensions, variables, flag counts, provenance, and with
     ``skipped`` (from :func:`verify`) what was read to check the file.
 
-    Text from the file is shown with :func:`.selection.printable`: a file's attributes never
+    Text from the file is shown with :func:`.flags.printable`: a file's attributes never
     reach the terminal as control sequences.
     """
     kind = file_kind(ds)

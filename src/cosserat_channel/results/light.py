@@ -13,7 +13,8 @@ import numpy as np
 
 
 from .render import _python
-from .selection import _OPS, Selection, _is_flag, check_flags, flag_names, storage_problem
+from .flags import _is_flag, check_flags, flag_names
+from .selection import _OPS, Selection, storage_problem
 
 class _LightVariable:
     """What parsing and selecting read of a variable: dims, attrs, dtype, shape, values."""

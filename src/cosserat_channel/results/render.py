@@ -20,7 +20,8 @@ from ..files import netcdf_output
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr
-from .selection import ROW_BLOCK, Selection, _is_flag, flag_names, printable
+from .flags import _is_flag, flag_names, printable
+from .selection import ROW_BLOCK, Selection
 
 TABLE_ROWS = 200
 

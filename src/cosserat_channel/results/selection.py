@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..parameters import ParameterError
+from .flags import QueryError, _is_flag, check_flags, flag_names
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr
@@ -54,8 +54,6 @@ RANGE_SLACK = 1e-9
 SEL_RTOL = 1e-9
 ROW_BLOCK = 1_000_000
 TABLE_ROWS = 200
-SWEEP_TEXT_LINES = 12
-PROVENANCE = ("cosserat_channel_version", "created", "rtol", "atol", "sweep_sha256", "Conventions")
 
 _NAME = r"[A-Za-z_][A-Za-z0-9_]*"
 _SEL_RE = re.compile(rf"^\s*({_NAME})\s*=\s*(\S+)\s*$")
@@ -65,13 +63,6 @@ _OPS = {
     "==": np.equal, "!=": np.not_equal, "<": np.less,
     "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
 }
-
-
-class QueryError(ParameterError):
-    """A query the file cannot answer (unknown name, malformed clause, unreadable file)."""
-
-    def __init__(self, message: str):
-        super().__init__(" ".join(str(message).split()))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -224,32 +215,6 @@ def read_problem(ds: xr.Dataset, names=None) -> str | None:
     return None
 
 
-def _is_flag(da: xr.DataArray) -> bool:
-    return "flag_values" in da.attrs and "flag_meanings" in da.attrs
-
-
-def flag_names(da: xr.DataArray) -> dict[str, int]:
-    """``{flag name: value}`` of a CF flag variable; QueryError unless its ``flag_values`` are
-    integers, one per name of its ``flag_meanings``."""
-    values = np.atleast_1d(np.asarray(da.attrs["flag_values"]))
-    names = str(da.attrs["flag_meanings"]).split()
-    whole = values.dtype.kind in "iu" or (
-        values.dtype.kind == "f" and bool(np.all(np.isfinite(values)))
-        and bool(np.all(values == np.round(values))))
-    if values.ndim != 1 or not whole or values.size != len(names):
-        raise QueryError(f"variable {da.name!r}: flag_values "
-                         f"{_show(values.tolist(), 40)} are not {len(names)} integers, one per "
-                         "name of flag_meanings (a damaged or foreign file)")
-    return dict(zip(names, (int(v) for v in values.tolist())))
-
-
-def check_flags(ds: xr.Dataset) -> None:
-    """QueryError naming the first flag variable of ``ds`` whose flags are unusable."""
-    for name in ds.data_vars:
-        if _is_flag(ds[name]):
-            flag_names(ds[name])
-
-
 # ---------------------------------------------------------------------------------------------
 # Parsing the clauses
 # ---------------------------------------------------------------------------------------------
@@ -277,22 +242,6 @@ def _check_coordinate(name: str, ds: xr.Dataset, option: str) -> None:
     if ds[name].dtype.kind not in "iuf":
         raise QueryError(f"{option}: coordinate {name!r} is not numeric ({ds[name].dtype}); "
                          "only numeric coordinates can be selected")
-
-
-def _show(x, limit: int = 24) -> str:
-    s = printable(str(x))
-    return s if len(s) <= limit else s[: limit - 1] + "…"
-
-
-def printable(text: str) -> str:
-    """``text`` with every character a terminal would act on (escape sequences, carriage
-    returns, bidirectional overrides, ...) written as its escape, e.g. ``\\x1b``: text read
-    from a file is shown, never obeyed."""
-    text = str(text)
-    if text.isprintable():
-        return text
-    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
-                   for c in text)
 
 
 def _float(text: str, what: str) -> float:

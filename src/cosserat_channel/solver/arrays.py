@@ -218,10 +218,10 @@ def _solve_flat(flat: dict, eta, rtol, atol, need, workers, reduce):
         blocks = block_plan(triple_costs(t_eta, t_A, t_N, entries), -(-n_t // n_blocks))
 
         def run(b):
-            lo, hi = offsets[b], offsets[b + 1]
-            idx = np.concatenate([np.arange(a, z) for a, z in zip(lo, hi)]) if b.size else \
-                np.empty(0, dtype=np.int64)
-            b_offsets = np.concatenate(([0], np.cumsum(hi - lo))).astype(np.int64)
+            lo, counts = offsets[b], entries[b]
+            b_offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+            # the block's entries: each triple's run of sorted points, one after another
+            idx = np.repeat(lo - b_offsets[:-1], counts) + np.arange(b_offsets[-1])
             inp = BlockInputs(t_eta[b], t_A[b], t_N[b], eps_K[idx], b_offsets, idx)
             out = block_.solve_block(inp, rtol, atol, None, *need)
             return b, idx, out

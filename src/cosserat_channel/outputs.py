@@ -167,7 +167,8 @@ class Inputs:
                      "xi_stop": xi_stop, "one_minus": one_minus}
         self.material = material
         self._values: dict[str, np.ndarray] = {}
-        self._one = type(status) is int and all(type(v) is float for v in (eps, L, K, N))
+        self._one = (type(status) is int and type(eps) is float and type(L) is float
+                     and type(K) is float and type(N) is float)
         if self._one:
             # One point (solve_point): numpy float64 scalars, whose arithmetic is that of 0-d
             # arrays to the bit (and on division by zero), at a fraction of their cost.
@@ -236,6 +237,8 @@ class Inputs:
 
 def _xi_stop(x: Inputs):
     value = x._raw["xi_stop"]
+    if x._one:
+        return np.float64(value if x.status == st.EPS_TOO_LARGE_PATH else math.nan)
     return np.where(x.status == st.EPS_TOO_LARGE_PATH, value, np.nan)
 
 

@@ -381,3 +381,23 @@ def test_at_the_path_edge_any_tolerance_never_integration_failed(rtol):
         assert r.xi_stop == 1.0  # D = 0 at the wall within the solver's resolution
     else:
         assert math.isfinite(r.Delta)
+
+
+def test_default_workspace_is_reused_without_carrying_state():
+    """Calls without a workspace share one per thread: a point's values and counters do not
+    depend on what the thread solved before, nor on which thread solves it."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from cosserat_channel.solver.point import Workspace
+
+    points = [(1 / 30, 10, 0.5, 1 / 3, 1), (0.2, 3, 0.1, -0.5, 0.4), (0.3, 9.0, 0.0, 2.0, 2.0),
+              (1e-3, 1.0, 5.0, 0.0, 1.0)]
+
+    def key(r):
+        return (r.status, r.counters, {k: v for k, v in r.values.items() if not math.isnan(v)},
+                sorted(k for k, v in r.values.items() if math.isnan(v)))
+
+    fresh = [key(solve_point(*p, workspace=Workspace())) for p in points]
+    assert [key(solve_point(*p)) for p in points + points[::-1]] == fresh + fresh[::-1]
+    with ThreadPoolExecutor(2) as pool:
+        assert list(pool.map(lambda p: key(solve_point(*p)), points * 3)) == fresh * 3

@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import math
 from dataclasses import KW_ONLY, dataclass
-from functools import cached_property
 from typing import Callable
 
 import numpy as np
@@ -128,6 +127,22 @@ class Counter(Quantity):
     stage: int = STAGE_VELOCITY
 
 
+class _cached:
+    """``functools.cached_property`` without its lock (Python 3.11 takes one per first read,
+    a tenth of a one-point ``derive``): an :class:`Inputs` is never shared between threads."""
+
+    def __init__(self, func):
+        self.func = func
+        self.name = func.__name__
+        self.__doc__ = func.__doc__
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        value = obj.__dict__[self.name] = self.func(obj)
+        return value
+
+
 class Inputs:
     """What the outputs are derived from: raw solver values and parameters, all broadcastable.
 
@@ -148,20 +163,31 @@ class Inputs:
 
     def __init__(self, status, eps, L, K, N, *, J_axis=None, mu_wall=None, sigma_yx_wall=None,
                  xi_stop=None, one_minus=None, material=None):
-        self.status = np.asarray(status)
-        self.eps, self.L, self.K, self.N = (np.asarray(v, dtype=np.float64) for v in (eps, L, K, N))
         self._raw = {"J_axis": J_axis, "mu_wall": mu_wall, "sigma_yx_wall": sigma_yx_wall,
                      "xi_stop": xi_stop, "one_minus": one_minus}
         self.material = material
+        self._values: dict[str, np.ndarray] = {}
+        self._one = (type(status) is int and type(eps) is float and type(L) is float
+                     and type(K) is float and type(N) is float)
+        if self._one:
+            # One point (solve_point): numpy float64 scalars, whose arithmetic is that of 0-d
+            # arrays to the bit (and on division by zero), at a fraction of their cost.
+            self.status = status
+            self.eps, self.L, self.K, self.N = (np.float64(v) for v in (eps, L, K, N))
+            self.shape = ()
+            return
+        self.status = np.asarray(status)
+        self.eps, self.L, self.K, self.N = (np.asarray(v, dtype=np.float64) for v in (eps, L, K, N))
         self.shape = np.broadcast_shapes(self.status.shape, self.eps.shape, self.L.shape,
                                          self.K.shape, self.N.shape)
-        self._values: dict[str, np.ndarray] = {}
 
     def raw(self, name: str) -> np.ndarray:
         """A raw solver value, NaN where the status is not ``ok`` (as ``solve_point`` reports)."""
         value = self._raw[name]
         if value is None:
             raise ValueError(f"output needs the solver value {name!r}, which was not computed")
+        if self._one:
+            return np.float64(value if self.ok else math.nan)
         return np.where(self.ok, value, np.nan)
 
     def get(self, name: str) -> np.ndarray:
@@ -170,32 +196,32 @@ class Inputs:
             self._values[name] = OUTPUTS[name].compute(self)
         return self._values[name]
 
-    @cached_property
+    @_cached
     def ok(self) -> np.ndarray:
         return self.status == st.OK
 
-    @cached_property
+    @_cached
     def eps_K(self) -> np.ndarray:
         return self.eps * self.K
 
-    @cached_property
+    @_cached
     def one_minus(self) -> np.ndarray:
         value = self._raw["one_minus"]
         if value is None:
             raise ValueError("output needs the plug edge 1 - xi_p, which was not computed")
-        return np.asarray(value, dtype=np.float64)
+        return np.float64(value) if self._one else np.asarray(value, dtype=np.float64)
 
     # The material's quantities depend on (eps, N) only: eq:35 is solved once per pair.
-    @cached_property
+    @_cached
     def tan_delta(self) -> np.ndarray:
         return math.sin(math.radians(self.material["phi"])) / self.N
 
-    @cached_property
+    @_cached
     def rho_g_W(self) -> np.ndarray:
         mat = self.material
         return mat["rho_p"] * mat["g"] * (mat["d_p"] / self.eps)
 
-    @cached_property
+    @_cached
     def nu(self) -> np.ndarray:
         rho_g_W, tan_delta = np.broadcast_arrays(self.rho_g_W, self.tan_delta)
         nu = np.empty(rho_g_W.shape)
@@ -203,7 +229,7 @@ class Inputs:
             nu[i] = closure.solids_fraction(float(rho_g_W[i]), float(tan_delta[i]), self.material)
         return nu
 
-    @cached_property
+    @_cached
     def stress_scale_Pa(self) -> np.ndarray:
         """``rho_p g W nu``: a scaled stress times this is in Pa."""
         return self.rho_g_W * self.nu
@@ -211,6 +237,8 @@ class Inputs:
 
 def _xi_stop(x: Inputs):
     value = x._raw["xi_stop"]
+    if x._one:
+        return np.float64(value if x.status == st.EPS_TOO_LARGE_PATH else math.nan)
     return np.where(x.status == st.EPS_TOO_LARGE_PATH, value, np.nan)
 
 
@@ -352,4 +380,6 @@ def needs_stage2(names) -> bool:
 
 def derive(names, inputs: Inputs) -> dict[str, np.ndarray]:
     """The outputs ``names`` from ``inputs``, each broadcast to the inputs' full shape."""
+    if inputs._one:  # one point: its values as computed, numpy scalars
+        return {name: inputs.get(name) for name in names}
     return {name: np.broadcast_to(inputs.get(name), inputs.shape).copy() for name in names}

@@ -133,6 +133,8 @@ class Parameter(Described):
         """Elementwise: ``x`` is finite and inside the interval (works on floats and arrays)."""
         above = (x >= self.lo) if self.lo_closed else (x > self.lo)
         below = (x <= self.hi) if self.hi_closed else (x < self.hi)
+        if type(x) is float:  # one number (solve_point's path): no numpy scalars
+            return math.isfinite(x) and above and below
         return np.isfinite(x) & above & below
 
     def check(self, value, label: str | None = None) -> float:
@@ -142,13 +144,17 @@ class Parameter(Described):
         accept them: ``True`` is not a length and ``"1"`` is not a number.
         """
         label = label or self.name
-        what = f"a number in {self.interval} ({self.sentence})"
-        if isinstance(value, (bool, np.bool_, str, bytes)) or not _is_real(value):
-            raise ParameterError(f"{label} must be {what}; got {value!r}")
-        try:
+        # Python floats and ints below 2**1024 (the common case) skip the type checks below.
+        if type(value) is float or (type(value) is int and value.bit_length() <= 1023):
             x = float(value)
-        except (TypeError, ValueError, OverflowError):
-            raise ParameterError(f"{label} must be {what}; got {value!r}") from None
+        else:
+            what = f"a number in {self.interval} ({self.sentence})"
+            if isinstance(value, (bool, np.bool_, str, bytes)) or not _is_real(value):
+                raise ParameterError(f"{label} must be {what}; got {value!r}")
+            try:
+                x = float(value)
+            except (TypeError, ValueError, OverflowError):
+                raise ParameterError(f"{label} must be {what}; got {value!r}") from None
         if not self.contains(x):
             raise ParameterError(
                 f"{label} = {value!r} is outside the allowed range {self.interval} "

@@ -9,6 +9,7 @@ module checks the input, runs the kernels for one point and hands the raw values
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -172,6 +173,26 @@ def _check_outputs(names, material) -> list[str]:
     return names
 
 
+_DEFAULT_PLANS: dict = {}
+
+
+def _plan_outputs(names, material):
+    """``(outputs to compute, whether they need the plug edge, whether stage 2)``; the default
+    set's answer is kept per state of the registry (rebuilding it was a tenth of a call)."""
+    key = None
+    if names is None:
+        key = (material is None, tuple(map(id, out_.OUTPUTS.values())))
+        if key in _DEFAULT_PLANS:
+            return _DEFAULT_PLANS[key]
+    names = _check_outputs(names, material)
+    plan = names, out_.needs_plug_edge(names), out_.needs_stage2(names)
+    if key is not None:
+        if len(_DEFAULT_PLANS) > 8:  # the registry keeps changing (tests): keep it small
+            _DEFAULT_PLANS.clear()
+        _DEFAULT_PLANS[key] = plan
+    return plan
+
+
 def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=None, profile=None,
                 outputs=None, workspace: Workspace | None = None) -> PointResult:
     """Solve one point ``(eps, L, K, A, N)`` of the channel-flow model through both stages.
@@ -217,12 +238,11 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     rtol, atol = check_tolerances(rtol, atol)
     mat = check_material(material)
     xi_prof = None if profile is None else _check_profile(profile)
-    names = _check_outputs(outputs, mat)
-    wants_plug_edge = out_.needs_plug_edge(names)
-    ws = workspace or Workspace()
+    names, wants_plug_edge, wants_stage2 = _plan_outputs(outputs, mat)
+    ws = workspace or _thread_workspace()
     eta = eps * L
     code = ws.run(eta, A, N, rtol, atol, layout.METHOD_AUTO,
-                  xi_prof is not None or out_.needs_stage2(names))
+                  xi_prof is not None or wants_stage2)
     res = ws.res
     one_minus = math.nan
     if code == st.OK and wants_plug_edge:
@@ -240,8 +260,20 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     return result
 
 
+_LOCAL = threading.local()
+
+
+def _thread_workspace() -> Workspace:
+    """This thread's default workspace: every call fills what it reads, so one serves all calls
+    of a thread (allocating one per call cost a fifth of a call)."""
+    ws = getattr(_LOCAL, "workspace", None)
+    if ws is None:
+        ws = _LOCAL.workspace = Workspace()
+    return ws
+
+
 def _counters(ws: Workspace) -> dict:
-    s1, s2 = ws.stats1, ws.stats2
+    s1, s2 = ws.stats1.tolist(), ws.stats2.tolist()
     return {
         "stage1_accepted": int(s1[stepping.STAT_ACCEPTED]),
         "stage1_rejected": int(s1[stepping.STAT_REJECTED]),

@@ -72,21 +72,30 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
     data_vars = {}
     for name in spec.variables:  # file order = the sweep's order
         if name in out_.OUTPUTS:
-            o = out_.OUTPUTS[name]
-            # derive's values, without its copy of those already on the whole grid (a tile's
-            # Delta, slip, ...: one pass over the tile fewer each).
-            value = inputs.get(name)
-            if value.shape != inputs.shape:
-                value = out_.derive([name], inputs)[name]
-            data_vars[name] = (DIMS, value, o.attrs)
+            data_vars[name] = output_variable(inputs, name, DIMS)
         elif name in out_.COUNTERS:
             c = out_.COUNTERS[name]
             value = grid.to_grid(per_triple["steps"][:, c.stage - 1].astype(np.int32))
             data_vars[name] = (DIMS, value, c.attrs)
-    data_vars["status"] = (DIMS, status, {**st.cf_flag_attrs(), "units": "1"})
+    data_vars["status"] = status_variable(status, DIMS)
     if profiles is not None:
         data_vars.update(_profiles(grid, res, profiles))
     return data_vars
+
+
+def output_variable(inputs, name: str, dims) -> tuple:
+    """``(dims, values, attrs)`` of output ``name`` on the whole shape of ``inputs``."""
+    # derive's values, without its copy of those already on the whole grid (a tile's Delta,
+    # slip, ...: one pass over the tile fewer each).
+    value = inputs.get(name)
+    if value.shape != inputs.shape:
+        value = out_.derive([name], inputs)[name]
+    return (dims, value, out_.OUTPUTS[name].attrs)
+
+
+def status_variable(status: np.ndarray, dims) -> tuple:
+    """``(dims, status codes, CF flag attributes)`` of a result's ``status`` variable."""
+    return (dims, status, {**st.cf_flag_attrs(), "units": "1"})
 
 
 def coordinates(spec, xi=None) -> dict:
@@ -114,17 +123,25 @@ def _profiles(grid, res, profiles) -> dict:
 
 def global_attrs(spec, reduced: bool) -> dict:
     """Provenance: what was solved, how, by which version, from which sweep file."""
+    title = "cosserat-channel sweep" + (f" {spec.source}" if spec.source else "")
     return {
-        "title": "cosserat-channel sweep" + (f" {spec.source}" if spec.source else ""),
-        "Conventions": st.CONVENTIONS,
-        "source": "cosserat-channel run",
-        "cosserat_channel_version": __version__,
-        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "rtol": spec.rtol,
-        "atol": spec.atol,
-        "reduced": 1 if reduced else 0,
+        **provenance(title, "cosserat-channel run", spec.rtol, spec.atol, reduced),
         "sweep_sha256": spec.sha256,
         "sweep_toml": spec.text,
+    }
+
+
+def provenance(title: str, source: str, rtol: float, atol: float, reduced: bool) -> dict:
+    """The attributes every result carries: what made it, with which version and tolerances."""
+    return {
+        "title": title,
+        "Conventions": st.CONVENTIONS,
+        "source": source,
+        "cosserat_channel_version": __version__,
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "rtol": rtol,
+        "atol": atol,
+        "reduced": 1 if reduced else 0,
     }
 
 

@@ -99,6 +99,16 @@ def _classify_many(eta, A, N, out):
         out[i] = model.classify(eta[i], A[i], N[i])
 
 
+def triple_costs(eta, A, N, entries) -> np.ndarray:
+    """Expected cost of triples ``(eta, A, N)`` serving ``entries`` ``eps K`` values each
+    (arbitrary units; see the ``COST_*`` constants)."""
+    code = np.empty(eta.size, dtype=np.int64)
+    _classify_many(eta, A, N, code)
+    with np.errstate(over="ignore", divide="ignore"):  # only the order matters (inf is fine)
+        cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
+    return cost + COST_PER_ENTRY * entries
+
+
 @dataclass(frozen=True, eq=False)
 class BlockInputs:
     """Arguments of one :func:`batch.solve_batch` call and where its ``eps K`` entries land.
@@ -196,12 +206,7 @@ class Plan:
         out = np.empty(self.n_triples)
         for lo in range(0, self.n_triples, SLICE):
             t = np.arange(lo, min(self.n_triples, lo + SLICE), dtype=np.int64)
-            eta, A, N = self.triple_params(t)
-            code = np.empty(t.size, dtype=np.int64)
-            _classify_many(eta, A, N, code)
-            with np.errstate(over="ignore", divide="ignore"):  # only the order matters (inf is fine)
-                cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
-            out[lo:lo + t.size] = cost + COST_PER_ENTRY * self.entries_per_triple(t)
+            out[lo:lo + t.size] = triple_costs(*self.triple_params(t), self.entries_per_triple(t))
         return out
 
     def _groups(self):

@@ -19,7 +19,7 @@ import numpy as np
 from cosserat_channel.integrate import stepping
 from cosserat_channel.measure import harness
 from cosserat_channel.solver import batch, layout, plug_edge, stage1, stage2
-from cosserat_channel.solver.arrays import solve
+from cosserat_channel.sweep.arrays import solve
 from cosserat_channel.solver.point import Workspace, solve_point
 
 README_POINT = (1 / 30, 10, 0.5, 1 / 3, 1)

@@ -126,7 +126,7 @@ _set_numba_cache_dir(str(_NUMBA_CACHE_CANDIDATES[0][0]))
 # and reading a result file never compiles a kernel. Each name is the real object of its home.
 _API = {
     "solve_point": "solver.point",
-    "solve": "solver.arrays",
+    "solve": "sweep.arrays",
     "PointResult": "solver.point",
     "Workspace": "solver.point",
     "Status": "status",

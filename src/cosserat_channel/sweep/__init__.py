@@ -3,7 +3,8 @@
 The pipeline is :mod:`.engine`; it plans the blocks (:mod:`.plan`), checks the disk and memory
 they need (:mod:`.budget`), solves them (:mod:`.block`) on threads or a cluster
 (:mod:`.schedulers`), keeps each in the working store (:mod:`~cosserat_channel.sweep.store`) and writes the file tile by
-tile (:mod:`.writer`, :mod:`.dataset`).
+tile (:mod:`.writer`, :mod:`.dataset`). :mod:`.arrays` solves arrays of points in memory the
+same way, without a file.
 
 ``run_sweep`` is imported on first use, so that parsing a sweep file (:mod:`.spec`) never loads
 the kernels.

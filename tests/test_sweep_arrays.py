@@ -11,7 +11,7 @@ from cosserat_channel import outputs as out_
 from cosserat_channel import status as st
 from cosserat_channel.parameters import PARAMETERS, ParameterError
 from cosserat_channel.solver import arrays
-from cosserat_channel.solver.arrays import solve
+from cosserat_channel.sweep.arrays import solve
 from cosserat_channel.solver.point import solve_point
 
 MATERIAL = dict(d_p=0.002, rho_p=2940, phi=25)

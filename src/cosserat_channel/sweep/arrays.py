@@ -22,11 +22,11 @@ from .. import outputs as out_
 from ..parameters import (DEFAULT_ATOL, DEFAULT_RTOL, DIMS, ETA_MAX, ETA_MIN, PARAMETERS,
                           ParameterError, check_eta, check_material, check_tolerances,
                           check_values)
-from ..sweep import block as block_
-from ..sweep import dataset
-from ..sweep.plan import BlockInputs, block_plan, triple_costs
-from . import layout
-from .point import _check_outputs
+from ..solver import layout
+from ..solver.point import _check_outputs
+from . import block as block_
+from . import dataset
+from .plan import BlockInputs, block_plan, triple_costs
 
 __all__ = ["solve"]
 

@@ -4,6 +4,7 @@ xarray, never numba (reading kept traces imports the solver: only a build does).
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import stat
@@ -191,8 +192,11 @@ def load_traces(path, key):
     move = "move it away, or choose another output"
     try:
         mode = os.lstat(path).st_mode
-    except FileNotFoundError:
-        return None
+    except OSError as exc:
+        if isinstance(exc, FileNotFoundError) or exc.errno in (errno.ENAMETOOLONG, errno.ENOTDIR):
+            return None  # nothing there, nor can there be
+        raise ParameterError(f"cannot look at {path!r}: {exc.strerror}; it is left alone: "
+                             f"{move}") from None
     if not stat.S_ISREG(mode):
         raise ParameterError(f"{path!r} is {describe(mode)}, not the traces of an interrupted "
                              f"atlas; it is left alone: {move}")

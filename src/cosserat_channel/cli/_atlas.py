@@ -49,7 +49,9 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
     )
 
     out = p.add_mutually_exclusive_group(required=True)
-    out.add_argument("-o", "--output", metavar="ATLAS.nc", help="NetCDF file to write")
+    out.add_argument("-o", "--output", metavar="ATLAS.nc",
+                     help="NetCDF file to write; the edges traced before Ctrl-C are kept in "
+                     "ATLAS.nc.partial, and the same command resumes from them")
     out.add_argument("--cache", action="store_true",
                      help="write the cached atlas that 'plot --regime' uses when no --atlas is "
                      "given ($XDG_CACHE_HOME/cosserat-channel/atlas.nc)")
@@ -106,16 +108,15 @@ def _atlas(args: argparse.Namespace) -> int:
     # not beside a stream (a FIFO, /dev/stdout), whose directory is not the user's to write in.
     partial = None if output_kind(output) == STREAM else atlas_mod.partial_path(output)
     key = atlas_mod.traces_key(*built, args.max_degree)
-    traces = {}
-    if partial is not None:
-        try:
-            traces = atlas_mod.load_traces(partial, key)
-        except ParameterError as exc:  # another build's, damaged, or not a file: left alone
-            raise CliError(str(exc)) from None
-        if traces is not None:
-            _note(f"resuming from the {len(traces)} edges traced before, kept in {partial}")
+    try:
+        traces = None if partial is None else atlas_mod.load_traces(partial, key)
+    except ParameterError as exc:  # another build's, damaged, or not a file: left alone
+        raise CliError(str(exc)) from None
     kept = traces is not None
-    traces = {} if traces is None else traces
+    if kept:
+        _note(f"resuming from the {len(traces)} edges traced before, kept in {partial}")
+    else:
+        traces = {}
     resumed = len(traces)
     try:
         with interruptible(), Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
@@ -169,7 +170,7 @@ def _keep_traces(partial, traces, key, resumed, output) -> str:
                 "a rerun traces them again)")
     try:
         mode = os.lstat(partial).st_mode
-    except FileNotFoundError:
+    except OSError:  # nothing there (or a name too long for one: saving says so)
         mode = None
     if mode is not None and not (resumed and stat.S_ISREG(mode)):
         # Made by someone else while the build ran: never written over.

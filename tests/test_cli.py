@@ -386,6 +386,26 @@ def test_atlas_stopped_keeps_its_traces_and_the_same_command_resumes(
     assert xr.load_dataset(out).identical(xr.load_dataset(fresh))
 
 
+@pytest.mark.parametrize("fault, words", [(OSError(28, "No space left on device"),
+                                           "could not be kept (cannot write"),
+                                          (KeyboardInterrupt(), "stopped again")])
+def test_atlas_stopped_while_keeping_its_traces_says_so(capsys, tmp_path, monkeypatch, fault,
+                                                         words):
+    """A full disk, or a second Ctrl-C, while the traces are written: one line saying they are
+    lost, exit 130, nothing left behind."""
+    from cosserat_channel import atlas
+
+    def failing(*args):
+        raise fault
+
+    monkeypatch.setattr(atlas, "save_traces", failing)
+    _stop_after(monkeypatch, 2)
+    assert cli.main([*ATLAS_SMALL, "-o", str(tmp_path / "a.nc")]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0] and "a.nc.partial" in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_atlas_refuses_a_partial_file_it_cannot_resume(capsys, tmp_path, monkeypatch):
     """At OUT.nc.partial: another build's traces, a damaged file, a FIFO, a directory, a symbolic
     link: exit 2 in one line naming it, nothing traced, the thing left exactly as it was."""

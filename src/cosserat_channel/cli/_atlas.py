@@ -158,7 +158,7 @@ def _keep_traces(partial, traces, key, resumed, output) -> str:
     """Write the traces of a stopped build to ``partial`` (unless there is nothing new to keep);
     what was kept, for :func:`interrupted`."""
     from .. import atlas as atlas_mod
-    from ..files import describe
+    from ..files import WriteError, describe, write_failure
 
     if len(traces) == resumed:
         if not resumed:
@@ -177,8 +177,14 @@ def _keep_traces(partial, traces, key, resumed, output) -> str:
         return (f"nothing written to {output}; the traces are lost: {partial} appeared meanwhile "
                 f"({describe(mode)}) and is left alone")
     try:
-        atlas_mod.save_traces(partial, traces, key)
+        with interruptible():  # stopped again: the file is written whole or not at all
+            atlas_mod.save_traces(partial, traces, key)
     except OSError as exc:
+        if not isinstance(exc, WriteError):
+            exc = write_failure(partial, exc)
         return f"nothing written to {output}; the traces could not be kept ({exc})"
+    except KeyboardInterrupt:
+        return (f"nothing written to {output}; stopped again while the traces were written to "
+                f"{partial}: they are lost" + (", the earlier ones kept" if resumed else ""))
     return (f"the {len(traces)} edges traced so far are kept in {partial}: run the same command "
             "again to resume")

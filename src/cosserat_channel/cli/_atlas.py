@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import stat
@@ -139,7 +140,8 @@ def _atlas(args: argparse.Namespace) -> int:
     try:
         atlas_mod.save_atlas(atlas, output)
         if kept:  # the atlas is whole: its traces are in it
-            os.unlink(partial)
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(partial)
         if args.plot is not None:
             import numpy as np
 

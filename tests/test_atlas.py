@@ -53,6 +53,46 @@ def test_threads_build_the_same_atlas():
         at.build_atlas(*box, **kw, workers=0)
 
 
+def test_a_stopped_build_resumes_to_the_same_atlas(monkeypatch, tmp_path):
+    """A build stopped after some traces holds them in the caller's dict; kept in a file and
+    read back (every field of each Edge as it was), they resume a build that traces only the
+    rest and gives the atlas of an uninterrupted build, solve counts included, whatever the
+    threads. Another key is refused."""
+    import dataclasses
+
+    kw = dict(tol=1e-3, degree=2, max_depth=1)
+    whole = at.build_atlas(BOX_A, BOX_N, **kw)
+    calls, trace = [0], regimes.trace_edge
+
+    def stopping(*args, **kwargs):
+        calls[0] += 1
+        if calls[0] > 9:
+            raise KeyboardInterrupt
+        return trace(*args, **kwargs)
+
+    monkeypatch.setattr(regimes, "trace_edge", stopping)
+    traces = {}
+    with pytest.raises(KeyboardInterrupt):
+        at.build_atlas(BOX_A, BOX_N, **kw, traces=traces)
+    assert len(traces) == 9
+    key = at.traces_key(BOX_A, BOX_N, 1e-3, 2, 1, (0.001, 100.0), at.MAX_DEGREE)
+    path = tmp_path / "a.nc.partial"
+    at.save_traces(path, traces, key)
+    back = at.load_traces(path, key)
+    assert list(back) == list(traces)
+    for k, tr in traces.items():
+        for f in dataclasses.fields(tr.edge):
+            np.testing.assert_array_equal(getattr(back[k].edge, f.name), getattr(tr.edge, f.name))
+        assert (back[k].low, back[k].solves) == (tr.low, tr.solves)
+    with pytest.raises(ParameterError, match="another atlas.*tol 0.001 there, 0.01 here"):
+        at.load_traces(path, {**key, "tol": 1e-2})
+    calls[0] = -10**6  # no more stops: count what the resumed build traces
+    resumed = at.build_atlas(BOX_A, BOX_N, **kw, traces=back, workers=2)
+    assert calls[0] + 10**6 == whole.attrs["n_traces"] - 9
+    assert len(back) == whole.attrs["n_traces"]  # the caller's dict gets the new traces too
+    assert at.to_dataset(resumed).identical(at.to_dataset(whole))
+
+
 def _status(eta, A, N, ws):
     from cosserat_channel.physics import model
 

@@ -338,6 +338,111 @@ def test_atlas_stopped_while_tracing_ends_in_one_line_and_writes_nothing(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["atlas.nc"]
 
 
+ATLAS_SMALL = ["atlas", "--A", "0.25:0.5", "--N", "0.8:0.9", "--tol", "1e-3", "--degree", "2",
+               "--max-depth", "1", "--workers", "1"]
+
+
+def _stop_after(monkeypatch, n, stop=KeyboardInterrupt):
+    """regimes.trace_edge counting its calls, raising ``stop`` at call ``n + 1`` (never if None)."""
+    from cosserat_channel import regimes
+    from cosserat_channel.regimes.trace import trace_edge as trace
+
+    calls = [0]
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        if n is not None and calls[0] > n:
+            raise stop
+        return trace(*args, **kwargs)
+
+    monkeypatch.setattr(regimes, "trace_edge", counted)
+    return calls
+
+
+@pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
+                                               (cli.Terminated, 143, "terminated")])
+def test_atlas_stopped_keeps_its_traces_and_the_same_command_resumes(
+        capsys, tmp_path, monkeypatch, stop, code, word):
+    """Ctrl-C (SIGTERM) after some traces: one line, exit 130 (143), the traces kept in
+    OUT.nc.partial; the same command resumes from them (a note says how many), traces only the
+    rest, writes the atlas an uninterrupted run writes, and removes the partial file."""
+    import xarray as xr
+
+    fresh, out = tmp_path / "fresh.nc", tmp_path / "atlas.nc"
+    whole = _stop_after(monkeypatch, None)
+    assert cli.main([*ATLAS_SMALL, "-o", str(fresh)]) == 0
+    n_all = whole[0]
+    capsys.readouterr()
+    _stop_after(monkeypatch, 7, stop)
+    assert cli.main([*ATLAS_SMALL, "-o", str(out)]) == code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"cosserat-channel: error: {word}; the 7 edges")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["atlas.nc.partial", "fresh.nc"]
+    rerun = _stop_after(monkeypatch, None)
+    assert cli.main([*ATLAS_SMALL, "-o", str(out)]) == 0
+    assert "resuming from the 7 edges traced before" in capsys.readouterr().err
+    assert rerun[0] == n_all - 7
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["atlas.nc", "fresh.nc"]
+    assert xr.load_dataset(out).identical(xr.load_dataset(fresh))
+
+
+@pytest.mark.parametrize("fault, words", [(OSError(28, "No space left on device"),
+                                           "could not be kept (cannot write"),
+                                          (KeyboardInterrupt(), "stopped again")])
+def test_atlas_stopped_while_keeping_its_traces_says_so(capsys, tmp_path, monkeypatch, fault,
+                                                         words):
+    """A full disk, or a second Ctrl-C, while the traces are written: one line saying they are
+    lost, exit 130, nothing left behind."""
+    from cosserat_channel import atlas
+
+    def failing(*args):
+        raise fault
+
+    monkeypatch.setattr(atlas, "save_traces", failing)
+    _stop_after(monkeypatch, 2)
+    assert cli.main([*ATLAS_SMALL, "-o", str(tmp_path / "a.nc")]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and words in err[0] and "a.nc.partial" in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atlas_refuses_a_partial_file_it_cannot_resume(capsys, tmp_path, monkeypatch):
+    """At OUT.nc.partial: another build's traces, a damaged file, a FIFO, a directory, a symbolic
+    link: exit 2 in one line naming it, nothing traced, the thing left exactly as it was."""
+    out = tmp_path / "atlas.nc"
+    partial = tmp_path / "atlas.nc.partial"
+    _stop_after(monkeypatch, 3)
+    assert cli.main([*ATLAS_SMALL, "--tol", "1e-2", "-o", str(out)]) == 130
+    capsys.readouterr()
+    other = partial.read_bytes()
+    calls = _stop_after(monkeypatch, 0)
+    assert cli.main([*ATLAS_SMALL, "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "holds the traces of another atlas" in err[0] and "tol" in err[0]
+    assert partial.read_bytes() == other
+    partial.write_bytes(other[: len(other) // 2])
+    assert cli.main([*ATLAS_SMALL, "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot be read as the traces" in err[0]
+    assert partial.read_bytes() == other[: len(other) // 2]
+    partial.unlink()
+    for make, what in [(os.mkfifo, "a FIFO"), (os.mkdir, "a directory"),
+                       (lambda p: os.symlink(tmp_path / "elsewhere", p), "a symbolic link")]:
+        make(partial)
+        before = partial.lstat()
+        assert cli.main([*ATLAS_SMALL, "-o", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"is {what}, not the traces" in err[0] and str(partial) in err[0]
+        after = partial.lstat()
+        assert (after.st_mode, after.st_ino, after.st_mtime_ns) == (
+            before.st_mode, before.st_ino, before.st_mtime_ns)
+        if what == "a directory":
+            partial.rmdir()
+        else:
+            partial.unlink()
+    assert calls[0] == 0 and not out.exists() and not (tmp_path / "elsewhere").exists()
+
+
 def test_every_command_keeps_an_existing_file_unless_overwrite(capsys, small_result, tmp_path):
     """query -o (a finished result too), plot -o, point --plot, phase-plane -o, boundary --plot
     and atlas -o/--plot: an existing file (or a symbolic link) is kept, exit 2 in one line

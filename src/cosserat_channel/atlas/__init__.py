@@ -84,4 +84,14 @@ from .chebyshev import _coefficients, _direction_tail, _estimate, _tail, _vander
 from .decide import classify  # noqa: F401
 from .interpolant import Atlas, classify_analytic  # noqa: F401
 from .settings import *  # noqa: F401,F403 (the atlas's constants, under the names callers use)
-from .store import cache_path, from_dataset, load_atlas, save_atlas, to_dataset  # noqa: F401
+from .store import (  # noqa: F401
+    cache_path,
+    from_dataset,
+    load_atlas,
+    load_traces,
+    partial_path,
+    save_atlas,
+    save_traces,
+    to_dataset,
+    traces_key,
+)

@@ -95,13 +95,14 @@ def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
 @dataclass
 class _Trace:
     """One traced ``(A, N)``: feasibility at the lowest traced ``eta``, the transitions, their
-    noise bands, and the :class:`regimes.Edge` behind them (its kinds and slopes seed the
-    neighbours' predictions)."""
+    noise bands, the :class:`regimes.Edge` behind them (its kinds and slopes seed the
+    neighbours' predictions) and the solves it took."""
 
     low: bool
     transitions: np.ndarray
     bands: np.ndarray
     edge: object = None
+    solves: int = 0  # the solves it took (the atlas's n_solves sums them)
 
     @property
     def signature(self):
@@ -241,7 +242,7 @@ def _nearest(index, cell_size, key):
 def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree=DEGREE,
                 max_depth=MAX_DEPTH, max_degree=MAX_DEGREE, roots=None,
                 eta_range=(rc.ETA_SEARCH_MIN, rc.ETA_SEARCH_MAX), uniform=False, progress=None,
-                workers=1):
+                workers=1, traces=None):
     """Sample every transition of feasibility in ``eta`` over ``A_range x N_range`` adaptively.
 
     A cell whose nodes share one signature gets its interpolants and their error estimate
@@ -294,6 +295,13 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
         Threads that trace a grid's nodes at once (the kernels release the GIL); the atlas is
         the same whatever their number (each trace depends on its ``(A, N)`` and on predictions
         made before the grid is traced, and the traces are kept in the order of one thread).
+    traces : dict, optional
+        The traces of an earlier build with the same arguments (an interrupted one), by
+        ``(A, N)``: each is taken instead of traced again, and each trace made is added, as soon
+        as it is made, so that the caller still holds them when the build is interrupted. The
+        build replays the earlier one (predictions from the same traces in the same order), so
+        the atlas is the one an uninterrupted build gives, and its ``n_solves`` counts the
+        earlier solves too.
 
     Returns
     -------
@@ -312,8 +320,9 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
         raise ParameterError(f"workers must be a positive integer; got {workers!r}")
     trace_range = (eta_range[0] / TRACE_WIDEN, eta_range[1] * TRACE_WIDEN)
     tau = TAU_OF_TOL * tol
-    local, counters = threading.local(), []
-    cache = {}
+    local = threading.local()
+    cache = {}  # this build's traces, in the order they are met
+    known = {} if traces is None else traces
     # Traced nodes by bucket (a root cell's eighth, at least NEAR_NODE): the nearest neighbours
     # of a node, for the kinds and slopes of its transitions and where no interpolant covers it.
     bucket = (max((A_range[1] - A_range[0]) / (8 * roots[0]), NEAR_NODE),
@@ -325,12 +334,12 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
         key, prediction = job
         if not hasattr(local, "ws"):  # a Workspace per thread: its arrays are the solver's
             local.ws = _Counting(Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS))
-            counters.append(local.ws)
+        before = local.ws.solves
         e = regimes.trace_edge(key[0], key[1], eta_range=trace_range, workspace=local.ws,
                                prediction=prediction, tau=tau)
         low = e.kind != rc.EDGE_NONE and e.eta_min == trace_range[0]
         return _Trace(bool(low), np.asarray(e.transitions, dtype=float),
-                      np.asarray(e.bands, dtype=float), e)
+                      np.asarray(e.bands, dtype=float), e, local.ws.solves - before)
 
     def prediction_for(key, predictor):
         # The interpolant's transitions (with the kinds and slopes of the nearest node of its
@@ -356,12 +365,17 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
 
     def prefetch(na, nn, predictor):
         # The nodes not traced yet, in the order one thread would trace them, with predictions
-        # made before any of them is traced.
+        # made before any of them is traced; a node the caller's traces hold is taken from them.
         missing = list(dict.fromkeys(k for k in ((a, n) for a in na for n in nn)
                                      if k not in cache))
         jobs = [(k, prediction_for(k, predictor)) for k in missing]
-        results = map(traced, jobs) if pool is None else pool.map(traced, jobs)
-        for (k, pred), tr in zip(jobs, results):
+        todo = [job for job in jobs if job[0] not in known]
+        results = iter(map(traced, todo) if pool is None else pool.map(traced, todo))
+        for k, pred in jobs:
+            if k in known:
+                tr = known[k]
+            else:
+                tr = known[k] = next(results)
             cache[k] = tr
             index.setdefault((int(math.floor(k[0] / bucket[0])),
                               int(math.floor(k[1] / bucket[1]))), []).append((k, tr))
@@ -479,5 +493,6 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
             pool.shutdown(cancel_futures=True)
     return _assemble(leaves, cache, box=box, roots=roots, degree=degree, max_depth=max_depth,
                      tol=tol, eta_range=eta_range, trace_range=trace_range, uniform=uniform,
-                     max_degree=max_degree, solves=sum(c.solves for c in counters), tally=tally,
+                     max_degree=max_degree, solves=sum(tr.solves for tr in cache.values()),
+                     tally=tally,
                      tau=tau, version=__version__)

@@ -1,7 +1,14 @@
-"""Atlas files: the Dataset layout, writing (checksummed NetCDF) and reading, the cache's path.
-Imports numpy and xarray, never numba."""
+"""Atlas files: the Dataset layout, writing (checksummed NetCDF) and reading, the cache's path;
+the traces an interrupted build keeps beside its output (``ATLAS.nc.partial``). Imports numpy and
+xarray, never numba (reading kept traces imports the solver: only a build does)."""
 
 from __future__ import annotations
+
+import errno
+import json
+import os
+import stat
+import zipfile
 
 import numpy as np
 
@@ -113,3 +120,112 @@ def load_atlas(path):
         return from_dataset(ds)
     except (KeyError, ParameterError) as exc:
         raise ParameterError(f"{str(path)!r} is not a solvability atlas ({exc})") from None
+
+
+# The kept traces of an interrupted build: one .npz file beside the atlas it was to write.
+PARTIAL_FORMAT = "cosserat-channel atlas traces 1"
+_EDGE_SCALARS = ("eta_max", "kind", "eta_min", "status_above", "continued")
+_EDGE_ARRAYS = ("transitions", "bands", "tangential", "smooth", "slopes")  # one per transition
+
+
+def partial_path(output):
+    """Where a build writing ``output`` keeps its traces when it is interrupted."""
+    return os.fspath(output) + ".partial"
+
+
+def traces_key(A_range, N_range, tol, degree, max_depth, eta_range, max_degree, roots=None,
+               uniform=False) -> dict:
+    """Everything the traces of :func:`build_atlas` depend on: its arguments (as
+    :func:`check_build_arguments` returns them), the package's version and the digest of its
+    sources. Kept traces are resumed only by a build with the same key."""
+    from .. import __version__
+    from ..measure.machine import source_digest
+
+    return {"format": PARTIAL_FORMAT, "cosserat_channel_version": __version__,
+            "sources": source_digest(), "A": [float(v) for v in A_range],
+            "N": [float(v) for v in N_range], "tol": float(tol), "degree": int(degree),
+            "max_degree": int(max_degree), "max_depth": int(max_depth),
+            "eta_range": [float(v) for v in eta_range],
+            "roots": None if roots is None else [int(v) for v in roots],
+            "uniform": bool(uniform)}
+
+
+def save_traces(path, traces, key):
+    """Write ``traces`` (:func:`build_atlas`'s, by ``(A, N)``) with ``key``
+    (:func:`traces_key`) to ``path``, a regular file, through :func:`files.atomic_output`."""
+    from ..files import atomic_output
+
+    trs = list(traces.values())
+    edges = [tr.edge for tr in trs]
+    arrays = {"key": np.array(json.dumps(key, sort_keys=True)),
+              "A": np.array([k[0] for k in traces], dtype=float),
+              "N": np.array([k[1] for k in traces], dtype=float),
+              "low": np.array([tr.low for tr in trs], dtype=bool),
+              "solves": np.array([tr.solves for tr in trs], dtype=np.int64),
+              "n": np.array([e.transitions.size for e in edges], dtype=np.int64)}
+    for name in _EDGE_SCALARS:
+        arrays[name] = np.array([getattr(e, name) for e in edges])
+    for name in _EDGE_ARRAYS:
+        arrays[name] = np.concatenate([np.asarray(getattr(e, name)) for e in edges]
+                                      + [np.empty(0)])
+
+    def write(tmp):
+        with open(tmp, "wb") as f:  # a file object: np.savez appends .npz to a bare path
+            np.savez(f, **arrays)
+
+    atomic_output(path, write, stream=False)
+
+
+def load_traces(path, key):
+    """The traces kept at ``path`` by a build with ``key`` (:func:`traces_key`), by ``(A, N)``,
+    or None when there is nothing at ``path``.
+
+    ParameterError (one line, naming ``path``) when ``path`` is not a regular file (a directory,
+    a FIFO, a device, a symbolic link: never opened or followed), cannot be read as kept traces,
+    or holds another build's (naming the arguments that differ). The file is left as it is.
+    """
+    from ..files import describe
+    from ..regimes.edge import Edge
+    from .build import _Trace
+
+    path = os.fspath(path)
+    move = "move it away, or choose another output"
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError as exc:
+        if isinstance(exc, FileNotFoundError) or exc.errno in (errno.ENAMETOOLONG, errno.ENOTDIR):
+            return None  # nothing there, nor can there be
+        raise ParameterError(f"cannot look at {path!r}: {exc.strerror}; it is left alone: "
+                             f"{move}") from None
+    if not stat.S_ISREG(mode):
+        raise ParameterError(f"{path!r} is {describe(mode)}, not the traces of an interrupted "
+                             f"atlas; it is left alone: {move}")
+    try:
+        with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
+            v = {name: z[name] for name in z.files}
+        theirs = json.loads(str(v["key"]))
+        n = v["n"].astype(np.int64)
+        m = len(n)
+        if not (all(v[f].shape == (m,) for f in ("A", "N", "low", "solves", *_EDGE_SCALARS))
+                and all(v[f].shape == (int(n.sum()),) for f in _EDGE_ARRAYS)
+                and isinstance(theirs, dict)):
+            raise ValueError("its arrays do not fit together")
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise ParameterError(f"{path!r} cannot be read as the traces of an interrupted atlas "
+                             f"({' '.join(str(exc).split())}); it is kept: {move}") from None
+    if theirs != json.loads(json.dumps(key, sort_keys=True)):
+        diff = [f"{k} {theirs.get(k)!r} there, {key.get(k)!r} here"
+                for k in sorted(set(key) | set(theirs)) if theirs.get(k) != key.get(k)]
+        raise ParameterError(f"{path!r} holds the traces of another atlas ({'; '.join(diff)}); "
+                             f"it is kept: rerun with its arguments to resume it, or {move}")
+    out, at = {}, np.concatenate([[0], np.cumsum(n)])
+    for k in range(m):
+        per = {f: v[f][at[k]:at[k + 1]] for f in _EDGE_ARRAYS}
+        e = Edge(float(v["A"][k]), float(v["N"][k]), float(v["eta_max"][k]), int(v["kind"][k]),
+                 float(v["eta_min"][k]), int(v["status_above"][k]),
+                 per["transitions"].astype(float), per["bands"].astype(float),
+                 per["tangential"].astype(bool), per["smooth"].astype(bool),
+                 per["slopes"].astype(float), bool(v["continued"][k]))
+        out[(e.A, e.N)] = _Trace(bool(v["low"][k]), e.transitions, e.bands, e,
+                                 int(v["solves"][k]))
+    return out

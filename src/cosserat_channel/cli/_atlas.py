@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
+import stat
 
 from . import (
     EXIT_FAILURE,
@@ -22,6 +24,7 @@ from . import (
     interrupted,
     register,
 )
+from ..files import STREAM, output_kind
 
 
 def parse_range(text: str, option: str) -> tuple:
@@ -49,7 +52,9 @@ def _atlas_arguments(p: argparse.ArgumentParser) -> None:
     )
 
     out = p.add_mutually_exclusive_group(required=True)
-    out.add_argument("-o", "--output", metavar="ATLAS.nc", help="NetCDF file to write")
+    out.add_argument("-o", "--output", metavar="ATLAS.nc",
+                     help="NetCDF file to write; the edges traced before Ctrl-C are kept in "
+                     "ATLAS.nc.partial, and the same command resumes from them")
     out.add_argument("--cache", action="store_true",
                      help="write the cached atlas that 'plot --regime' uses when no --atlas is "
                      "given ($XDG_CACHE_HOME/cosserat-channel/atlas.nc)")
@@ -91,8 +96,8 @@ def _atlas(args: argparse.Namespace) -> int:
     if workers < 1:
         raise CliError(f"--workers must be a positive integer; got {workers}")
     try:
-        atlas_mod.check_build_arguments(A, N, args.tol, args.degree, args.max_depth, eta_range,
-                                        args.max_degree)
+        built = atlas_mod.check_build_arguments(A, N, args.tol, args.degree, args.max_depth,
+                                                eta_range, args.max_degree)
     except ParameterError as exc:  # the message names the argument and its allowed range
         raise CliError(str(exc)) from None
     output = atlas_mod.cache_path() if args.cache else args.output
@@ -102,19 +107,31 @@ def _atlas(args: argparse.Namespace) -> int:
     if args.plot is not None:
         check_not_input(args.plot, [output], "--plot")
         _figure_output(args.plot, "--plot", overwrite=args.overwrite)
+    # The traces are kept beside a file output when the build is stopped, and resumed from there:
+    # not beside a stream (a FIFO, /dev/stdout), whose directory is not the user's to write in.
+    partial = None if output_kind(output) == STREAM else atlas_mod.partial_path(output)
+    key = atlas_mod.traces_key(*built, args.max_degree)
+    try:
+        traces = None if partial is None else atlas_mod.load_traces(partial, key)
+    except ParameterError as exc:  # another build's, damaged, or not a file: left alone
+        raise CliError(str(exc)) from None
+    kept = traces is not None
+    if kept:
+        _note(f"resuming from the {len(traces)} edges traced before, kept in {partial}")
+    else:
+        traces = {}
+    resumed = len(traces)
     try:
         with interruptible(), Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
-            def progress(leaves, queued, traces):
-                bar.update(f"{leaves} cells done, {queued} queued, {traces} edges traced")
+            def progress(leaves, queued, traced):
+                bar.update(f"{leaves} cells done, {queued} queued, {traced} edges traced")
 
             atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
                                           max_depth=args.max_depth, max_degree=args.max_degree,
                                           eta_range=eta_range, progress=progress,
-                                          workers=workers)
+                                          workers=workers, traces=traces)
     except KeyboardInterrupt as exc:
-        # The traces live in memory until the atlas is whole: nothing is written, nothing lost.
-        return interrupted(exc, f"nothing written to {output} (the traces are kept in memory "
-                           "until the atlas is whole: a rerun traces them again)")
+        return interrupted(exc, _keep_traces(partial, traces, key, resumed, output))
     n_unres = int((atlas.leaf_n < 0).sum())
     over = int((atlas.leaf_error > atlas.tol).sum()) - n_unres
     a = atlas.attrs
@@ -124,6 +141,9 @@ def _atlas(args: argparse.Namespace) -> int:
           f"{a['n_predicted']} predicted traces made afresh)")
     try:
         atlas_mod.save_atlas(atlas, output)
+        if kept:  # the atlas is whole: its traces are in it
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(partial)
         if args.plot is not None:
             import numpy as np
 
@@ -136,3 +156,39 @@ def _atlas(args: argparse.Namespace) -> int:
     if args.cache:
         _note(f"cached as {output}: 'plot --regime' draws its edges from it")
     return EXIT_OK
+
+
+def _keep_traces(partial, traces, key, resumed, output) -> str:
+    """Write the traces of a stopped build to ``partial`` (unless there is nothing new to keep);
+    what was kept, for :func:`interrupted`."""
+    from .. import atlas as atlas_mod
+    from ..files import WriteError, describe, write_failure
+
+    if len(traces) == resumed:
+        if not resumed:
+            return f"nothing written to {output} (no edge was traced yet)"
+        return (f"nothing written to {output}; the {resumed} edges traced before are still kept "
+                f"in {partial}: run the same command again to resume")
+    if partial is None:
+        return (f"nothing written to {output} (an atlas written to a stream keeps no traces: "
+                "a rerun traces them again)")
+    try:
+        mode = os.lstat(partial).st_mode
+    except OSError:  # nothing there (or a name too long for one: saving says so)
+        mode = None
+    if mode is not None and not (resumed and stat.S_ISREG(mode)):
+        # Made by someone else while the build ran: never written over.
+        return (f"nothing written to {output}; the traces are lost: {partial} appeared meanwhile "
+                f"({describe(mode)}) and is left alone")
+    try:
+        with interruptible():  # stopped again: the file is written whole or not at all
+            atlas_mod.save_traces(partial, traces, key)
+    except OSError as exc:
+        if not isinstance(exc, WriteError):
+            exc = write_failure(partial, exc)
+        return f"nothing written to {output}; the traces could not be kept ({exc})"
+    except KeyboardInterrupt:
+        return (f"nothing written to {output}; stopped again while the traces were written to "
+                f"{partial}: they are lost" + (", the earlier ones kept" if resumed else ""))
+    return (f"the {len(traces)} edges traced so far are kept in {partial}: run the same command "
+            "again to resume")

@@ -29,6 +29,17 @@ def cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "cosserat-channel"
 
 
+def source_digest() -> str:
+    """SHA-256 (hex) of every source file of the package, each with its path inside it: which
+    solver exactly this is, also for an installed copy that has no git revision."""
+    here = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(here.rglob("*.py")):
+        digest.update(path.relative_to(here).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
 def _numba_cache_key() -> str:
     """The name of this source tree's Numba cache directory: ``numba-<version>-<hash>``.
 
@@ -37,12 +48,7 @@ def _numba_cache_key() -> str:
     reloaded unchanged after an edit (or a ``git pull``) of those modules: a silent wrong answer.
     Keying the directory on a hash of every source file makes any change a clean recompile.
     """
-    here = Path(__file__).resolve().parent
-    digest = hashlib.sha256()
-    for path in sorted(here.rglob("*.py")):
-        digest.update(path.relative_to(here).as_posix().encode())
-        digest.update(path.read_bytes())
-    return f"numba-{__version__}-{digest.hexdigest()[:16]}"
+    return f"numba-{__version__}-{source_digest()[:16]}"
 
 
 _KEY_NAME = re.compile(r"numba-.+-[0-9a-f]{16}")

@@ -138,8 +138,7 @@ def traces_key(A_range, N_range, tol, degree, max_depth, eta_range, max_degree, 
     """Everything the traces of :func:`build_atlas` depend on: its arguments (as
     :func:`check_build_arguments` returns them), the package's version and the digest of its
     sources. Kept traces are resumed only by a build with the same key."""
-    from .. import __version__
-    from ..measure.machine import source_digest
+    from .. import __version__, source_digest
 
     return {"format": PARTIAL_FORMAT, "cosserat_channel_version": __version__,
             "sources": source_digest(), "A": [float(v) for v in A_range],

@@ -6,7 +6,6 @@ machine and the exact solver that produced it); ``benchmarks/`` prints them too.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import platform
 import subprocess
@@ -54,13 +53,11 @@ def git_revision() -> str:
 
 
 def source_digest() -> str:
-    """sha256 (12 hex digits) of every source file of the package: which solver exactly ran,
-    also for an installed copy that has no git revision."""
-    digest = hashlib.sha256()
-    for path in sorted(PACKAGE_DIR.rglob("*.py")):
-        digest.update(path.relative_to(PACKAGE_DIR).as_posix().encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:12]
+    """The package's source digest (:func:`cosserat_channel.source_digest`) to 12 hex digits, as
+    reports print it."""
+    from .. import source_digest as digest
+
+    return digest()[:12]
 
 
 def version_table(**others) -> dict:

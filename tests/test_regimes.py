@@ -531,6 +531,22 @@ def test_corrector_costs_few_marches_from_a_good_prediction():
     assert abs(c.eta_max / fresh.eta_max - 1) < 1e-8
 
 
+def test_corrector_closes_from_a_prediction_thirty_percent_off():
+    """A lower edge predicted 30 % low (a coarse interpolant next to N = 1) with a neighbour's
+    slope is still corrected, within regimes.CORRECT_MAX_EVALS marches, to the fresh trace's
+    transition (1e-8), not handed back to a fresh trace."""
+    A, N = 0.25, 0.942
+    fresh = regimes.trace_edge(A, N)
+    assert fresh.transitions.size == 2
+    t = fresh.transitions[0]
+    guess = regimes.Guess(0.7 * t, 1, 0.05, 40.4)
+    ws = _Count()
+    c = regimes.correct_transition(ws, A, N, guess, tau=1.25e-9)
+    assert c is not None and not c.outside
+    assert ws.solves <= regimes.CORRECT_MAX_EVALS
+    assert abs(c.eta / t - 1) < 1e-8
+
+
 def test_a_wrong_prediction_is_never_accepted():
     """A prediction with a transition too many, or on the wrong side, is rejected by the
     corrector or the checks of the range's ends; trace_edge then traces afresh."""

@@ -10,7 +10,7 @@ import cosserat_channel
 from cosserat_channel import outputs as out_
 from cosserat_channel import status as st
 from cosserat_channel.parameters import PARAMETERS, ParameterError
-from cosserat_channel.solver import arrays
+from cosserat_channel.sweep import arrays
 from cosserat_channel.sweep.arrays import solve
 from cosserat_channel.solver.point import solve_point
 

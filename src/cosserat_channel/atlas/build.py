@@ -290,7 +290,9 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
         Split every cell to ``max_depth`` whatever its error, at ``degree`` (the benchmark's
         non-adaptive baseline).
     progress : callable, optional
-        ``progress(leaves, cells_queued, traces)`` after each cell.
+        ``progress(done, total, text)`` (the package's progress protocol) after each cell: the
+        cells done against those done and queued (the queue grows as cells split), and the
+        edges traced.
     workers : int
         Threads that trace a grid's nodes at once (the kernels release the GIL); the atlas is
         the same whatever their number (each trace depends on its ``(A, N)`` and on predictions
@@ -487,7 +489,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                 else:
                     leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
             if progress is not None:
-                progress(len(leaves), len(queue), len(cache))
+                progress(len(leaves), len(leaves) + len(queue),
+                         f"cells done, {len(cache)} edges traced")
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)

@@ -123,12 +123,9 @@ def _atlas(args: argparse.Namespace) -> int:
     resumed = len(traces)
     try:
         with interruptible(), Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
-            def progress(leaves, queued, traced):
-                bar.update(f"{leaves} cells done, {queued} queued, {traced} edges traced")
-
             atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
                                           max_depth=args.max_depth, max_degree=args.max_degree,
-                                          eta_range=eta_range, progress=progress,
+                                          eta_range=eta_range, progress=bar.report,
                                           workers=workers, traces=traces)
     except KeyboardInterrupt as exc:
         return interrupted(exc, _keep_traces(partial, traces, key, resumed, output))

@@ -5,7 +5,11 @@ parser and a function that runs it and returns the exit code. Add a subcommand w
 :func:`register`; :func:`main` needs no change. This module holds what the commands share (the
 parser, the error and progress lines, the point and material arguments, the output checks); the
 commands live by theme in ``_point`` (point, phase-plane), ``_sweeps`` (run, query, info),
-``_regimes`` (boundary, plot), ``_atlas`` (atlas) and ``_reports`` (stability, bench).
+``_regimes`` (boundary, plot), ``_atlas`` (atlas), ``_reports`` (stability, bench) and
+``_paper`` (paper).
+
+Layer: the top one. May import every package; nothing imports it. The computing packages are
+imported inside the commands, so that ``--help`` and a refused input never load the kernels.
 
 Exit codes: 0 for an answer (a point without solution is an answer: its status says why), 1 for
 a failure after the input was accepted (e.g. the plot file could not be written), 2 for input

@@ -11,6 +11,10 @@ figure as a PNG and the comparison as Markdown, without a notebook.
 The paper's figure numbers are used (its ``\\label``s differ: ``fig:new`` is figure 9,
 ``fig:9`` figure 10, ``fig:10`` figure 11 and ``fig:11`` figure 12). Stresses are drawn divided
 by ``nu`` (the package's scaled variables; the paper's bars are ``nu`` times them).
+
+Layer: above the solver, the regimes and the sweeps, whose public functions it calls; below the
+command line. May import every computing package and :mod:`cosserat_channel.plot` (to save the
+figures); never the command line.
 """
 from __future__ import annotations
 

@@ -6,6 +6,12 @@ interactive backend picked up from the environment, and nothing to close afterwa
 written atomically (:func:`save_figure`), so an interrupted run never leaves a truncated image
 behind. In Jupyter a figure shows itself as a PNG (``display(fig)``, or a cell's last value),
 although pyplot, which registers that display for its own figures, is never imported.
+
+Layer: beside the results reader, below the paper's figures, the measurements and the command
+line. May import matplotlib, numpy, xarray and the vocabulary modules (outputs, parameters,
+status, regime_codes, and the closed forms of physics.analytic and physics.asymptotics); it takes
+data and never solves: never the
+solver, the sweeps, the regimes or the atlas.
 """
 
 from __future__ import annotations

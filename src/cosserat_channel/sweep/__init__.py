@@ -2,12 +2,16 @@
 
 The pipeline is :mod:`.engine`; it plans the blocks (:mod:`.plan`), checks the disk and memory
 they need (:mod:`.budget`), solves them (:mod:`.block`) on threads or a cluster
-(:mod:`.schedulers`), keeps each in the working store (:mod:`~cosserat_channel.sweep.store`) and writes the file tile by
-tile (:mod:`.writer`, :mod:`.dataset`). :mod:`.arrays` solves arrays of points in memory the
-same way, without a file.
+(:mod:`.schedulers`), keeps each in the working store (:mod:`~cosserat_channel.sweep.store`)
+and writes the file tile by tile (:mod:`.writer`, :mod:`.dataset`). :mod:`.arrays` solves
+arrays of points in memory the same way, without a file.
 
 ``run_sweep`` is imported on first use, so that parsing a sweep file (:mod:`.spec`) never loads
 the kernels.
+
+Layer: above :mod:`cosserat_channel.solver` (its batch kernel and slot layout) and the
+vocabulary modules (parameters, outputs, status, files, netcdf_policy); below the paper's figures,
+the measurements and the command line. Never imports plotting, the regimes or the atlas.
 """
 
 __all__ = ["run_sweep"]

@@ -10,9 +10,9 @@
 - :mod:`.harness`: what the reports and the scripts in ``benchmarks/`` share: best-of timing,
   the header, PASS/FAIL verdicts and the JSON record of ``--json``;
 
-Layer: above the solver, the regimes and the figures. Direction of the imports: these modules use the solver, :mod:`cosserat_channel.regimes` and
-:mod:`cosserat_channel.plot`; nothing else in the package imports them, except the command
-line (lazily, inside its ``stability`` and ``bench`` commands). The figures of the reports live
+Layer: above the solver, the regimes and the figures, which these modules use; nothing else
+in the package imports them, except the command line (lazily, inside its ``stability`` and
+``bench`` commands). The figures of the reports live
 in :mod:`cosserat_channel.plot.stability` and :mod:`cosserat_channel.plot.workprecision` and take
 the reports' data.
 """

@@ -170,22 +170,22 @@ def figure10(pf, sub):
     ax.set_xlim(0.0, 1.0)
     xy, yx = outputs.PROFILES["sigma_xy"].symbol, outputs.PROFILES["sigma_yx"].symbol
     ax.plot(d["xi"], d["sigma_xy"], color="k", lw=1.6, label=xy + r" $= -\xi$ (both $\varepsilon$)")
-    eps = sorted(d["sigma_yx"], reverse=True)
-    for e, ls, marks in zip(eps, (DOTTED, LONG_DASHED), (CIRCLE, SQUARE)):
-        ax.plot(d["xi"], d["sigma_yx"][e], color="k", ls=ls, lw=1.8, label=f"{yx}, {_eps_label(e)}")
+    _per_eps(ax, d, "sigma_yx", (DOTTED, LONG_DASHED), yx)
+    ax.legend(loc="lower left")
+
+
+def _per_eps(ax, d, name, dashes, label):
+    """``d[name][eps]`` against xi for each eps (largest first) with its asymptote's markers."""
+    for e, ls, marks in zip(sorted(d[name], reverse=True), dashes, (CIRCLE, SQUARE)):
+        ax.plot(d["xi"], d[name][e], color="k", ls=ls, lw=1.8, label=f"{label}, {_eps_label(e)}")
         ax.plot(*_markers(d["xi"], d["asymptotic"][e]), label=f"{ASYMPTOTIC}, {_eps_label(e)}",
                 **marks)
-    ax.legend(loc="lower left")
 
 
 def figure11(pf, sub):
     d = pf.data
     ax = _xi_axes(sub, pf, "m")
-    eps = sorted(d["m"], reverse=True)
-    for e, ls, marks in zip(eps, (DOTTED, DASHED), (CIRCLE, SQUARE)):
-        ax.plot(d["xi"], d["m"][e], color="k", ls=ls, lw=1.8, label=f"numerical, {_eps_label(e)}")
-        ax.plot(*_markers(d["xi"], d["asymptotic"][e]), label=f"{ASYMPTOTIC}, {_eps_label(e)}",
-                **marks)
+    _per_eps(ax, d, "m", (DOTTED, DASHED), "numerical")
     ax.legend(loc="upper left")
 
 

@@ -572,11 +572,13 @@ def plot(atlas, A_rng, N_rng, summary):
         run_sweep({"grid": {"eps": 0.01, "L": 10, "K": 0.5, "A": {"linspace": [*A_rng, 41]},
                             "N": {"linspace": [*N_rng, 26]}}}, workers=1).to_netcdf(res)
         cmd = [sys.executable, "-m", "cosserat_channel.cli", "plot", res, "--regime", "--x", "A",
-               "--y", "N", "--atlas", path, "-o", os.path.join(tmp, "map.png")]
+               "--y", "N", "--atlas", path, "-o", os.path.join(tmp, "map.png"), "--overwrite"]
         times = []
         for _ in range(5):
             t0 = time.perf_counter()
-            subprocess.run(cmd, check=True, capture_output=True)
+            run = subprocess.run(cmd, capture_output=True, text=True)
+            if run.returncode:
+                raise SystemExit(f"bench_atlas: plot --regime failed: {run.stderr.strip()}")
             times.append(time.perf_counter() - t0)
         log(f"plot --regime --atlas (fresh process): best of 5 {min(times):.2f} s, median "
             f"{np.median(times):.2f} s; load {os.getloadavg()[0]:.1f}")

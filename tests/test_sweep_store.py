@@ -118,8 +118,9 @@ def test_different_sweep_refused_with_store_untouched(tmp_path, monkeypatch, cap
     assert_identical(out, run_sweep(str(first)))
 
 
-def test_other_block_size_refused_but_plain_rerun_adopts_it(tmp_path, monkeypatch, capsys):
-    """An explicit --block-size unlike the store's is refused; without it the store's is used."""
+def _crashed_before_assembly(tmp_path, monkeypatch):
+    """A run of SMALL in blocks of 3 that crashes after every block is stored, before the file is
+    assembled: (sweep file, output path)."""
     toml = tmp_path / "s.toml"
     toml.write_text(SMALL)
     out = tmp_path / "out.nc"
@@ -127,6 +128,12 @@ def test_other_block_size_refused_but_plain_rerun_adopts_it(tmp_path, monkeypatc
         m.setattr(engine, "assemble", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("crash")))
         with pytest.raises(RuntimeError):
             run_sweep(str(toml), str(out), block_size=3)
+    return toml, out
+
+
+def test_other_block_size_refused_but_plain_rerun_adopts_it(tmp_path, monkeypatch, capsys):
+    """An explicit --block-size unlike the store's is refused; without it the store's is used."""
+    toml, out = _crashed_before_assembly(tmp_path, monkeypatch)
     assert cli.main(["run", str(toml), "-o", str(out), "--block-size", "2"]) == 2
     assert "--block-size 3" in capsys.readouterr().err
     assert cli.main(["run", str(toml), "-o", str(out), "--no-reduce"]) == 2
@@ -430,13 +437,7 @@ def test_edited_manifest_resumes_from_the_blocks_its_digests_prove(tmp_path, mon
     so the rerun resumes with every block and gives the uninterrupted result; a warning says so."""
     import json
 
-    toml = tmp_path / "s.toml"
-    toml.write_text(SMALL)
-    out = tmp_path / "out.nc"
-    with monkeypatch.context() as m:
-        m.setattr(engine, "assemble", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("crash")))
-        with pytest.raises(RuntimeError):
-            run_sweep(str(toml), str(out), block_size=3)
+    toml, out = _crashed_before_assembly(tmp_path, monkeypatch)
     path = Path(partial_dir(out)) / "manifest.json"
     manifest = json.loads(path.read_text())
     n_blocks = manifest["n_blocks"]

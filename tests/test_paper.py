@@ -43,6 +43,18 @@ def test_paper_command_writes_every_figure_and_table_1(tmp_path, capsys):
     assert (out / "figure2.png").read_bytes() == before
 
 
+def test_overwrite_replaces_what_an_earlier_run_wrote(tmp_path):
+    """A second run into the same directory is refused before any work, and with overwrite it
+    replaces the files (the docs build redraws the figures this way)."""
+    out = tmp_path / "p"
+    first = paper.write_paper_figures(out, keys=("table1",))
+    before = (out / "comparison.md").read_text()
+    with pytest.raises(ValueError, match="kept"):
+        paper.write_paper_figures(out, keys=("table1",))
+    assert paper.write_paper_figures(out, keys=("table1",), overwrite=True) == first
+    assert (out / "comparison.md").read_text() == before
+
+
 def test_paper_command_touches_nothing_it_did_not_make(tmp_path, capsys):
     """A FIFO where a figure goes is refused even with --overwrite, and so is a file as DIR
     and a DIR whose parent does not exist; one line, exit 2, nothing solved or written."""

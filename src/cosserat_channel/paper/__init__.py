@@ -76,7 +76,7 @@ def write_paper_figures(directory, *, coarse=False, overwrite=False, keys=KEYS,
     """Compute and draw every figure into ``directory`` (created if missing): ``<key>.png`` and
     ``comparison.md``. Existing files are kept (ValueError before any work) unless
     ``overwrite``. Returns the paths written."""
-    from ..files import output_problem
+    from ..files import output_problem, write_text
     from ..plot import paper as plot_paper
     from ..plot import save_figure
 
@@ -95,7 +95,7 @@ def write_paper_figures(directory, *, coarse=False, overwrite=False, keys=KEYS,
             raise ValueError(f"cannot create {directory!r}: directory {parent!r} does not exist")
         os.mkdir(directory)  # one level, as -o FILE needs its directory to exist
     for t in targets:
-        problem = output_problem(t)
+        problem = output_problem(t, overwrite=overwrite)
         if problem:
             raise ValueError(problem)
     figures = paper_figures(coarse, keys, progress)
@@ -108,12 +108,6 @@ def write_paper_figures(directory, *, coarse=False, overwrite=False, keys=KEYS,
     for pf in figures.values():
         text += [f"## {pf.title}", "", f"![{pf.key}]({pf.key}.png)", "", pf.rows_markdown(), ""]
     path = os.path.join(directory, "comparison.md")
-    from ..files import atomic_output
-
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write("\n".join(text))
-
-    atomic_output(path, write)
+    write_text(path, "\n".join(text))
     written.append(path)
     return written

@@ -218,6 +218,17 @@ def test_classify_rejects_bad_points(atlas):
         at.classify([0.1, 2.0], 1.0, 0.5, 0.3, 0.85, atlas=atlas)
 
 
+def test_whole_plane_at_a_shallow_depth_saves_and_loads(tmp_path):
+    """Cells with different numbers of transitions side by side (the whole plane, split once)
+    make one file: saving once failed there on the transition dimension's size."""
+    a = at.build_atlas((-1.0, 5.0), (0.3, 3.0), tol=1e-3, degree=4, max_depth=1, workers=2)
+    assert len({int(n) for n in a.leaf_n if n >= 0}) > 1  # leaves with 0, 1 and 2 transitions
+    path = tmp_path / "plane.nc"
+    at.save_atlas(a, path)
+    b = at.load_atlas(path)
+    assert at.to_dataset(b).identical(at.to_dataset(a))
+
+
 def test_cli_atlas_and_regime_map_from_it(tmp_path, capsys, monkeypatch, atlas_file):
     """atlas: bad input is one line, an existing file is kept; plot --regime --atlas traces
     nothing; the cached atlas is used when it covers the map."""

@@ -1,8 +1,32 @@
-"""Helpers shared by the tests: the result-file assertion of the sweep-store and fault tests, and
-a command line in a subprocess for the interruption tests."""
+"""Helpers shared by the tests: a small sweep, the result-file assertion of the sweep-store and
+fault tests, a command line in a subprocess for the interruption tests, and Python in a fresh
+process for the import tests."""
+
+import os
+import subprocess
+import sys
 
 import numpy as np
 import xarray as xr
+
+# Eight points, solved in well under a second once the kernels are loaded.
+SMALL_SWEEP = """\
+[grid]
+eps = [0.02, 0.05]
+L = 10.0
+K = [0.5, 5.0]
+A = 0.3333333333333333
+N = 1.0
+"""
+
+
+def run_python(code: str) -> str:
+    """Run ``code`` in a fresh interpreter (matplotlib's Agg backend); its stdout, stripped.
+    Fails the test when it exits non-zero."""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=dict(os.environ, MPLBACKEND="Agg"))
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout.strip()
 
 
 def assert_identical(path, ds):

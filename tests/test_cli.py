@@ -11,6 +11,7 @@ import pytest
 
 from cosserat_channel import cli
 from cosserat_channel.solver.point import solve_point
+from support import SMALL_SWEEP
 
 # Paper figure 2: eps = 1/30, L = 10, K = 0.5, A = 1/3, N = 1. str() of a float round-trips, so
 # the command line sees exactly the floats the API call below gets.
@@ -233,14 +234,6 @@ def test_installed_executable_error_is_one_line():
 # ---------------------------------------------------------------------------------------------
 # Outputs never replace inputs; finished results are kept unless --overwrite
 # ---------------------------------------------------------------------------------------------
-SMALL_SWEEP = """\
-[grid]
-eps = [0.02, 0.05]
-L = 10.0
-K = [0.5, 5.0]
-A = 0.3333333333333333
-N = 1.0
-"""
 
 
 @pytest.fixture()

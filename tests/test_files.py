@@ -17,15 +17,8 @@ import pytest
 
 from cosserat_channel import cli, files
 from cosserat_channel.sweep import run_sweep
+from support import SMALL_SWEEP as SMALL
 
-SMALL = """\
-[grid]
-eps = [0.02, 0.05]
-L = 10.0
-K = [0.5, 5.0]
-A = 0.3333333333333333
-N = 1.0
-"""
 QUERY = ("--sel", "K=0.5", "--format", "csv")
 PLOT = ("--x", "eps", "--y", "Delta", "--hue", "K")
 
@@ -43,17 +36,17 @@ def result(tmp_path_factory):
 def char_device(path):
     """A private node of the null device (major 1, minor 3) at ``path``; skip where it cannot be
     made (not root)."""
-    try:
-        os.mknod(path, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
-    except PermissionError:
-        pytest.skip("making a device node needs root")
-    return path
+    return _device_node(path, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
 
 
 def block_device(path):
     """A private block-device node at ``path`` (never opened: it must be refused)."""
+    return _device_node(path, 0o600 | stat.S_IFBLK, os.makedev(7, 250))
+
+
+def _device_node(path, mode, device):
     try:
-        os.mknod(path, 0o600 | stat.S_IFBLK, os.makedev(7, 250))
+        os.mknod(path, mode, device)
     except PermissionError:
         pytest.skip("making a device node needs root")
     return path

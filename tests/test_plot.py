@@ -9,6 +9,7 @@ from matplotlib.figure import Figure
 from cosserat_channel import outputs, plot, run_sweep
 from cosserat_channel.parameters import PARAMETERS
 from cosserat_channel.solver.point import solve_point
+from support import run_python
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -202,15 +203,9 @@ def test_result_without_profile_is_refused():
 
 def test_plot_imports_no_solver_module():
     """Figures take data: importing every plot module loads neither numba nor a solver module."""
-    import subprocess
-    import sys
-
     code = ("import sys; import cosserat_channel.plot.lines, cosserat_channel.plot.regimes, "
             "cosserat_channel.plot.stability, cosserat_channel.plot.workprecision; "
             "print(sorted(m for m in sys.modules if m == 'numba' or m.startswith(tuple("
             "'cosserat_channel.' + s for s in ('integrate', 'solver', 'regimes', 'atlas', 'measure', "
             "'physics.model', 'physics.reference')))))")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env=dict(os.environ, MPLBACKEND="Agg"))
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "[]"
+    assert run_python(code) == "[]"

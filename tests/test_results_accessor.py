@@ -2,9 +2,6 @@
 the status as categories, on a real sweep file; the accessor's module loads no numba."""
 
 import math
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -14,6 +11,7 @@ from cosserat_channel import run_sweep
 from cosserat_channel import status as st
 from cosserat_channel.physics import closure
 from cosserat_channel.results import selection
+from support import run_python
 
 MATERIAL = {"d_p": 0.002, "rho_p": 2940.0, "phi": 25.0}
 SWEEP = {
@@ -116,10 +114,7 @@ def test_the_accessor_module_loads_no_numba(path):
             "ds.cosserat.in_si('m_wall'); "
             "print(sorted(m for m in sys.modules if m == 'numba' or m.startswith(("
             "'cosserat_channel.solver', 'cosserat_channel.integrate'))))")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env=dict(os.environ, MPLBACKEND="Agg"))
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "[]"
+    assert run_python(code) == "[]"
 
 
 def test_run_sweep_results_have_the_accessor():

@@ -19,9 +19,9 @@ if TYPE_CHECKING:  # imported where used: a small query never imports xarray (Li
 
 from ..files import format_size
 from .render import _python, _text
-from .flags import (QueryError, _is_flag, _show, check_flags, flag_counts, printable,
+from .flags import (QueryError, _is_flag, _show, flag_counts, printable,
                     status_counts)
-from .selection import is_result, open_netcdf, read_problem
+from .selection import flags_checked, is_result, open_netcdf, read_problem
 
 SWEEP_TEXT_LINES = 12
 PROVENANCE = ("cosserat_channel_version", "created", "rtol", "atol", "sweep_sha256", "Conventions")
@@ -50,12 +50,7 @@ def open_described(path) -> xr.Dataset:
         ds.close()
         raise QueryError(f"{os.fspath(path)}: not a cosserat-channel result file (nor a "
                          "boundary or atlas file of the tool)")
-    try:
-        check_flags(ds)  # the counts it reports need usable flags
-    except QueryError as exc:
-        ds.close()
-        raise QueryError(f"{os.fspath(path)}: {exc}") from None
-    return ds
+    return flags_checked(ds, path)  # the counts it reports need usable flags
 
 
 # ---------------------------------------------------------------------------------------------

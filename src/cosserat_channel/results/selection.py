@@ -165,6 +165,17 @@ def open_netcdf(path) -> xr.Dataset:
         raise QueryError(f"{path}: cannot open as a NetCDF result file ({reason})") from None
 
 
+def flags_checked(ds, path) -> xr.Dataset:
+    """``ds`` (opened from ``path``) once its flag variables are usable (:func:`.flags.check_flags`);
+    otherwise it is closed and the QueryError names ``path``."""
+    try:
+        check_flags(ds)
+    except QueryError as exc:
+        ds.close()
+        raise QueryError(f"{os.fspath(path)}: {exc}") from None
+    return ds
+
+
 def is_result(ds) -> bool:
     """Whether ``ds`` is a result of ``run`` (or a subset of one): a CF flag ``status``."""
     return "status" in ds.data_vars and _is_flag(ds["status"])
@@ -182,11 +193,7 @@ def open_results(path) -> xr.Dataset:
             f"{os.fspath(path)}: not a cosserat-channel result file (no 'status' variable with "
             "flag_values/flag_meanings)"
         )
-    try:
-        check_flags(ds)
-    except QueryError as exc:
-        ds.close()
-        raise QueryError(f"{os.fspath(path)}: {exc}") from None
+    flags_checked(ds, path)
     from . import accessor  # noqa: F401 (registers ds.cosserat)
 
     return ds

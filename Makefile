@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-quick notebooks bench docs clean
+.PHONY: demo test test-quick notebooks bench docs clean atlas
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -37,6 +37,12 @@ notebooks: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_point.py
+
+# The whole-plane solvability atlas that the package carries (package data): the default
+# arguments of `atlas` over the whole plane. A rebuild with the same sources writes the same file.
+atlas: $(STAMP)
+	$(VENV)/bin/cosserat-channel atlas --A=-1:5 --N=0.3:3 --tol 1e-8 \
+	    -o src/cosserat_channel/atlas/data/whole_plane.nc --overwrite
 
 # The documentation site, into docs/_build/html: installs the `docs` extra, executes the notebooks
 # into docs/_generated/notebooks (small mode; the repository keeps them without outputs), draws the

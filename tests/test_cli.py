@@ -379,6 +379,34 @@ def test_atlas_stopped_keeps_its_traces_and_the_same_command_resumes(
     assert xr.load_dataset(out).identical(xr.load_dataset(fresh))
 
 
+@pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
+                                               (cli.Terminated, 143, "terminated")])
+def test_atlas_stopped_while_writing_keeps_its_traces(capsys, tmp_path, monkeypatch, stop, code,
+                                                      word):
+    """Ctrl-C (SIGTERM) while the finished atlas is written: one line, no traceback, no atlas file
+    (written whole or not at all), every trace kept in OUT.nc.partial, and the rerun traces
+    nothing."""
+    from cosserat_channel import atlas
+
+    real = atlas.save_atlas
+
+    def stopped(*args):
+        raise stop
+
+    monkeypatch.setattr(atlas, "save_atlas", stopped)
+    calls = _stop_after(monkeypatch, None)
+    assert cli.main([*ATLAS_SMALL, "-o", str(tmp_path / "a.nc")]) == code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"cosserat-channel: error: {word}; the "
+                                               f"{calls[0]} edges")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.nc.partial"]
+    monkeypatch.setattr(atlas, "save_atlas", real)
+    rerun = _stop_after(monkeypatch, None)
+    assert cli.main([*ATLAS_SMALL, "-o", str(tmp_path / "a.nc")]) == 0
+    assert rerun[0] == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.nc"]
+
+
 @pytest.mark.parametrize("fault, words", [(OSError(28, "No space left on device"),
                                            "could not be kept (cannot write"),
                                           (KeyboardInterrupt(), "stopped again")])

@@ -4,15 +4,15 @@ The ``sh`` blocks are run line by line (backslash continuations joined) from the
 root, where ``.venv/bin/cosserat-channel`` is a shim for this Python's package, so the commands
 are the README's own text (run in this process through ``cli.main``, see the test). Each must
 exit 0, write every file it names (``-o``, ``--plot``), and, all together, leave nothing outside
-``demo/`` (which git ignores). Only the set-up lines
-(``make ...``, which build a venv: CI runs ``make test`` itself; ``make notebooks`` is checked
-with ``make -n`` below) are skipped, and the report
-commands that take minutes (``bench``, ``stability``) run with ``--quick`` (the same code on a
-smaller set). The cluster commands are checked, not run: ``dask scheduler`` and ``dask worker``
-serve until stopped and need the other nodes, so each runs with ``--help`` (the command exists
-in the venv and takes those options), and ``run ... --scheduler ADDRESS`` is parsed by the
-command line's own parser (the cluster itself is tested in ``test_sweep_engine.py``). The
-``python`` blocks run with this interpreter in the same directory.
+``demo/`` (which git ignores). Only the set-up lines (``make ...``, which build a venv: CI runs
+``make test`` itself; ``make notebooks`` is checked with ``make -n`` below) are skipped, and the
+report commands that take minutes (``bench``, ``stability``, ``paper``) run with ``--quick``
+(``--coarse``): the same code on a smaller set. The cluster commands are checked, not run:
+``dask scheduler`` and ``dask worker`` serve until stopped and need the other nodes, so each
+runs with ``--help`` (the command exists in the venv and takes those options), and
+``run ... --scheduler ADDRESS`` is parsed by the command line's own parser (the cluster itself
+is tested in ``test_sweep_engine.py``). The ``python`` blocks run with this interpreter in the
+same directory.
 """
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ from cosserat_channel import cli
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-QUICK = {"bench", "stability"}  # minutes in full; the README test runs them with --quick
+# Minutes in full: the README test runs them on their smaller set (the same code).
+QUICK = {"bench": "--quick", "stability": "--quick", "paper": "--coarse"}
 OUTPUT_FLAGS = ("-o", "--output", "--output-dir", "--plot")
 
 
@@ -129,8 +130,8 @@ def test_every_readme_command_runs_as_written(scratch, monkeypatch, capsys):
                     w in proc.stdout for w in words[2:] if w.startswith("--")), proc.stderr
             continue
         if words[0] == ".venv/bin/cosserat-channel":
-            if words[1] in QUICK and "--quick" not in words:
-                words.append("--quick")
+            if words[1] in QUICK and QUICK[words[1]] not in words:
+                words.append(QUICK[words[1]])
             code = cli.main(words[1:])
             err = capsys.readouterr().err
         else:

@@ -86,12 +86,15 @@ from .interpolant import Atlas, classify_analytic  # noqa: F401
 from .settings import *  # noqa: F401,F403 (the atlas's constants, under the names callers use)
 from .store import (  # noqa: F401
     cache_path,
+    default_atlas,
+    describe,
     from_dataset,
     load_atlas,
     load_traces,
     partial_path,
     save_atlas,
     save_traces,
+    shipped_path,
     to_dataset,
     traces_key,
 )

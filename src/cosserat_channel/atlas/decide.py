@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from .. import status as st
-from ..parameters import ETA_MAX, ETA_MIN, check_values
+from ..parameters import ETA_MAX, ETA_MIN, ParameterError, check_values
 from .interpolant import Atlas, classify_analytic
 from .settings import SAFETY, UNDECIDED
-from .store import load_atlas
+from .store import default_atlas, load_atlas
 
 
-def classify(eps, L, K, A, N, atlas):
+def classify(eps, L, K, A, N, atlas=None):
     """The status of every point ``(eps, L, K, A, N)`` (broadcast) from the atlas, without solving.
 
     Appendix A's regimes (the wall line, ``A < -1``, ``A = -1``, the axis condition) are decided
@@ -29,8 +29,10 @@ def classify(eps, L, K, A, N, atlas):
     ----------
     eps, L, K, A, N : array_like
         Points; validated as :func:`parameters.check_point` does (``K`` does not enter).
-    atlas : Atlas or path-like
-        An atlas, or the file of one.
+    atlas : Atlas or path-like, optional
+        An atlas, or the file of one. Default: the cached atlas (``atlas --cache``) where it
+        covers the points' ``(A, N)``, else the whole-plane atlas that comes with the package
+        (:func:`~cosserat_channel.atlas.store.default_atlas`).
 
     Returns
     -------
@@ -43,10 +45,17 @@ def classify(eps, L, K, A, N, atlas):
     the edge by up to ~2e-6 relative (regimes.py): such a solve may disagree with a decided
     point that close to an edge.
     """
-    if not isinstance(atlas, Atlas):
-        atlas = load_atlas(atlas)
     eps, L, K, A, N = np.broadcast_arrays(
         *(check_values(d, v) for d, v in zip(("eps", "L", "K", "A", "N"), (eps, L, K, A, N))))
+    if atlas is None:
+        span = ((float(A.min()), float(A.max())), (float(N.min()), float(N.max()))) if A.size \
+            else (None, None)
+        atlas = default_atlas(*span)[0] or default_atlas()[0]
+        if atlas is None:
+            raise ParameterError("classify: no atlas given, and neither a cached atlas "
+                                 "('atlas --cache') nor the shipped one is there")
+    elif not isinstance(atlas, Atlas):
+        atlas = load_atlas(atlas)
     eta = eps * L
     bad = ~((eta >= ETA_MIN) & (eta <= ETA_MAX))
     if bad.any():

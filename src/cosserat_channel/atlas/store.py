@@ -9,6 +9,7 @@ import json
 import os
 import stat
 import zipfile
+from pathlib import Path
 
 import numpy as np
 
@@ -24,6 +25,46 @@ def cache_path():
     from .. import cache_dir
 
     return str(cache_dir() / "atlas.nc")
+
+
+# The whole-plane atlas that comes with the package (package data, built by ``make atlas``).
+SHIPPED = Path(__file__).resolve().parent / "data" / "whole_plane.nc"
+
+
+def shipped_path():
+    """The whole-plane atlas that comes with the package, or None if this copy has none."""
+    return str(SHIPPED) if SHIPPED.is_file() else None
+
+
+def default_atlas(A_range=None, N_range=None, note=None):
+    """The atlas the commands use when none is given, as ``(atlas, path, which)``.
+
+    The cached atlas (``atlas --cache``) first, then the shipped one: the first that can be read
+    and covers ``A_range x N_range`` (any box when they are None). ``which`` is ``"cached"`` or
+    ``"shipped"``; ``(None, None, None)`` when neither answers there. ``note(text)``, if given,
+    is told about an atlas file that cannot be read.
+    """
+    for which, path in (("cached", cache_path()), ("shipped", shipped_path())):
+        if path is None or not os.path.isfile(path):
+            continue
+        try:
+            atlas = load_atlas(path)
+        except ParameterError as exc:
+            if note is not None:
+                note(f"the {which} atlas is not usable ({exc}); not used")
+            continue
+        if A_range is None or atlas.covers(A_range, N_range):
+            return atlas, path, which
+    return None, None, None
+
+
+def describe(atlas, path, which=None):
+    """One line naming an atlas: which one (``"cached"``, ``"shipped"``), its file, tolerance,
+    box and the version that built it."""
+    a0, a1, n0, n1 = atlas.box
+    version = atlas.attrs.get("cosserat_channel_version", "unknown")
+    return (f"{which + ' atlas ' if which else 'atlas '}{path} (tol {atlas.tol:g}, A in "
+            f"[{a0:g}, {a1:g}], N in [{n0:g}, {n1:g}], built by cosserat-channel {version})")
 
 
 def to_dataset(atlas):

@@ -137,7 +137,11 @@ def _atlas(args: argparse.Namespace) -> int:
           f"({a['solves_per_edge_point']:.2f} per edge point; {a['n_fallback']} of "
           f"{a['n_predicted']} predicted traces made afresh)")
     try:
-        atlas_mod.save_atlas(atlas, output)
+        try:
+            with interruptible():
+                atlas_mod.save_atlas(atlas, output)
+        except KeyboardInterrupt as exc:  # the file is written whole or not at all
+            return interrupted(exc, _keep_traces(partial, traces, key, resumed, output))
         if kept:  # the atlas is whole: its traces are in it
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(partial)
@@ -147,7 +151,11 @@ def _atlas(args: argparse.Namespace) -> int:
             from ..plot import regimes as plot_regimes
 
             bds = atlas.boundary(np.linspace(*A, 301), np.linspace(*N, 201))
-            plot_regimes.solvable_region_figure(bds, path=args.plot)
+            try:
+                with interruptible():
+                    plot_regimes.solvable_region_figure(bds, path=args.plot)
+            except KeyboardInterrupt as exc:
+                return interrupted(exc, f"the atlas is written to {output}; {args.plot} is not")
     except OSError as exc:
         raise CliError(str(exc), EXIT_FAILURE) from None
     if args.cache:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 
 from . import (  # noqa: F401 (the shared pieces of the command line)
     open_results,
@@ -77,7 +76,12 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
     p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
     p.add_argument("--atlas", metavar="ATLAS.nc",
-                   help="draw the edges from this atlas (written by 'atlas') instead of tracing")
+                   help="draw the edges from this atlas (written by 'atlas') instead of tracing "
+                   "(default: the cached atlas, else the shipped whole-plane one, where it covers "
+                   "the grid and --eta-range is its own)")
+    p.add_argument("--trace", action="store_true",
+                   help="trace the edges (by continuation along the grid) even where an atlas "
+                   "covers the grid; --coarse applies to tracing only")
     p.add_argument("--overwrite", action="store_true",
                    help="trace again and replace OUT.nc (and FILE.png) if it exists (without it "
                    "an OUT.nc traced with the same arguments is reused, any other file is kept)")
@@ -114,13 +118,30 @@ def _boundary(args: argparse.Namespace) -> int:
     from .. import regimes
     from ..status import Status
 
-    if args.atlas is not None:
-        check_not_input(args.output, [args.atlas], "-o")
+    if args.atlas is not None and args.trace:
+        raise CliError("--atlas and --trace are two sources of the same edge: give one")
+    atlas = None
+    if args.atlas is None and not args.trace:
+        from .. import atlas as atlas_mod
+
+        atlas, path, which = atlas_mod.default_atlas((min(A), max(A)), (min(N), max(N)),
+                                                     note=_note)
+        if atlas is not None and atlas.eta_range != (lo, hi):
+            atlas = None
+    if args.atlas is not None or atlas is not None:
+        if args.atlas is not None:
+            check_not_input(args.output, [args.atlas], "-o")
         check_output_path(args.output, "-o", overwrite=args.overwrite)
-        ds = _boundary_from_atlas(args.atlas, A, N, lo, hi)
+        if atlas is None:
+            ds = _boundary_from_atlas(args.atlas, A, N, lo, hi)
+        else:
+            _note(f"edges drawn from the {atlas_mod.describe(atlas, path, which)} "
+                  "(--trace to trace them)")
+            ds = atlas.boundary(A, N)
+            ds.attrs["atlas"] = atlas_mod.describe(atlas, path, which)
     else:
         ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
-    traced = ds is None or args.atlas is not None
+    traced = ds is None or args.atlas is not None or atlas is not None
     if ds is None:
         with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
             ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
@@ -169,7 +190,9 @@ def _boundary_from_atlas(path, A, N, lo, hi):
     if not atlas.covers((min(A), max(A)), (min(N), max(N))):
         _note(f"--atlas: {path} covers A in [{atlas.box[0]:g}, {atlas.box[1]:g}], N in "
               f"[{atlas.box[2]:g}, {atlas.box[3]:g}]; outside it eta_max is NaN")
-    return atlas.boundary(A, N)
+    ds = atlas.boundary(A, N)
+    ds.attrs["atlas"] = atlas_mod.describe(atlas, path)
+    return ds
 
 
 def _same_boundary(path, A, N, lo, hi, coarse):
@@ -383,38 +406,33 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _atlas_boundary(ds, args, at):
-    """The edge of a regime map from ``--atlas`` or the cached atlas, as a boundary Dataset.
+    """The edge of a regime map from ``--atlas`` or the default atlas, as a boundary Dataset.
 
-    None when the map has no (A, N) direction, or no atlas is given and the cached one is absent
-    or does not cover the map (the caller then traces). An ``--atlas`` that does not cover the
-    map is drawn where it does, with a note.
+    None when the map has no (A, N) direction, or no atlas is given and neither the cached nor
+    the shipped atlas covers the map (the caller then traces). An ``--atlas`` that does not cover
+    the map is drawn where it does, with a note. Which atlas drew the edge is said on stderr.
     """
     from .. import atlas as atlas_mod
     from ..plot import regimes as plot_regimes
 
-    path = args.atlas
-    if path is None:
-        path = atlas_mod.cache_path()
-        if not os.path.exists(path):
-            return None
     # On the map's own contouring grid: the figure then takes the edge as it is, uninterpolated.
     grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at, n=plot_regimes.MAP_GRID)
     if grid is None:
         return None
+    A, N = grid
+    span = ((float(A.min()), float(A.max())), (float(N.min()), float(N.max())))
+    if args.atlas is None:
+        atlas, path, which = atlas_mod.default_atlas(*span, note=_note)
+        if atlas is None:
+            return None
+        _note(f"edges drawn from the {atlas_mod.describe(atlas, path, which)}")
+        return atlas.boundary(A, N)
+    path = args.atlas
     try:
         atlas = atlas_mod.load_atlas(path)
     except ParameterError as exc:
-        if args.atlas is None:
-            _note(f"the cached atlas is not usable ({exc}); tracing instead")
-            return None
         raise CliError(f"--atlas: {exc}") from None
-    A, N = grid
-    span = ((float(A.min()), float(A.max())), (float(N.min()), float(N.max())))
     if not atlas.covers(*span):
-        if args.atlas is None:
-            return None
         _note(f"--atlas: {path} covers A in [{atlas.box[0]:g}, {atlas.box[1]:g}], N in "
               f"[{atlas.box[2]:g}, {atlas.box[3]:g}]; the edge is drawn only there")
-    elif args.atlas is None:
-        _note(f"edges drawn from the cached atlas {path}")
     return atlas.boundary(A, N)

@@ -31,7 +31,7 @@ from .. import status as st
 from ..integrate import panels
 from ..physics import closure, model
 from ..physics import derivatives as dv
-from .layout import R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL, R_XI1
+from .layout import R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL
 from .stage2 import FIRST_PANEL, MAX_STEPS_STAGE2, STAGE2_TOL, TAIL_FRACTION, XI_FLOOR, _h_axis
 from .stress_path import _delta_wall, _wall_increments, delta_D_at
 
@@ -70,7 +70,6 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
         out[i] = math.nan
     out[S_STATUS] = st.INTEGRATION_FAILED
     n1 = int(res[R_N1])
-    xi1 = res[R_XI1]
     J0 = res[R_J_AXIS]
     target = model.plug_target(J0, eps_K)
     have_p = target > 0.0 and one_minus > 0.0

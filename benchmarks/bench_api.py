@@ -5,7 +5,9 @@ kernels against the kernels it runs (``solve_eta`` and the plug-edge root) on th
 best of ``--repeat`` (CPU time of the thread). ``solve`` on ``--points`` distinct random points (eps in [0.02, 0.1],
 L in [5, 20], K in [0.1, 2], A in [0, 1], N in [0.5, 2]) on one thread against one
 ``solve_batch`` call on the same points, CPU seconds of one run each.
-Targets: ``solve_point`` <= 25 us per call; ``solve`` <= 1.3x the kernel's own time.
+``solve_point(..., sensitivities=True)`` at the same point, side by side with the plain call.
+Targets: ``solve_point`` <= 25 us per call; ``solve`` <= 1.3x the kernel's own time; with
+sensitivities <= 2.5x the plain call.
 
 Run: ``.venv/bin/python benchmarks/bench_api.py [--points 100000] [--repeat 7] [--json PATH]``.
 """
@@ -25,6 +27,7 @@ from cosserat_channel.solver.point import Workspace, solve_point
 README_POINT = (1 / 30, 10, 0.5, 1 / 3, 1)
 TARGET_POINT_US = 25.0
 TARGET_SOLVE_RATIO = 1.3
+TARGET_SENSITIVITY_RATIO = 2.5
 
 
 def point_costs(repeat: int):
@@ -40,7 +43,10 @@ def point_costs(repeat: int):
     api = harness.best_of(lambda: solve_point(*README_POINT), repeat, min_seconds=0.2,
                           clock=time.thread_time)
     kern = harness.best_of(kernels, repeat, min_seconds=0.2, clock=time.thread_time)
-    return api.seconds, kern.seconds
+    solve_point(*README_POINT, sensitivities=True)  # compile its kernels first
+    sens = harness.best_of(lambda: solve_point(*README_POINT, sensitivities=True), repeat,
+                           min_seconds=0.2, clock=time.thread_time)
+    return api.seconds, kern.seconds, sens.seconds
 
 
 def array_costs(n: int):
@@ -70,9 +76,11 @@ def main() -> int:
     if args.points < 10:
         ap.error("--points must be at least 10")
     rec = harness.Record("bench_api", args.json)
-    api, kern = point_costs(args.repeat)
-    rec.row("solve_point", us_per_call=1e6 * api, kernel_us=1e6 * kern)
-    print(f"solve_point: {1e6 * api:.1f} us per call; its kernels alone {1e6 * kern:.1f} us")
+    api, kern, sens = point_costs(args.repeat)
+    rec.row("solve_point", us_per_call=1e6 * api, kernel_us=1e6 * kern,
+            sensitivities_us=1e6 * sens)
+    print(f"solve_point: {1e6 * api:.1f} us per call; its kernels alone {1e6 * kern:.1f} us; "
+          f"with sensitivities {1e6 * sens:.1f} us ({sens / api:.2f}x)")
     s_api, s_kern, n_solves = array_costs(args.points)
     rec.row("solve", points=args.points, n_solves=n_solves, seconds=s_api, kernel_seconds=s_kern)
     print(f"solve on {args.points:,} points ({n_solves:,} integrations): {s_api:.3f} s CPU; "
@@ -82,6 +90,8 @@ def main() -> int:
                   f"{1e6 * api:.1f} us"),
         rec.check(f"solve <= {TARGET_SOLVE_RATIO:g}x the kernel", s_api <= TARGET_SOLVE_RATIO * s_kern,
                   f"{s_api / s_kern:.3f}x"),
+        rec.check(f"sensitivities <= {TARGET_SENSITIVITY_RATIO:g}x solve_point",
+                  sens <= TARGET_SENSITIVITY_RATIO * api, f"{sens / api:.2f}x"),
     ]
     for v in verdicts:
         print(v.line())

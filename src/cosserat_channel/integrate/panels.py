@@ -38,7 +38,7 @@ from numpy.polynomial import chebyshev as _cheb
 from .._jit import JIT as _JIT
 
 __all__ = ["DEGREE", "N_NODES", "N_COEF", "TOP", "N_ROWS", "X", "integrate_panel", "panel_value",
-           "panel_value_d", "panel_value_d2", "panel_error_factor"]
+           "panel_value_d", "panel_value_d2", "panel_error_factor", "cumulative"]
 
 DEGREE = 8
 N_NODES = DEGREE + 1
@@ -154,6 +154,23 @@ def integrate_panel(f, g, y_b, J_b, r, Q, p, y_nodes):
     for i in range(n):
         dJ += _INT_VAL[n - 1, i] * g[i]
     return err_y, r * eg + err_y * abs(r * dJ)
+
+
+@njit(**_JIT)
+def cumulative(v, r, out):
+    """``out[j] = r int_(X[j])^1 v`` for the interpolant of ``v`` through the nodes (one integral
+    of :func:`integrate_panel`, without a dense output). Returns ``(out[DEGREE], err)``: the
+    whole panel's integral and its error estimate, ``r`` times the tail of ``v``'s Chebyshev series."""
+    n = N_NODES
+    for j in range(n):
+        out[j] = 0.0
+    for i in range(n):
+        vi = v[i]
+        for j in range(n):
+            out[j] += _INT_VAL[j, i] * vi
+    for j in range(n):
+        out[j] *= r
+    return out[n - 1], r * _tail_estimate(v)
 
 
 @njit(**_JIT)

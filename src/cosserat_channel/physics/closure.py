@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["sigma_c", "solids_fraction"]
+__all__ = ["sigma_c", "solids_fraction", "solids_fraction_partials"]
 
 # Bisection halves (nu_min, nu_max) until the midpoint repeats an end: ~60 halvings in double
 # precision; the bound only guards against a loop that cannot end.
@@ -51,3 +51,26 @@ def solids_fraction(rho_g_W: float, tan_delta: float, material: dict) -> float:
         else:
             lo = mid
     return 0.5 * (lo + hi)
+
+
+def solids_fraction_partials(nu: float, material: dict) -> dict:
+    """Derivatives of the root ``nu`` of eq:35 (:func:`solids_fraction`), by the implicit function
+    theorem on its residual in logarithms, ``F = ln(tan(delta) Lambda) + p ln(nu - nu_min)
+    - q ln(nu_max - nu) - ln(rho_p g W nu)``: ``dnu = -dF / F_nu``.
+
+    Returns ``d nu`` per unit change of ``ln(rho_p g W)``, ``ln(tan(delta))`` and of the closure's
+    ``Lambda``, ``p``, ``q``, ``nu_min`` and ``nu_max``.
+    """
+    nu_min, nu_max = material["nu_min"], material["nu_max"]
+    p, q = material["p"], material["q"]
+    above, below = nu - nu_min, nu_max - nu
+    inv = 1.0 / (p / above + q / below - 1.0 / nu)  # 1/F_nu > 0 (see solids_fraction)
+    return {
+        "ln_rho_g_W": inv,
+        "ln_tan_delta": -inv,
+        "Lambda": -inv / material["Lambda"],
+        "p": -math.log(above) * inv,
+        "q": math.log(below) * inv,
+        "nu_min": p / above * inv,
+        "nu_max": q / below * inv,
+    }

@@ -70,6 +70,8 @@ class PointResult:
     profile : dict or None
         With ``profile=xi``: arrays ``xi``, ``u_over_u0``, ``omega_hat``, ``m`` (``m/nu``),
         ``sigma_xy``, ``sigma_yx`` (over nu).
+    sensitivities : dict or None
+        With ``sensitivities=True``: ``{output: {parameter: d output / d parameter}}``.
     """
 
     eps: float
@@ -81,6 +83,7 @@ class PointResult:
     values: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
     profile: dict | None = None
+    sensitivities: dict | None = None
 
     def __getattr__(self, name):
         # Only reached when normal lookup fails: the outputs of the registry, NaN when not computed.
@@ -112,6 +115,9 @@ class PointResult:
         d["counters"] = dict(self.counters)
         if self.profile is not None:
             d["profile"] = {k: [clean(float(v)) for v in a] for k, a in self.profile.items()}
+        if self.sensitivities is not None:
+            d["sensitivities"] = {k: {p: clean(v) for p, v in s.items()}
+                                  for k, s in self.sensitivities.items()}
         return d
 
 
@@ -194,7 +200,8 @@ def _plan_outputs(names, material):
 
 
 def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=None, profile=None,
-                outputs=None, workspace: Workspace | None = None) -> PointResult:
+                outputs=None, workspace: Workspace | None = None,
+                sensitivities: bool = False) -> PointResult:
     """Solve one point ``(eps, L, K, A, N)`` of the channel-flow model through both stages.
 
     Parameters
@@ -217,6 +224,16 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
         no plug-edge root is searched. The status is always computed.
     workspace : Workspace, optional
         Work arrays to reuse across calls (saves their allocation).
+    sensitivities : bool, optional
+        Also the derivatives of the computed outputs (``Delta``, ``xi_p``, ``slip``, ``u_axis``,
+        ``m_wall``, ``sigma_yx_wall`` and, with a material, ``nu`` and the stresses in Pa) with
+        respect to ``eps, L, K, A, N`` and, for the material's outputs, to each material input
+        (``phi`` per degree), in :attr:`PointResult.sensitivities` as ``{output: {parameter:
+        derivative}}``; NaN where the point has no solution. Computed by adjoint quadratures
+        over the solution (docs/model.md, section 10) to about the accuracy of the solve; at
+        ``A = -1`` from the closed form, with NaN for ``A`` (that form holds at ``A = -1``
+        alone). Where ``eq:13``'s target is not positive (``Delta = 0``) the plug edge's
+        derivatives are 0. Off by default: the first call compiles its kernels.
 
     Returns
     -------
@@ -242,7 +259,7 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     ws = workspace or _thread_workspace()
     eta = eps * L
     code = ws.run(eta, A, N, rtol, atol, layout.METHOD_AUTO,
-                  xi_prof is not None or wants_stage2)
+                  xi_prof is not None or wants_stage2 or sensitivities)
     res = ws.res
     one_minus = math.nan
     if code == st.OK and wants_plug_edge:
@@ -257,6 +274,13 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     result.counters = _counters(ws)
     if code == st.OK and xi_prof is not None:
         result.profile = _profile(xi_prof, eps, L, K, A, N, ws)
+    if sensitivities:
+        from . import sensitivity  # its kernels compile only when asked for
+
+        result.sensitivities, code_s = sensitivity.point_sensitivities(
+            code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, mat)
+        if code_s != code:
+            result.status = st.Status(code_s)
     return result
 
 

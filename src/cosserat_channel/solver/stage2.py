@@ -19,7 +19,7 @@ from ..physics import model
 from ..physics.model import AX_BETA, AX_C0
 from .layout import (R_J2, R_J_AXIS, R_LOGI2, R_LOGW2, R_N2, R_RTOL1, R_STATUS, R_T_TAIL, R_XI2)
 from .stage1 import SERIES_TOL
-from .stress_path import XI_WALL_FORM, _delta_wall, _wall_form, _wall_increments
+from .stress_path import _delta_wall, _wall_increments, delta_D_at
 
 MAX_STEPS_STAGE2 = 20_000  # panels: bounded work per point (integration_failed beyond)
 # Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
@@ -72,15 +72,7 @@ def _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C, delta1, D1):
     """
     if A == -1.0:
         return model.a_minus_one_xi_B(eta, N), xi * model.a_minus_one_h(), 0.0
-    if k >= 0 and xi >= XI_WALL_FORM:
-        delta, D, noise = _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
-    else:
-        if k >= 0:
-            delta = xi * xi * dense.step_value(T1, Q1, k, 0, xi)
-        else:
-            delta = model.delta_axis_series(xi, ax)
-        D = model.yield_D(xi, delta, A, N, ax)
-        noise = model.yield_D_rounding(xi, delta, A, N, ax)
+    delta, D, noise = delta_D_at(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
     # B ~ 1/sqrt(D): a relative error e in D is e/2 in B, and at most that in h's 1/sqrt(D) part
     # (D < 0 within round-off gives NaN, which rejects the panel)
     r = 1.0 / math.sqrt(D)

@@ -113,3 +113,18 @@ def _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1):
         + abs(a2) * (2.0 * N + abs(delta + delta1)) * noise_ddelta
     return delta, D1 + dD, noise
 
+
+
+@njit(**_JIT_INLINE)
+def delta_D_at(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1):
+    """``(delta, D, noise)`` at ``xi = 1 - s`` in stage-1 step ``k`` (``k < 0``: below the march's
+    start, on the axis series): :func:`_wall_form` above ``XI_WALL_FORM``, else the step's
+    polynomial or the series, with ``D`` and its rounding bound from :mod:`model` (``C``,
+    ``delta1``, ``D1`` as for :func:`_wall_form`)."""
+    if k >= 0 and xi >= XI_WALL_FORM:
+        return _wall_form(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
+    if k >= 0:
+        delta = xi * xi * dense.step_value(T1, Q1, k, 0, xi)
+    else:
+        delta = model.delta_axis_series(xi, ax)
+    return delta, model.yield_D(xi, delta, A, N, ax), model.yield_D_rounding(xi, delta, A, N, ax)

@@ -1,0 +1,118 @@
+"""Sensitivities of solve_point's outputs against central differences of tight solves.
+
+Each comparison is bounded by what the arithmetic allows: the sensitivity solve's own error
+(100 x its rtol, relative) plus the difference quotient's truncation error (estimated from the
+quotients at h and 2h, whose difference is 3 times it) and its rounding (the tight solves' error,
+taken as 100 x their rtol relative to the output, divided by h).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_channel.solver.point import solve_point
+
+RTOL_SENS = 1e-8
+RTOL_REF = 1e-12
+PARAMS = ("eps", "L", "K", "A", "N")
+
+
+def _central(p, i, h, material=None):
+    plus, minus = list(p), list(p)
+    plus[i] += h
+    minus[i] -= h
+    kw = dict(rtol=RTOL_REF, atol=1e-30, material=material)
+    return solve_point(*plus, **kw), solve_point(*minus, **kw)
+
+
+def _check(p, params=PARAMS, material=None, rel_step=1e-4):
+    r = solve_point(*p, rtol=RTOL_SENS, sensitivities=True, material=material)
+    assert r.ok, r.status.message
+    assert set(r.sensitivities) == {n for n in r.sensitivities if n in r.values}
+    for i, name in enumerate(PARAMS):
+        if name not in params:
+            continue
+        h = rel_step * max(abs(p[i]), 1e-2)
+        one = _central(p, i, h, material)
+        two = _central(p, i, 2 * h, material)
+        for out, d in r.sensitivities.items():
+            fd1 = (getattr(one[0], out) - getattr(one[1], out)) / (2 * h)
+            fd2 = (getattr(two[0], out) - getattr(two[1], out)) / (4 * h)
+            value = abs(r.values[out])
+            bound = (100 * RTOL_SENS * abs(fd1) + abs(fd1 - fd2) / 3
+                     + 100 * RTOL_REF * value / h + 1e-300)
+            assert abs(d[name] - fd1) <= bound, (p, out, name, d[name], fd1, bound)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_points_against_central_differences(seed):
+    rng = np.random.default_rng(seed)
+    p = (float(rng.uniform(0.005, 0.2)), float(rng.uniform(2, 30)), float(rng.uniform(0, 2)),
+         float(rng.uniform(-0.5, 3)), float(rng.uniform(0.6, 3)))
+    if not solve_point(*p).ok:
+        pytest.skip("no solution at this draw")
+    _check(p)
+
+
+def test_readme_point_with_a_material():
+    _check((1 / 30, 10, 0.5, 1 / 3, 1.0), material={"d_p": 1e-3, "rho_p": 2500.0, "phi": 30.0})
+
+
+def test_material_inputs_against_central_differences():
+    p = (1 / 30, 10, 0.5, 1 / 3, 1.0)
+    mat = {"d_p": 1e-3, "rho_p": 2500.0, "phi": 30.0, "Lambda": 817.0, "p": 2.5, "q": 2.2,
+           "nu_min": 0.5, "nu_max": 0.65, "g": 9.81}
+    r = solve_point(*p, material=mat, sensitivities=True)
+    for key in mat:
+        h = 1e-5 * mat[key]
+        up, down = dict(mat), dict(mat)
+        up[key] += h
+        down[key] -= h
+        ru, rd = solve_point(*p, material=up), solve_point(*p, material=down)
+        for out in ("nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m"):
+            fd = (getattr(ru, out) - getattr(rd, out)) / (2 * h)
+            # nu is bisected to round-off: the quotient's rounding is ~1e-16 |value| / h
+            bound = 1e-6 * abs(fd) + 1e-13 * abs(r.values[out]) / h
+            assert abs(r.sensitivities[out][key] - fd) <= bound, (key, out)
+
+
+def test_next_to_the_path_edge():
+    # eta = 3.25, 2 % below the path edge 3.30886 of A = 1/3, N = 1: D(1) is small there
+    _check((0.325, 10, 0.5, 1 / 3, 1.0), rel_step=1e-5)
+
+
+def test_next_to_delta_vanishing():
+    # eps K = 5, the plug edge close to the wall (Delta = 0 from K = 201 at eps = 1/30)
+    _check((1 / 30, 10, 150.0, 1 / 3, 1.0))
+
+
+def test_delta_zero_has_zero_plug_edge_derivatives():
+    r = solve_point(1 / 30, 10, 250.0, 1 / 3, 1.0, sensitivities=True)
+    assert r.Delta == 0.0
+    assert all(v == 0.0 for v in r.sensitivities["Delta"].values())
+
+
+def test_a_minus_one_closed_form():
+    # N = 1.5: the code reports A = -1 with N < 1 as wall_inadmissible (docs/model.md, 5)
+    _check((1 / 30, 10, 0.5, -1.0, 1.5), params=("eps", "L", "K", "N"))
+    r = solve_point(1 / 30, 10, 0.5, -1.0, 1.0, sensitivities=True)
+    assert math.isnan(r.sensitivities["Delta"]["A"])
+
+
+@pytest.mark.parametrize("p", [(0.5, 10, 0.5, 1 / 3, 1.0), (0.1, 10, 0.5, -0.5, 0.3)])
+def test_no_solution_gives_nan_and_the_status(p):
+    r = solve_point(*p, sensitivities=True, material={"d_p": 1e-3, "rho_p": 2500.0, "phi": 30.0})
+    assert not r.ok and r.status.message
+    assert r.sensitivities and all(math.isnan(v) for d in r.sensitivities.values() for v in d.values())
+
+
+def test_only_the_computed_outputs_and_plain_solves_unchanged():
+    p = (1 / 30, 10, 0.5, 1 / 3, 1.0)
+    r = solve_point(*p, outputs=["m_wall"], sensitivities=True)
+    assert set(r.sensitivities) == {"m_wall"}
+    plain = solve_point(*p)
+    with_s = solve_point(*p, sensitivities=True)
+    assert {k: repr(v) for k, v in plain.values.items()} == {k: repr(v) for k, v in with_s.values.items()}
+    assert plain.sensitivities is None
+    assert with_s.to_dict()["sensitivities"]["Delta"]["eps"] == with_s.sensitivities["Delta"]["eps"]

@@ -562,3 +562,15 @@ def test_a_wrong_prediction_is_never_accepted():
         assert regimes.continue_edge(A, N, low, guesses) is None
         e = regimes.trace_edge(A, N, prediction=(low, guesses))
         assert not e.continued and np.array_equal(e.transitions, fresh.transitions)
+
+
+def test_a_prediction_of_no_solution_is_traced_afresh():
+    """Below N = 1 solutions exist only in a window eta_min < eta < eta_max inside the range:
+    a prediction of no transition and no solution at the low end passes both end checks (no
+    solution at either end), so it is never accepted; the fresh trace finds the window."""
+    A, N = 0.0, 0.98203125
+    fresh = regimes.trace_edge(A, N)
+    assert fresh.transitions.size == 2  # the window the ends cannot see
+    assert regimes.continue_edge(A, N, False, []) is None
+    e = regimes.trace_edge(A, N, prediction=(False, []))
+    assert not e.continued and np.array_equal(e.transitions, fresh.transitions)

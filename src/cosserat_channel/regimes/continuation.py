@@ -341,7 +341,9 @@ def continue_edge(A, N, low, guesses, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_M
     -------
     Edge or None
         None where the prediction does not hold (a corrector failed, the sides do not alternate,
-        or a check disagrees): the caller traces afresh (:func:`trace_edge`).
+        or a check disagrees) or leaves no transition and no solution at either end (the ends
+        cannot rule out a window of solutions between them): the caller traces afresh
+        (:func:`trace_edge`).
     """
     A = float(A)
     N = float(N)
@@ -390,7 +392,9 @@ def continue_edge(A, N, low, guesses, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_M
     slopes = np.array([c.slope for c, _ in found])
     extra = dict(bands=bands, tangential=tangent, smooth=smooth, slopes=slopes, continued=True)
     if not ok_lo and not sides:
-        return Edge(A, N, math.nan, EDGE_NONE, math.nan, -1, empty, continued=True)
+        # No solution at either end says nothing of a window of solutions between them: only
+        # a fresh trace, which samples the whole range, may conclude there is none.
+        return None
     eta_min = lo_e if ok_lo else float(transitions[0])
     if ok_hi:
         return Edge(A, N, hi_e, EDGE_UNBOUNDED, eta_min, -1, transitions, **extra)

@@ -234,8 +234,13 @@ def scipy_feasible(eta, A, N):
         return y[1]
 
     hit.terminal, hit.direction = True, -1
-    sol = solve_ivp(f, [xs, 1.0], [d0, model.yield_D(xs, d0, A, N, ax)], method="LSODA",
-                    rtol=1e-12, atol=[1e-16, 1e-30], events=hit)
+    try:
+        sol = solve_ivp(f, [xs, 1.0], [d0, model.yield_D(xs, d0, A, N, ax)], method="LSODA",
+                        rtol=1e-12, atol=[1e-16, 1e-30], events=hit)
+    except ValueError:
+        # D changed sign over a step but not on scipy's dense output of it (its event root
+        # finder then has no bracket): the path met D = 0 inside that step.
+        return False
     return sol.status == 0 and sol.y[1, -1] > 0.0
 
 
@@ -298,8 +303,9 @@ def independent(args, atlas, A_rng, N_rng, rng, ws, summary):
             log(f"  transitions differ at A = {A[i]:.6f}, N = {N[i]:.6f}: atlas {t_in}, fresh "
                 f"trace {fresh.transitions}")
             continue
-        below = fresh.eta_min == lo if fresh.kind != regimes.EDGE_NONE else False
-        ok_below = not below
+        # Feasible at the low end of the range (eta_min is that end): the first transition has
+        # solutions below it, and the sides alternate from there.
+        ok_below = fresh.kind != regimes.EDGE_NONE and fresh.eta_min == lo
         for t in t_in:
             ref = scipy_bisect(t, ok_below, A[i], N[i])
             ok_below = not ok_below

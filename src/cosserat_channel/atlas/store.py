@@ -48,7 +48,7 @@ def default_atlas(A_range=None, N_range=None, note=None):
         if path is None or not os.path.isfile(path):
             continue
         try:
-            atlas = load_atlas(path)
+            atlas = _load_once(path)
         except ParameterError as exc:
             if note is not None:
                 note(f"the {which} atlas is not usable ({exc}); not used")
@@ -56,6 +56,19 @@ def default_atlas(A_range=None, N_range=None, note=None):
         if A_range is None or atlas.covers(A_range, N_range):
             return atlas, path, which
     return None, None, None
+
+
+_LOADED = {}  # path -> (its stat key, the atlas): classify() without an atlas reads it once
+
+
+def _load_once(path):
+    """:func:`load_atlas`, read again only when the file changed (size or modification time)."""
+    st_ = os.stat(path)
+    key = (st_.st_mtime_ns, st_.st_size, st_.st_ino)
+    hit = _LOADED.get(path)
+    if hit is None or hit[0] != key:
+        hit = _LOADED[path] = (key, load_atlas(path))
+    return hit[1]
 
 
 def describe(atlas, path, which=None):

@@ -8,7 +8,8 @@ one Jacobian function, ``estimate`` runs :func:`scipy.optimize.least_squares`.
 """
 
 from .data import CSV_EXAMPLE, DataError, Measurements, read_data
-from .estimate import FitError, FitResult, FitWarning, fit
+from .estimate import FitResult, FitWarning, fit
+from .model import FitError
 
 __all__ = ["fit", "FitResult", "FitError", "FitWarning", "DataError", "Measurements", "read_data",
            "CSV_EXAMPLE"]

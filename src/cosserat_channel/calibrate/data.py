@@ -178,6 +178,7 @@ def _read_csv(path: str, source: str) -> tuple[dict, np.ndarray]:
                             f"{len(header)}")
         for h, cell in zip(header, cells):
             columns[h].append(cell.strip())
+    _check_names(columns, source)
     out = {}
     for h, cells in columns.items():
         if h == QUANTITY:
@@ -217,15 +218,19 @@ def _column(values, name: str, source: str) -> np.ndarray:
     return out
 
 
+def _check_names(columns, source: str) -> None:
+    for name in columns:
+        if name not in (*REQUIRED, XI) and name not in INPUTS:
+            raise DataError(f"{source}: unknown column {name!r}; allowed: "
+                            f"{', '.join((*REQUIRED, XI, *INPUTS))}")
+
+
 def _checked(columns: dict, source: str, lines) -> Measurements:
     missing = [c for c in REQUIRED if c not in columns]
     if missing:
         raise DataError(f"{source}: missing column(s) {', '.join(missing)}; a table has "
                         f"{', '.join(REQUIRED)}, xi for profiles, and the inputs that vary by row")
-    for name in columns:
-        if name not in (*REQUIRED, XI) and name not in INPUTS:
-            raise DataError(f"{source}: unknown column {name!r}; allowed: "
-                            f"{', '.join((*REQUIRED, XI, *INPUTS))}")
+    _check_names(columns, source)
     sizes = {name: len(col) for name, col in columns.items()}
     if len(set(sizes.values())) > 1:
         raise DataError(f"{source}: the columns have different lengths: "
@@ -239,7 +244,7 @@ def _checked(columns: dict, source: str, lines) -> Measurements:
                         {k: v for k, v in columns.items() if k in INPUTS}, source, lines)
     scalar, profile = quantities(), profile_quantities()
     for i in range(n):
-        q = data.quantity[i]
+        q = str(data.quantity[i])
         if q not in scalar and q not in profile:
             raise DataError(f"{data.where(i, QUANTITY)}: unknown quantity {q!r}; a row measures "
                             f"one of {', '.join(scalar)}, or a profile ({', '.join(profile)}) at xi")

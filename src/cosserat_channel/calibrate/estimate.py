@@ -19,7 +19,7 @@ import numpy as np
 from .. import status as st
 from ..parameters import DEFAULT_ATOL, ParameterError, parse_number
 from .data import INPUTS, DataError, Measurements, read_data
-from .model import OUTSIDE, Problem, jacobian
+from .model import OUTSIDE, FitError, Problem, jacobian
 
 __all__ = ["fit", "FitResult", "FitError", "FitWarning", "DEFAULT_RTOL", "COND_MAX"]
 
@@ -32,11 +32,6 @@ COND_MAX = 1e6
 # A free input's start when none is given: the paper's reference point (figures 2-12; the same
 # values as paper/record.py) or the input's own default (the closure constants).
 START = {"eps": 1.0 / 30.0, "L": 10.0, "K": 0.5, "A": 1.0 / 3.0, "N": 1.0}
-
-
-class FitError(ParameterError):
-    """A fit that cannot start: its free, fixed, bounds or start values, or a start without a
-    solution. The message names the parameter or the row."""
 
 
 class FitWarning(UserWarning):
@@ -232,7 +227,7 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     names = _free_names(free)
     fixed = _fixed_values(fixed, names)
     lo, hi = _bounds(bounds, names)
-    x0 = _start(start, names, lo, hi, fixed)
+    x0 = _start(start, names, lo, hi, bounds or {})
     problem = Problem(data, names, fixed, rtol=rtol, atol=atol, workers=workers)
     for i, (pt, why) in enumerate(problem.points(x0)):
         if pt is None:
@@ -339,8 +334,16 @@ def _fixed_values(fixed, names) -> dict:
                 v = parse_number(v)
             except ValueError as exc:
                 raise FitError(f"fixed {k}: {exc}") from None
-        out[k] = INPUTS[k].check(v, f"fixed {k}")
+        out[k] = _check(k, v, f"fixed {k}")
     return out
+
+
+def _check(name: str, value, label: str) -> float:
+    """``value`` inside input ``name``'s range, or a :class:`FitError` saying so."""
+    try:
+        return INPUTS[name].check(value, label)
+    except ParameterError as exc:
+        raise FitError(str(exc)) from None
 
 
 def _bounds(bounds, names):
@@ -362,7 +365,7 @@ def _bounds(bounds, names):
     return lo, hi
 
 
-def _start(start, names, lo, hi, fixed) -> np.ndarray:
+def _start(start, names, lo, hi, given_bounds) -> np.ndarray:
     start = dict(start or {})
     for k in start:
         if k not in names:
@@ -377,11 +380,12 @@ def _start(start, names, lo, hi, fixed) -> np.ndarray:
             except ValueError as exc:
                 raise FitError(f"start {n}: {exc}") from None
         if v is None:
-            if math.isfinite(lo[j]) and math.isfinite(hi[j]):
+            if n in given_bounds and math.isfinite(lo[j]) and math.isfinite(hi[j]):
                 v = 0.5 * (lo[j] + hi[j])
             else:
-                raise FitError(f"start: give a start value for {n} (it has no default)")
-        v = INPUTS[n].check(v, f"start {n}")
+                raise FitError(f"start: give a start value for {n} (it has no default), or its "
+                               "bounds")
+        v = _check(n, v, f"start {n}")
         if not lo[j] < v < hi[j]:
             if given:
                 raise FitError(f"start {n} = {v:g} is outside its bounds {lo[j]:g}:{hi[j]:g}")

@@ -20,9 +20,14 @@ import numpy as np
 from .. import outputs as out_
 from ..parameters import (DEFAULT_ATOL, DIMS, MATERIAL, MATERIAL_REQUIRED, ParameterError,
                           N_from_friction, check_material, check_point, eps_from_width)
-from .data import INPUTS, Measurements
+from .data import INPUTS, DataError, Measurements
 
-__all__ = ["Problem", "jacobian", "analytic_sensitivities", "OUTSIDE"]
+__all__ = ["Problem", "FitError", "jacobian", "analytic_sensitivities", "OUTSIDE"]
+
+
+class FitError(ParameterError):
+    """A fit that cannot start: its free, fixed, bounds or start values, or a start without a
+    solution. The message names the parameter or the row."""
 
 # The status of a row whose point, at some trial, is outside the parameters' ranges (a status
 # code of its own next to cosserat_channel.status.Status's, which are >= 0).
@@ -62,11 +67,11 @@ class Problem:
             both = data.given(direct) & data.given(physical)
             if both.any():
                 i = int(np.flatnonzero(both)[0])
-                raise ParameterError(f"{data.where(i)}: gives both {direct} and {physical} "
+                raise DataError(f"{data.where(i)}: gives both {direct} and {physical} "
                                      f"(which gives {direct}): give one")
             glob = [k for k in (direct, physical) if k in self.free or k in self.fixed]
             if len(glob) == 2:
-                raise ParameterError(f"{direct} and {physical} (which gives {direct}) are both "
+                raise FitError(f"{direct} and {physical} (which gives {direct}) are both "
                                      "fixed or free: give one")
         self._columns = {k: v for k, v in data.columns.items()}
         self._n = n
@@ -111,7 +116,7 @@ class Problem:
                 given[direct] = float(relation(float(v[needs][i]), float(v[physical][i])))
         missing = [d for d in DIMS if math.isnan(given.get(d, v[d][i]))]
         if missing:
-            how = {"eps": "eps, or W with d_p", "N": "N, or delta_w with phi"}
+            how = {"eps": "eps (or W with d_p)", "N": "N (or delta_w with phi)"}
             raise ParameterError(f"{data.where(i)}: no value for "
                                  f"{', '.join(how.get(d, d) for d in missing)}: give a column, a "
                                  "fixed value or a free parameter")

@@ -48,7 +48,8 @@ def residuals_figure(result, path=None):
     ax_r.grid(alpha=0.3)
     profile = data.is_profile
     if profile.any():
-        for q in [q for q in quantities if profile[data.quantity == q].all()]:
+        drawn = [q for q in quantities if profile[data.quantity == q].all()]
+        for q in drawn:
             sel = (data.quantity == q) & profile
             order = np.argsort(data.xi[sel])
             x = data.xi[sel][order]
@@ -56,7 +57,7 @@ def residuals_figure(result, path=None):
                           ms=4, color=colour[q], label=f"{q} measured")
             ax_m.plot(x, result.predictions[sel][order], "-", color=colour[q], label=f"{q} fit")
         ax_m.set_xlabel(axis_label("xi"))
-        ax_m.set_ylabel("profile")
+        ax_m.set_ylabel(axis_label(drawn[0]) if len(drawn) == 1 else "profile")
     else:
         for q in quantities:
             sel = data.quantity == q

@@ -337,3 +337,21 @@ def test_analytic_sensitivities_are_used_when_offered(monkeypatch):
     # both are differences: at rtol 1e-10 and steps 2e-3 (fit) and 1e-5 (stand-in), each is good
     # to ~1e-5 relative of the column
     np.testing.assert_allclose(J, J_fd, rtol=2e-4)
+
+
+def test_registered_outputs_are_fittable_and_nan_is_a_status():
+    """A quantity registered at run time is fittable (the registry is read at each call), and
+    one that is NaN at a solved point is the status no_value, refused at the start by name."""
+    from cosserat_channel import outputs
+
+    twice = outputs.Output("Delta_twice", "1", "twice Delta", lambda x: 2 * x.get("Delta"),
+                           plug_edge=True)
+    nothing = outputs.Output("nothing", "1", "no value", lambda x: x.eps * math.nan, stage=1)
+    with outputs.registered(twice), outputs.registered(nothing):
+        value = 2 * solve_point(0.05, 10, 0.5, 1 / 3, 1).Delta
+        data = {"quantity": ["Delta_twice"], "value": [value], "std_error": [0.01], "eps": [0.05]}
+        r = fit(data, "L", {"K": 0.5, **FIXED}, start={"L": 8.0})
+        assert r.params["L"] == pytest.approx(10.0, rel=1e-6)
+        data["quantity"] = ["nothing"]
+        with pytest.raises(FitError, match=r"row 1: no solution at the start \(L = 8\): no_value"):
+            fit(data, "L", {"K": 0.5, **FIXED}, start={"L": 8.0})

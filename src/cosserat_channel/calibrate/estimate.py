@@ -19,7 +19,7 @@ import numpy as np
 from .. import status as st
 from ..parameters import DEFAULT_ATOL, ParameterError, parse_number
 from .data import INPUTS, DataError, Measurements, read_data
-from .model import OUTSIDE, FitError, Problem, jacobian
+from .model import NO_VALUE, OUTSIDE, FitError, Problem, jacobian
 
 __all__ = ["fit", "FitResult", "FitError", "FitWarning", "DEFAULT_RTOL", "COND_MAX"]
 
@@ -29,8 +29,8 @@ DEFAULT_RTOL = 1e-10
 # Above this condition number of the column-scaled Jacobian a parameter combination is not
 # determined by the data: a relative change of 1/COND_MAX in the data moves it by O(1).
 COND_MAX = 1e6
-# A free input's start when none is given: the paper's reference point (figures 2-12; the same
-# values as paper/record.py) or the input's own default (the closure constants).
+# A free input's start when none is given: the paper's reference point (docs/model.md, "Defaults
+# throughout"), or the input's own default (the closure constants).
 START = {"eps": 1.0 / 30.0, "L": 10.0, "K": 0.5, "A": 1.0 / 3.0, "N": 1.0}
 
 
@@ -59,7 +59,7 @@ class FitResult:
         Per row, the model's value at the estimates.
     status : list of str
         Per row, the status name at the estimates (``outside_domain`` for a point outside the
-        parameters' ranges).
+        parameters' ranges, ``no_value`` where the quantity is NaN at a solved point).
     data : Measurements
     fixed, bounds : dict
     start : numpy.ndarray
@@ -427,15 +427,17 @@ def _covariance(J):
     return cov, cond, null
 
 
+_OWN_STATUS = {OUTSIDE: ("outside_domain", "the point is outside the parameters' ranges"),
+               NO_VALUE: ("no_value", "the point solves but the quantity has no value (NaN) there")}
+
+
 def _status_name(code: int) -> str:
-    return "outside_domain" if code == OUTSIDE else st.Status(code).name
+    return _OWN_STATUS[code][0] if code in _OWN_STATUS else st.Status(code).name
 
 
 def _status_text(code: int) -> str:
-    if code == OUTSIDE:
-        return "outside_domain: the point is outside the parameters' ranges"
-    s = st.Status(code)
-    return f"{s.name} ({s.message})"
+    name, message = _OWN_STATUS.get(code) or (st.Status(code).name, st.Status(code).message)
+    return f"{name} ({message})"
 
 
 def _at(names, x) -> str:

@@ -22,16 +22,18 @@ from ..parameters import (DEFAULT_ATOL, DIMS, MATERIAL, MATERIAL_REQUIRED, Param
                           N_from_friction, check_material, check_point, eps_from_width)
 from .data import INPUTS, DataError, Measurements
 
-__all__ = ["Problem", "FitError", "jacobian", "analytic_sensitivities", "OUTSIDE"]
+__all__ = ["Problem", "FitError", "jacobian", "analytic_sensitivities", "OUTSIDE", "NO_VALUE"]
 
 
 class FitError(ParameterError):
     """A fit that cannot start: its free, fixed, bounds or start values, or a start without a
     solution. The message names the parameter or the row."""
 
-# The status of a row whose point, at some trial, is outside the parameters' ranges (a status
-# code of its own next to cosserat_channel.status.Status's, which are >= 0).
+# Two statuses of a row next to cosserat_channel.status.Status's (codes >= 0): its point, at
+# some trial, is outside the parameters' ranges; or the point solves but the measured quantity
+# has no value there (NaN, e.g. a closure without a root).
 OUTSIDE = -1
+NO_VALUE = -2
 
 # Where eps and N come from when a row does not give them: (parameter, engineers' input, the
 # material input it needs, the relation).
@@ -139,7 +141,8 @@ class Problem:
         predictions : numpy.ndarray, shape (m, n)
             NaN where a row has no solution.
         status : numpy.ndarray of int, shape (m, n)
-            Each row's status code, :data:`OUTSIDE` where its point is outside the domain.
+            Each row's status code, :data:`OUTSIDE` where its point is outside the domain,
+            :data:`NO_VALUE` where it solves but the quantity is NaN.
         outside : dict
             ``{(k, i): message}`` for the rows outside the domain.
         """
@@ -185,6 +188,7 @@ class Problem:
                     status[k, i] = int(r.status)
                     if r.profile is not None:
                         pred[k, i] = r.profile[quantity[i]][j]
+        status[(status == 0) & ~np.isfinite(pred)] = NO_VALUE
         return pred, status, outside
 
 

@@ -355,3 +355,16 @@ def test_registered_outputs_are_fittable_and_nan_is_a_status():
         data["quantity"] = ["nothing"]
         with pytest.raises(FitError, match=r"row 1: no solution at the start \(L = 8\): no_value"):
             fit(data, "L", {"K": 0.5, **FIXED}, start={"L": 8.0})
+
+
+def test_exported_lazily_and_reading_data_is_light():
+    """``cosserat_channel.fit`` is the calibration's own function, and reading a table imports
+    neither numba nor scipy."""
+    from support import run_python
+
+    assert cosserat_channel.fit is fit
+    assert cosserat_channel.FitResult.__module__ == "cosserat_channel.calibrate.estimate"
+    code = ("import sys, cosserat_channel.calibrate as c; c.read_data({'quantity': ['Delta'], "
+            "'value': [1.0], 'std_error': [0.1]}); "
+            "print(sorted(m for m in ('numba', 'scipy') if m in sys.modules))")
+    assert run_python(code) == "[]"

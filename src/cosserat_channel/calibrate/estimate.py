@@ -167,7 +167,7 @@ class FitResult:
         lines.append(f"chi2 = {self.chi2:.6g}, dof = {self.dof}, chi2/dof = {self.chi2_dof:.4g}, "
                      f"condition number = {self.condition_number:.3g}")
         lines.append(f"{len(self.data)} measurements, {self.n_evaluations} evaluations, "
-                     f"{self.n_solves} solves, Jacobian by {self.jacobian_method}; "
+                     f"{self.n_solves} solves, Jacobian: {self.jacobian_method}; "
                      f"{self.message}")
         return "\n".join(lines)
 

@@ -65,6 +65,7 @@ class Problem:
         self.needs_material = np.array([not p and out_.OUTPUTS[q].material
                                         for q, p in zip(data.quantity, self.profile_rows)])
         self.n_solves = 0
+        self.analytic = None  # whether solve_point's sensitivities cover every row (see jacobian)
         for direct, physical, _, _ in _DERIVED:
             both = data.given(direct) & data.given(physical)
             if both.any():
@@ -232,8 +233,12 @@ def jacobian(problem: Problem, theta, base: tuple | None = None) -> tuple[np.nda
         ``statuses`` (the status codes met by the neighbours that had no solution).
     """
     theta = np.asarray(theta, dtype=np.float64)
-    if analytic_sensitivities():
-        J = _analytic(problem, theta)
+    if problem.analytic is not False and analytic_sensitivities():
+        J, covered = _analytic(problem, theta)
+        # Whether the sensitivities cover the rows depends on their quantities, not on theta:
+        # found once per problem.
+        if covered is not None:
+            problem.analytic = covered
         if J is not None:
             return J, {"method": "analytic", "one_sided": [], "statuses": {}}
     return _central(problem, theta, base)
@@ -268,17 +273,19 @@ def _central(problem: Problem, theta, base):
     return J, {"method": "central differences", "one_sided": one_sided, "statuses": statuses}
 
 
-def _analytic(problem: Problem, theta) -> np.ndarray | None:
+def _analytic(problem: Problem, theta):
     """The Jacobian from ``solve_point(..., sensitivities=True)``: each row's derivatives with
     respect to its point and material, chained with the closed-form map from ``theta`` to them.
-    None where the solver's sensitivities do not cover what a row needs (central differences
-    then)."""
+
+    Returns ``(J, covered)``: ``(None, False)`` where the solver's sensitivities do not cover
+    what a row needs, ``(None, None)`` where a row's point (or a neighbour of the closed-form
+    map) is outside the domain at this ``theta``; central differences then."""
     from ..solver import point as point_
 
     data = problem.data
     rows = problem.points(theta)
     if any(pt is None for pt, _ in rows):
-        return None
+        return None, None
     # d (row inputs) / d theta by differencing the closed-form map (no solve: exact to ~1e-10).
     p = theta.size
     dinputs = []
@@ -289,13 +296,15 @@ def _analytic(problem: Problem, theta) -> np.ndarray | None:
         tm[j] -= h
         rp, rm = problem.points(tp), problem.points(tm)
         if any(pt is None for pt, _ in rp + rm):
-            return None
+            return None, None
         dinputs.append([_row_derivative(a, b, 2 * h) for a, b in zip(rp, rm)])
     J = np.zeros((len(data), p))
     keys = [(pt, None if mat is None else tuple(mat.items()), bool(problem.profile_rows[i]))
             for i, (pt, mat) in enumerate(rows)]
     cache: dict = {}
-    for i, (pt, mat) in enumerate(rows):
+    # profile rows first: where the solver has no profile sensitivities this gives up at once
+    for i in sorted(range(len(rows)), key=lambda i: not problem.profile_rows[i]):
+        pt, mat = rows[i]
         q = data.quantity[i]
         key = keys[i]
         if key not in cache:
@@ -317,10 +326,10 @@ def _analytic(problem: Problem, theta) -> np.ndarray | None:
                 if d == 0.0:
                     continue
                 if name not in sens:
-                    return None
+                    return None, False
                 total += float(sens[name]) * d
             J[i, j] = total
-    return J
+    return J, True
 
 
 def _row_derivative(plus, minus, width) -> dict:

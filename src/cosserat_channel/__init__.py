@@ -149,6 +149,8 @@ _API = {
     "trace_edge": "regimes",
     "trace_boundary": "regimes",
     "phase_plane": "regimes",
+    "fit": "calibrate",
+    "FitResult": "calibrate",
 }
 
 __all__ = ["__version__", *_API]

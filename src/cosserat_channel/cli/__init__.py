@@ -562,5 +562,5 @@ def _figure_output(path: str, option: str = "-o", *, overwrite: bool) -> None:
 
 
 # The commands register themselves on import; they come last because they import the pieces above.
-from . import _point, _sweeps, _regimes, _atlas, _reports, _paper  # noqa: E402, F401, I001 (this order is --help's)
+from . import _point, _sweeps, _regimes, _atlas, _reports, _paper, _fit  # noqa: E402, F401, I001 (this order is --help's)
 

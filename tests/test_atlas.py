@@ -176,11 +176,16 @@ def test_boundary_dataset_matches_traced_boundary(atlas):
     for v in ("eta_max", "eta_min"):
         np.testing.assert_allclose(got[v].values, ref[v].values, rtol=10 * TOL)
     np.testing.assert_array_equal(got["axis_edge_eta"].values, ref["axis_edge_eta"].values)
+    # The stated error: the leaf's largest per-transition error, never below the tolerance.
+    leaf, _, _, _ = atlas.transitions(*np.meshgrid(A, N, indexing="ij"))
+    want = np.fmax(np.max(atlas.leaf_transition_error[leaf], axis=-1), atlas.tol)
+    np.testing.assert_array_equal(got["eta_error"].values, want)
 
 
 def test_boundary_below_the_wall_line_has_no_solution(atlas):
     bds = atlas.boundary([-0.5, 0.0], [0.3, 0.5])  # all four points: A < 1 - 2 N^2
     assert (bds["edge_kind"].values == 2).all() and bds["resolved"].values.all()
+    assert np.isnan(bds["eta_error"].values).all()  # no transition: no error to state
 
 
 def test_file_round_trip_and_reading_without_numba(atlas, atlas_file, tmp_path):

@@ -330,3 +330,25 @@ def test_cli_boundary_and_plots(tmp_path, capsys, regime_ds):
     code, _, err = _main(["plot", str(res), "--x", "A", "--y", "Delta", "-o",
                           str(tmp_path / "e.png")], capsys)
     assert code == 2 and "--at" in err
+
+
+def test_solvable_region_marks_an_error_above_the_tolerance(boundary_ds):
+    """Where the data state an error above their tolerance (an atlas's envelope cell) the figure
+    dots the area and its legend states the largest error; at or below it nothing is added."""
+    bds = boundary_ds.copy()
+    err = np.where(np.isfinite(bds["eta_max"].values), 1e-8, np.nan)
+    bds["eta_error"] = (("A", "N"), err)
+    bds.attrs["atlas_tol"] = 1e-8
+
+    def dotted(fig):
+        texts = [t.get_text() for t in fig.legends[0].get_texts()]
+        return [t for t in texts if "above the atlas's tolerance" in t]
+
+    assert dotted(pr.solvable_region_figure(bds)) == []
+    err[2, 3] = 0.37
+    bds["eta_error"] = (("A", "N"), err)
+    fig = pr.solvable_region_figure(bds)
+    assert len(dotted(fig)) == 1 and "0.37" in dotted(fig)[0]
+    hatches = [h for c in fig.axes[0].collections
+               for h in (getattr(c, "hatches", None) or [c.get_hatch()])]
+    assert "...." in hatches

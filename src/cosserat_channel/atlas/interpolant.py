@@ -186,19 +186,26 @@ class Atlas:
         :func:`plot.regimes.boundary_figure` draw it unchanged. Where the atlas does not know (an
         unresolved leaf, outside the box) ``eta_max`` and ``eta_min`` are NaN, ``n_transitions``
         is -1 and ``resolved`` is False; ``status_above`` is -1 (the atlas keeps feasibility, not
-        the status beyond an edge).
+        the status beyond an edge). ``eta_error`` is the error the atlas states for the
+        transitions in range at each point (at least ``tol``; above it in a cell that could not
+        reach it, whose interpolant is an envelope of its nodes).
         """
         from ..regimes.boundary import boundary_dataset
 
         A = np.atleast_1d(np.asarray(A, dtype=float))
         N = np.atleast_1d(np.asarray(N, dtype=float))
         AA, NN = np.meshgrid(A, N, indexing="ij")
-        _, low, eta, _ = self.transitions(AA, NN)
+        leaf, low, eta, _ = self.transitions(AA, NN)
+        terr = np.where((leaf >= 0)[..., None],
+                        self.leaf_transition_error[np.maximum(leaf, 0)], np.nan)
         lo, hi = self.eta_range
         # Feasibility at lo: that at the low end of the traces, flipped by each transition below lo
         # (the traces search a wider range than the atlas answers for).
         ok_lo = (low == 1) ^ (np.sum(eta <= lo, axis=-1) % 2 == 1)
         inside = np.where((eta > lo) & (eta < hi), eta, np.nan)
+        with np.errstate(invalid="ignore"):
+            reached = np.max(np.where(np.isfinite(inside), np.fmax(terr, self.tol), 0.0),
+                             axis=-1, initial=0.0)
         n_in = np.sum(np.isfinite(inside), axis=-1)
         ok_hi = ok_lo ^ (n_in % 2 == 1)
         if inside.shape[-1]:
@@ -224,6 +231,7 @@ class Atlas:
             A, N, eta_max=eta_max, eta_min=eta_min, edge_kind=kind,
             status_above=np.full(AA.shape, -1, dtype=np.int8),
             n_transitions=np.where(known, n_in, -1), resolved=known,
+            eta_error=np.where(known & ~none & (n_in > 0), reached, np.nan),
             title="cosserat-channel boundary drawn from a solvability atlas",
             attrs={"eta_search_min": float(lo), "eta_search_max": float(hi),
                    "atlas_tol": float(self.tol)})

@@ -396,8 +396,9 @@ def solvable_region_figure(bds, path=None):
     they span more than a decade), so that a narrow range of ``eta`` is not one flat colour. The
     analytic lines ``A = 1 - 2N^2``, ``A = -1`` and ``A = 1`` (above which the axis condition
     never binds) are drawn where they cross the box; grey where there is no solution for any
-    ``eta``, white where the data do not decide (an unresolved atlas cell). One legend below both
-    panels lists each thing drawn once.
+    ``eta``, white where the data do not decide (an unresolved atlas cell), dotted where the data
+    state an error above their tolerance (an atlas cell that could not reach it: ``eta_error``).
+    One legend below both panels lists each thing drawn once.
 
     Parameters
     ----------
@@ -426,20 +427,29 @@ def solvable_region_figure(bds, path=None):
     A_wall = 1.0 - 2.0 * N_wall**2
     A_sw = np.linspace(max(A_lim[0], -1.0), min(A_lim[1], 1.0), MAP_GRID)
     N_sw = analytic.node_focus_switch_N(A_sw) if A_sw[0] < A_sw[-1] else np.full(A_sw.shape, np.nan)
+    # Where the source states an error above its tolerance (an atlas's envelope cells).
+    err = bds["eta_error"].values.T if "eta_error" in bds else None
+    tol = float(bds.attrs.get("atlas_tol", np.nan))
+    rough = None
+    if err is not None and np.isfinite(tol):
+        with np.errstate(invalid="ignore"):
+            mask = resolved & (err > tol * (1.0 + 1e-9))
+        rough = np.where(mask, 1.0, np.nan) if mask.any() else None
     # One legend for the figure: the panels share the lines, each is listed once.
     handles = {}
 
     def keep(handle):
         handles.setdefault(handle.get_label(), handle)
 
+    # Beyond the searched range: a pale tint past the colour scale's end, and hatched.
     panels = (
-        (axes[0], eta_max, r"$\eta_{\max}$", kind == rc.EDGE_UNBOUNDED, "//",
+        (axes[0], eta_max, r"$\eta_{\max}$", kind == rc.EDGE_UNBOUNDED, "//", "#fff7c2",
          rf"ok up to $\eta$ = {hi:g}", r": largest $\varepsilon L$ with a solution"),
         (axes[1], eta_min, r"$\eta_{\min}$", (kind != rc.EDGE_NONE) & (eta_min_all <= lo), "\\\\",
-         rf"ok down to $\eta$ = {lo:g}",
+         "#ece4f4", rf"ok down to $\eta$ = {lo:g}",
          rf": smallest $\varepsilon L$ with a solution (where > {lo:g})"),
     )
-    for ax, field, name, beyond, hatch, text, title in panels:
+    for ax, field, name, beyond, hatch, tint, text, title in panels:
         if none.any():
             ax.pcolormesh(A_edges, N_edges, np.where(none, 1.0, np.nan),
                           cmap=ListedColormap(["#d9d9d9"]), shading="flat", rasterized=True)
@@ -453,10 +463,18 @@ def solvable_region_figure(bds, path=None):
         # Beyond the searched range: hatched, so that it is not mistaken for undecided (white).
         beyond = np.where(resolved & beyond, 1.0, np.nan)
         if np.isfinite(beyond).any():
+            ax.pcolormesh(A_edges, N_edges, beyond, cmap=ListedColormap([tint]), shading="flat",
+                          rasterized=True)
             ax.contourf(AA, NN, beyond, levels=[0.5, 1.5], colors="none", hatches=[hatch])
-            keep(Patch(facecolor="none", edgecolor="0.3", hatch=hatch, label=text))
+            keep(Patch(facecolor=tint, edgecolor="0.3", hatch=hatch, label=text))
         if (~resolved).any():
             keep(Patch(facecolor="white", edgecolor="0.5", label="undecided (atlas)"))
+        if rough is not None:
+            # Cells that could not reach the tolerance: drawn with the error they state.
+            ax.contourf(AA, NN, rough, levels=[0.5, 1.5], colors="none", hatches=["...."])
+            keep(Patch(facecolor="none", edgecolor="0.3", hatch="....",
+                       label=f"error above the atlas's tolerance (up to {np.nanmax(err):.2g}, "
+                             "relative)"))
         if _crosses_box(A_wall, N_wall, A_lim, N_lim):
             keep(ax.plot(A_wall, N_wall, label=BOUNDARY_LABELS["wall"], **BOUNDARY_STYLES["wall"])[0])
         if ax is axes[0] and _crosses_box(A_sw, N_sw, A_lim, N_lim):
@@ -477,8 +495,8 @@ def solvable_region_figure(bds, path=None):
     if handles:
         fig.legend(handles=sorted(handles.values(), key=lambda h: not isinstance(h, Patch)),
                    loc="outside lower center", ncols=2, fontsize="small", frameon=False)
-    tol = bds.attrs.get("atlas_tol")
-    fig.suptitle("Solvable region in (A, N)" + (f" (atlas, tolerance {tol:g})" if tol else ""))
+    fig.suptitle("Solvable region in (A, N)" + (f" (atlas, tolerance {tol:g})"
+                                                 if np.isfinite(tol) else ""))
     if path is not None:
         save_figure(fig, path)
     return fig

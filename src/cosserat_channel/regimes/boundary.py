@@ -13,7 +13,7 @@ from ..regime_codes import EDGE_KINDS
 
 
 def boundary_dataset(A, N, *, eta_max, eta_min, edge_kind, status_above, n_transitions, title,
-                     attrs, resolved=None):
+                     attrs, resolved=None, eta_error=None):
     """The Dataset on ``(A, N)`` of an edge of solvability.
 
     Parameters
@@ -33,12 +33,16 @@ def boundary_dataset(A, N, *, eta_max, eta_min, edge_kind, status_above, n_trans
         Provenance (searched range, tolerances, ...); the package's version is added.
     resolved : ndarray of bool, optional
         Where the source decides (an atlas); left out for traced data, which decides everywhere.
+    eta_error : ndarray, optional
+        The source's stated error of the transitions at each point, relative in ``eta`` (an
+        atlas: the largest of its leaf's transitions in range); left out for traced data.
 
     Returns
     -------
     xarray.Dataset
         ``eta_max``, ``eta_min``, ``edge_kind``, ``status_above``, ``n_transitions``,
-        ``axis_edge_eta`` (the analytic axis condition) and, if given, ``resolved``.
+        ``axis_edge_eta`` (the analytic axis condition) and, if given, ``resolved`` and
+        ``eta_error``.
     """
     import xarray as xr
 
@@ -70,6 +74,9 @@ def boundary_dataset(A, N, *, eta_max, eta_min, edge_kind, status_above, n_trans
     if resolved is not None:
         data["resolved"] = (("A", "N"), np.asarray(resolved, dtype=bool), {
             "long_name": "the source decides this (A, N)"})
+    if eta_error is not None:
+        data["eta_error"] = (("A", "N"), np.asarray(eta_error, dtype=float), {
+            "long_name": "stated error of eta_max and eta_min, relative", "units": "1"})
     return xr.Dataset(
         data,
         coords={d: (d, v, {"long_name": PARAMETERS[d].long_name, "units": PARAMETERS[d].units})

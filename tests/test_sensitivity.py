@@ -116,3 +116,59 @@ def test_only_the_computed_outputs_and_plain_solves_unchanged():
     assert {k: repr(v) for k, v in plain.values.items()} == {k: repr(v) for k, v in with_s.values.items()}
     assert plain.sensitivities is None
     assert with_s.to_dict()["sensitivities"]["Delta"]["eps"] == with_s.sensitivities["Delta"]["eps"]
+
+
+def _check_profile(p, params=PARAMS, rel_step=1e-4):
+    """Profile sensitivities against central differences at the axis, near it, around xi_p and
+    at the wall. Each cumulative of the march is resolved relative to its whole magnitude, not
+    pointwise, so the sensitivity solve's own error is bounded by 100 rtol of the largest
+    derivative over the profile (and the rounding term by the profile's largest value)."""
+    xi_p = solve_point(*p).xi_p
+    xi = np.array([0.0, 1e-3, 0.05, 0.3, xi_p - 0.01, xi_p, xi_p + 0.01, 0.99, 1.0])
+    r = solve_point(*p, rtol=RTOL_SENS, profile=xi, sensitivities=True)
+    assert r.ok, r.status.message
+    ps = r.profile_sensitivities
+    assert set(ps) == {"u_over_u0", "omega_hat"}
+    assert np.all(ps["u_over_u0"]["eps"][:1] == 0.0)  # u/u(0) = 1 at the axis, for every point
+    kw = dict(rtol=RTOL_REF, atol=1e-30, profile=xi)
+    for i, name in enumerate(PARAMS):
+        if name not in params:
+            continue
+        h = rel_step * max(abs(p[i]), 1e-2)
+        quotients = []
+        for step in (h, 2 * h):
+            plus, minus = list(p), list(p)
+            plus[i] += step
+            minus[i] -= step
+            a, b = solve_point(*plus, **kw), solve_point(*minus, **kw)
+            quotients.append({k: (a.profile[k] - b.profile[k]) / (2 * step) for k in ps})
+        for out, d in ps.items():
+            fd1, fd2 = quotients[0][out], quotients[1][out]
+            bound = (100 * RTOL_SENS * np.max(np.abs(fd1)) + np.abs(fd1 - fd2) / 3
+                     + 100 * RTOL_REF * np.max(np.abs(r.profile[out])) / h + 1e-300)
+            assert d[name].shape == xi.shape
+            assert np.all(np.abs(d[name] - fd1) <= bound), (p, out, name, d[name], fd1, bound)
+
+
+@pytest.mark.parametrize("p", [(1 / 30, 10, 0.5, 1 / 3, 1.0), (0.05, 4.0, 1.5, -0.4, 1.7),
+                               (0.2, 15.0, 0.1, 2.0, 0.8)])
+def test_profile_sensitivities_against_central_differences(p):
+    _check_profile(p)
+
+
+def test_profile_sensitivities_a_minus_one_closed_form():
+    _check_profile((1 / 30, 10, 0.5, -1.0, 1.5), params=("eps", "L", "K", "N"))
+
+
+def test_profile_sensitivities_leave_the_rest_unchanged_and_serialise():
+    p = (1 / 30, 10, 0.5, 1 / 3, 1.0)
+    xi = np.linspace(0, 1, 5)
+    with_p = solve_point(*p, profile=xi, sensitivities=True)
+    without = solve_point(*p, sensitivities=True)
+    assert with_p.sensitivities == without.sensitivities
+    assert without.profile_sensitivities is None
+    d = with_p.to_dict()["profile_sensitivities"]
+    assert d["u_over_u0"]["K"] == with_p.profile_sensitivities["u_over_u0"]["K"].tolist()
+    bad = solve_point(0.5, 10, 0.5, 1 / 3, 1.0, profile=xi, sensitivities=True)
+    assert not bad.ok
+    assert all(np.isnan(a).all() for s in bad.profile_sensitivities.values() for a in s.values())

@@ -35,7 +35,8 @@ from .layout import R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL
 from .stage2 import FIRST_PANEL, MAX_STEPS_STAGE2, STAGE2_TOL, TAIL_FRACTION, XI_FLOOR, _h_axis
 from .stress_path import _delta_wall, _wall_increments, delta_D_at
 
-__all__ = ["sensitivity_kernel", "point_sensitivities", "PARAMETERS", "OUTPUTS"]
+__all__ = ["sensitivity_kernel", "point_sensitivities", "profile_sensitivities", "PARAMETERS", "OUTPUTS",
+           "PROFILE_OUTPUTS"]
 
 # Slots of the kernel's result vector; derivatives with respect to (eta, A, N) in three slots each.
 S_STATUS = 0
@@ -44,12 +45,21 @@ S_SIGMA_YX_WALL = 4  # d(sigma_yx(1)/nu)/d(eta, A, N)
 S_J_AXIS = 7  # dJ(0)/d(eta, A, N)
 S_ONE_MINUS = 10  # d(1 - xi_p)/d(eta, A, N, eps K): four slots
 S_PANELS = 14  # accepted panels
-N_S = 15
+S_DELTA_WALL = 15  # d delta(1)/d(eta, A, N): the input ``F0`` of a profile call
+N_S = 18
+# Rows of a profile call's ``prof`` (each by eta, A, N): dJ(xi), d log omega_hat(xi).
+PS_J = 0
+PS_LOGW = 3
+N_PS = 6
 
 # The parameters of a point, and the outputs that have sensitivities.
 PARAMETERS = ("eps", "L", "K", "A", "N")
 OUTPUTS = ("Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall", "nu", "sigma_xx_wall_Pa",
            "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
+# The profiles that have sensitivities (by eps, L, K, A, N).
+PROFILE_OUTPUTS = ("u_over_u0", "omega_hat")
+_NO_PROFILE = np.empty(0)
+_NO_PROF = np.empty((N_PS, 1))
 # Rows of the accumulated integrals: d delta(1), dJ(0), dJ(xi_p) at fixed xi_p, three each.
 _N_ACC = 9
 # J(0) - J(xi) below this many ulps of J(0) is rounding noise (see sensitivity_kernel).
@@ -57,7 +67,8 @@ I_NOISE = 256.0
 
 
 @njit(**_JIT)
-def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1, out):
+def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1, out, xis, F0,
+                       prof):
     """Derivatives of a solved ``(eta, A, N)`` (``A > -1``) into ``out[N_S]`` (slots ``S_*``).
 
     ``ax``, ``res`` and ``(T1, Q1)`` are those the solve left (status ok, stage 2 run);
@@ -65,6 +76,19 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     stage 1's steps and resolve the integrands to ``STAGE2_TOL * rtol`` (relative to the sum of
     their magnitudes), and stop once what is left down to the axis is below
     ``TAIL_FRACTION * rtol`` of it, as stage 2 does.
+
+    With profile points ``xis`` (not empty) and ``F0 = d delta(1)/d(eta, A, N)`` from a first call
+    (slots ``S_DELTA_WALL``), the same panels also carry the forward sensitivities, column ``i`` of
+    ``prof[N_PS, xis.size + 1]`` receiving those at ``xis[i]`` (rows ``PS_*``) and the last column
+    ``dJ(0)``: with ``S = d delta/dp = (F0 - int_xi^1 omega_hat df/dp) / omega_hat``,
+    ``d log omega_hat/dp = -int_xi^1 (dB/dp + B_delta S)`` and ``dJ/dp = int_xi^1 omega_hat
+    (dh/dp + h_delta S + h d log omega_hat/dp)``, each cumulative from the wall. ``S`` carries the
+    whole integral's quadrature error divided by ``omega_hat``, but enters ``J`` weighted by
+    ``omega_hat`` and ``omega_hat``'s derivative as ``omega_hat`` times it, so both keep the
+    accuracy of the solve (``S`` itself, hence ``m`` and ``sigma_yx``, would not near the axis).
+    Points below the march's end continue its last slope (``log omega_hat`` linear in ``ln xi``,
+    as ``xi^beta``; ``J`` has converged there). The panels and every ``out`` slot are those of a
+    call without profile points, bit for bit.
     """
     for i in range(N_S):
         out[i] = math.nan
@@ -101,6 +125,20 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     pan_err = np.empty(_N_ACC)
     low = np.empty(_N_ACC)
     t_floor = math.log(XI_FLOOR)
+    n_pro = xis.size
+    t_pro = np.empty(n_pro)
+    todo = np.ones(n_pro, dtype=np.bool_)
+    for i in range(n_pro):
+        t_pro[i] = math.log(xis[i]) if xis[i] > 0.0 else -math.inf
+    vF = np.empty((3, nn))
+    vB = np.empty((3, nn))
+    vJ = np.empty((3, nn))
+    Sn = np.empty(nn)
+    Ln = np.empty(nn)
+    Fb = np.zeros(3)
+    Lb = np.zeros(3)
+    dJb = np.zeros(3)
+    slope = np.zeros(3)
     k = n1 - 1
     b = 0.0
     y_b = 0.0
@@ -218,6 +256,32 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
                 return
             continue
         accepted += 1
+        if n_pro > 0:
+            for row in range(3):
+                for j in range(nn):
+                    vF[row, j] = xs[j] * (w[j] * P[dv.Q_F + row, j])
+                panels.cumulative(vF[row], r, cum)
+                for j in range(nn):
+                    Sn[j] = (F0[row] - (Fb[row] + cum[j])) / w[j]
+                    vB[row, j] = xs[j] * (P[dv.Q_BP + row, j] + P[dv.Q_B_DELTA, j] * Sn[j])
+                panels.cumulative(vB[row], r, cum)
+                for j in range(nn):
+                    Ln[j] = Lb[row] - cum[j]
+                    vJ[row, j] = xs[j] * w[j] * (P[dv.Q_HP + row, j] + P[dv.Q_H_DELTA, j] * Sn[j]
+                                                 + P[dv.Q_H, j] * Ln[j])
+                dJ_pan, _ = panels.cumulative(vJ[row], r, cum)
+                slope[row] = vB[row, last]
+                for i in range(n_pro):
+                    if todo[i] and a <= t_pro[i] <= b:
+                        u = min(2.0, max(0.0, (b - t_pro[i]) / r))
+                        prof[PS_J + row, i] = dJb[row] + panels.partial(vJ[row], r, u)
+                        prof[PS_LOGW + row, i] = Lb[row] - panels.partial(vB[row], r, u)
+                Fb[row] += pan[row]
+                Lb[row] = Ln[last]
+                dJb[row] += dJ_pan
+            for i in range(n_pro):
+                if a <= t_pro[i] <= b:
+                    todo[i] = False
         for c in range(_N_ACC):
             acc[c] += pan[c]
             acc_abs[c] += pan_abs[c]
@@ -241,9 +305,19 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
             lo = math.log(T1[k]) if k >= 0 else t_floor
     else:
         return
+    for row in range(3):
+        for i in range(n_pro):
+            if todo[i]:
+                # below the march: log omega_hat ~ beta ln xi (slope: xi (B_p + B_delta S) ->
+                # dbeta/dp), J converged
+                prof[PS_J + row, i] = dJb[row]
+                prof[PS_LOGW + row, i] = Lb[row] + slope[row] * (t_pro[i] - b)
+        prof[PS_J + row, n_pro] = dJb[row]
+        prof[PS_LOGW + row, n_pro] = math.nan
     sq = math.sqrt(D1)
     D_d, D_A, D_N = dv.yield_D_partials(1.0, delta1, A, N)
     for i in range(3):
+        out[S_DELTA_WALL + i] = acc[i]
         out[S_MU_WALL + i] = acc[i]
         out[S_J_AXIS + i] = acc[3 + i]
         out[S_SIGMA_YX_WALL + i] = -D_d * acc[i] / (2.0 * sq)
@@ -283,9 +357,12 @@ def _a_minus_one(eta, N, eps_K, want_plug):
     return (0.0, nan, -1.0), (0.0, nan, 0.0), (J_c * c_eta, nan, J_c * c_N), one_minus
 
 
-def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, material):
-    """``({output: {parameter: derivative}}, status code)`` for a point ``solve_point`` just solved
-    in workspace ``ws`` (``one_minus``: its ``1 - xi_p``, NaN when not computed).
+def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, material,
+                        profile=None):
+    """``({output: {parameter: derivative}}, profile sensitivities, status code)`` for a point
+    ``solve_point`` just solved in workspace ``ws`` (``one_minus``: its ``1 - xi_p``, NaN when not
+    computed; ``profile``: its profiles, or None, then the second item is None too, else
+    :func:`profile_sensitivities`'s).
 
     Only outputs in ``values`` that :data:`OUTPUTS` lists get derivatives: by ``eps, L, K, A, N``
     and, for those that need a material, by each of its inputs. NaN where the point has no
@@ -297,7 +374,8 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
     nan = math.nan
     if code != st.OK:
         return {n: dict.fromkeys(PARAMETERS + (mat_keys if n in _MATERIAL_OUTPUTS else ()), nan)
-                for n in names}, code
+                for n in names}, _profile_nan(profile), code
+    F0 = None
     eta, eps_K = eps * L, eps * K
     want_plug = not math.isnan(one_minus)
     if A == -1.0:
@@ -305,11 +383,12 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
     else:
         out = np.empty(N_S)
         sensitivity_kernel(eta, A, N, eps_K, one_minus if want_plug else nan, rtol, atol, ws.ax,
-                           ws.res, ws.T1, ws.Q1, out)
+                           ws.res, ws.T1, ws.Q1, out, _NO_PROFILE, out[S_DELTA_WALL:], _NO_PROF)
+        F0 = out[S_DELTA_WALL:S_DELTA_WALL + 3].copy()
         if out[S_STATUS] != st.OK:
             code = st.INTEGRATION_FAILED
             return {n: dict.fromkeys(PARAMETERS + (mat_keys if n in _MATERIAL_OUTPUTS else ()), nan)
-                    for n in names}, code
+                    for n in names}, _profile_nan(profile), code
         o = out.tolist()
         d_mu = o[S_MU_WALL:S_MU_WALL + 3]
         d_sig = o[S_SIGMA_YX_WALL:S_SIGMA_YX_WALL + 3]
@@ -346,7 +425,17 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
     if material is not None and any(n in _MATERIAL_OUTPUTS for n in names):
         sig = float(ws.res[R_SIGMA_YX_WALL])
         result.update(_material(names, values, material, eps, N, L * mu, sig, result))
-    return {n: result[n] for n in names}, code
+    prof_sens = None
+    if profile is not None:
+        prof_sens = profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0)
+    return {n: result[n] for n in names}, prof_sens, code
+
+
+def _profile_nan(profile):
+    if profile is None:
+        return None
+    size = np.asarray(profile["xi"]).size
+    return {n: {p: np.full(size, math.nan) for p in PARAMETERS} for n in PROFILE_OUTPUTS}
 
 
 _MATERIAL_OUTPUTS = ("nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
@@ -392,3 +481,53 @@ def _material(names, values, material, eps, N, m_wall, sigma_yx_wall, result):
             out[n] = {p: S * d_p * (m.get(p, 0.0) + m_wall * (
                 d_lnS[p] + (1.0 / d_p if p == "d_p" else 0.0))) for p in keys}
     return out
+
+
+def profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0):
+    """``{profile: {parameter: ndarray}}`` at ``profile["xi"]`` for a point solved (status ok) in
+    workspace ``ws`` (``profile``: its profiles, as :func:`..outputs.derive_profiles` gives them;
+    ``F0``: ``d delta(1)/d(eta, A, N)`` from :func:`sensitivity_kernel`, None at ``A = -1``).
+
+    ``u_over_u0 = (eps K + J)/(eps K + J(0))`` and ``omega_hat`` by ``eps, L, K, A, N`` through
+    the chain rule from the forward sensitivities of :func:`sensitivity_kernel` (a second march
+    over the same panels; ``J(0)``'s derivative is that march's own, so ``u_over_u0``'s vanishes
+    at the axis exactly). At ``A = -1`` from the closed form of docs/model.md section 6 (NaN by
+    ``A``).
+    """
+    xi = np.asarray(profile["xi"], dtype=np.float64)
+    eta, eps_K = eps * L, eps * K
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if A == -1.0:
+            # J = 2 (1 - xi^(c+1))/(c+1), omega_hat = xi^c, c = 2N/eta
+            c = model.a_minus_one_xi_B(eta, N)
+            c_p = np.array([-c / eta, math.nan, 2.0 / eta])
+            lx = np.log(np.where(xi > 0.0, xi, 1.0))
+            xc1 = xi ** (c + 1.0)
+            J_c = -2.0 * (1.0 - xc1) / (c + 1.0) ** 2 - 2.0 * xc1 * lx / (c + 1.0)
+            dJ = J_c[None, :] * c_p[:, None]
+            dJ0 = -2.0 / (c + 1.0) ** 2 * c_p
+            dlogw = lx[None, :] * c_p[:, None]
+        else:
+            prof = np.empty((N_PS, xi.size + 1))
+            out = np.empty(N_S)
+            sensitivity_kernel(eta, A, N, eps_K, math.nan, rtol, atol, ws.ax, ws.res, ws.T1, ws.Q1,
+                               out, np.ascontiguousarray(xi), F0, prof)
+            if out[S_STATUS] != st.OK:
+                return _profile_nan(profile)
+            dJ = prof[PS_J:PS_J + 3, :-1]
+            dJ0 = prof[PS_J:PS_J + 3, -1]
+            dlogw = prof[PS_LOGW:PS_LOGW + 3, :-1]
+        w = np.asarray(profile["omega_hat"])
+        u = np.asarray(profile["u_over_u0"])
+        U = eps_K + float(ws.res[R_J_AXIS])
+        d_u = (dJ - u[None, :] * dJ0[:, None]) / U
+        # omega_hat = 0 at the axis (beta > 0) whatever the parameters
+        d_w = np.where(w[None, :] > 0.0, w[None, :] * dlogw, 0.0)
+    d_u_k = (1.0 - u) / U  # d u_over_u0 / d(eps K)
+
+    def by_point(x, x_k):
+        # (eta, A, N, eps K) -> (eps, L, K, A, N)
+        return {"eps": L * x[0] + K * x_k, "L": eps * x[0], "K": eps * x_k, "A": x[1].copy(),
+                "N": x[2].copy()}
+
+    return {"u_over_u0": by_point(d_u, d_u_k), "omega_hat": by_point(d_w, np.zeros(xi.size))}

@@ -169,3 +169,30 @@ def test_empty_arrays_give_an_empty_result():
     ds = solve(np.array([]), 10, 0.5, 1 / 3, 1)
     assert ds.Delta.shape == (0,) and ds.attrs["n_solves"] == 0
     assert math.isnan(float(solve(0.36, 10, 0.5, 1 / 3, 1).Delta))
+
+
+def test_sensitivities_are_solve_points_with_attributes():
+    from cosserat_channel.solver.point import solve_point
+
+    K = np.array([0.5, 1.0, 150.0])
+    A = np.array([[1 / 3], [-0.4]])
+    ds = solve(1 / 30, 10, K, A, 1.2, sensitivities=True, workers=1)
+    plain = solve(1 / 30, 10, K, A, 1.2, workers=1)
+    assert not [v for v in plain.data_vars if v.startswith("d")]
+    for name in ("Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall"):
+        np.testing.assert_array_equal(ds[name].values, plain[name].values)
+        for p in ("eps", "L", "K", "A", "N"):
+            var = ds[f"d{name}_d{p}"]
+            assert var.dims == ds[name].dims
+            assert var.attrs["long_name"] and var.attrs["units"]
+            for i in range(2):
+                for j in range(3):
+                    r = solve_point(1 / 30, 10, K[j], A[i, 0], 1.2, sensitivities=True)
+                    assert var.values[i, j] == r.sensitivities[name][p]
+    # a central difference of solve itself in K, bounded as in test_sensitivity
+    h = 1e-4
+    up = solve(1 / 30, 10, K + h, A, 1.2, rtol=1e-12, atol=1e-30, workers=1).Delta.values
+    down = solve(1 / 30, 10, K - h, A, 1.2, rtol=1e-12, atol=1e-30, workers=1).Delta.values
+    fd = (up - down) / (2 * h)
+    bound = 1e-5 * np.abs(fd) + 1e-10 * np.abs(ds.Delta.values) / h + 1e-12
+    assert np.all(np.abs(ds.dDelta_dK.values - fd) <= bound)

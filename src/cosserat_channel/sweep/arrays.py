@@ -37,7 +37,7 @@ BLOCKS_PER_WORKER = 4
 
 
 def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=None, outputs=None,
-          workers=None, reduce=True) -> xr.Dataset:
+          workers=None, reduce=True, sensitivities=False) -> xr.Dataset:
     """Solve every point of the broadcast ``(eps, L, K, A, N)`` in memory; a labelled Dataset.
 
     Parameters
@@ -59,6 +59,11 @@ def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=Non
     reduce : bool
         One integration per distinct ``(eps L, A, N)`` (True) or per point (False); the values
         are the same to the bit.
+    sensitivities : bool
+        Also ``d<output>_d<param>`` (``dDelta_deps`` ...) for every computed output that
+        :func:`.point.solve_point` differentiates and each of ``eps, L, K, A, N``: its
+        ``sensitivities`` per point (one ``solve_point(sensitivities=True)`` per point, in a
+        Python loop on this thread; the outputs themselves still come from the batch kernel).
 
     Returns
     -------
@@ -102,10 +107,41 @@ def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=Non
         d, value, attrs = dataset.output_variable(inputs, name, dims)
         data_vars[name] = (d, value.reshape(shape), attrs)
     data_vars["status"] = dataset.status_variable(status.reshape(shape), dims)
+    if sensitivities:
+        data_vars.update(_sensitivities(flat, names, mat, rtol, atol, shape, dims))
     attrs = dataset.provenance("cosserat-channel solve", "cosserat_channel.solve", rtol, atol,
                                bool(reduce))
     attrs["n_solves"] = n_solves
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)
+
+
+def _sensitivities(flat, names, mat, rtol, atol, shape, dims) -> dict:
+    """``{d<output>_d<param>: (dims, values, attrs)}``: each point's ``solve_point`` sensitivities
+    (its chain rule through ``eta = eps L`` and ``eps K`` included)."""
+    from ..solver import sensitivity
+    from ..solver.point import Workspace, solve_point
+
+    diff = [n for n in names if n in sensitivity.OUTPUTS]
+    n = flat["eps"].size
+    arrays = {(o, p): np.full(n, math.nan) for o in diff for p in sensitivity.PARAMETERS}
+    ws = Workspace()
+    for i in range(n):
+        r = solve_point(*(float(flat[d][i]) for d in DIMS), rtol=rtol, atol=atol, material=mat,
+                        outputs=diff, workspace=ws, sensitivities=True)
+        for o in diff:
+            for p, v in r.sensitivities[o].items():
+                if p in sensitivity.PARAMETERS:
+                    arrays[o, p][i] = v
+    out = {}
+    for (o, p), v in arrays.items():
+        units = out_.OUTPUTS[o].attrs.get("units", "1")
+        p_units = PARAMETERS[p].attrs.get("units", "1")
+        if p_units != "1":
+            units = f"({units}) / ({p_units})"
+        attrs = {"long_name": f"derivative of {out_.OUTPUTS[o].attrs.get('long_name', o)} by {p}",
+                 "units": units}
+        out[f"d{o}_d{p}"] = (dims, v.reshape(shape), attrs)
+    return out
 
 
 def _check_workers(workers) -> int:

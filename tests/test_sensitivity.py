@@ -172,3 +172,49 @@ def test_profile_sensitivities_leave_the_rest_unchanged_and_serialise():
     bad = solve_point(0.5, 10, 0.5, 1 / 3, 1.0, profile=xi, sensitivities=True)
     assert not bad.ok
     assert all(np.isnan(a).all() for s in bad.profile_sensitivities.values() for a in s.values())
+
+
+def test_next_to_the_wall_line():
+    # A = 0: wall_inadmissible below N = sqrt(1/2); at N = 0.7072 (1.3e-4 above it) the points
+    # with a solution are a window eta in (0.3487, 0.3729) (regimes.trace_edge), where D(1) is
+    # at most (A+1)(2N^2 - 1) = 2.8e-4
+    from cosserat_channel.physics.analytic import classify_margin
+
+    assert classify_margin(1.0, 0.0, 0.7071) != 0 and classify_margin(1.0, 0.0, 0.7072) == 0
+    _check((0.0361, 10, 0.5, 0.0, 0.7072), rel_step=1e-6)
+
+
+@pytest.mark.parametrize("A, N", [(0.0, 1.0), (0.5, 1.0), (-0.5, 1.0), (-0.99, 1.5), (0.0, 0.72),
+                                  (0.9, 0.5), (-0.9, 3.0)])
+def test_no_solution_next_to_the_axis_edge(A, N):
+    # eps_too_large_axis has no point with a solution next to it (A > -1): every eta above
+    # analytic.wall_bound_eta, which lies strictly below the axis edge, fails at the wall
+    # (the proof is in wall_bound_eta's docstring). Its only solvable neighbour is A = -1,
+    # the closed form's line (the A -> -1 limit of the axis edge is eta -> 0), checked with
+    # its parameters other than A in test_a_minus_one_closed_form.
+    from cosserat_channel.physics.analytic import axis_edge_eta, wall_bound_eta
+    from cosserat_channel.regimes import trace_edge
+
+    bound, axis = float(wall_bound_eta(A, N)), float(axis_edge_eta(A, N))
+    assert bound < axis
+    for eta in (bound * (1 + 1e-6), 0.5 * (bound + axis), axis * (1 - 1e-9), axis * (1 + 1e-9)):
+        r = solve_point(eta / 100, 100, 0.5, A, N)
+        assert r.status.name in ("eps_too_large_path", "eps_too_large_axis"), (eta, r.status.name)
+    assert trace_edge(A, N).eta_max <= bound
+
+
+def test_axis_spin_unbounded_has_only_the_a_minus_one_line_next_to_it():
+    # 1 - 2N^2 <= A < -1: its neighbours at fixed eta are A = -1 (closed form) and, for
+    # A > -1, eps_too_large_axis once eta > wall_bound_eta(A, N) -> 0 as A -> -1: no solvable
+    # point with A != -1 (derivatives by A at A = -1 are NaN; by eps, L, K, N checked in
+    # test_a_minus_one_closed_form)
+    from cosserat_channel.physics.analytic import wall_bound_eta
+
+    p = [1 / 30, 10, 0.5, None, 1.5]
+    for A, name in ((-1 - 1e-9, "axis_spin_unbounded"), (-1.0, "ok"),
+                    (-1 + 1e-9, "eps_too_large_axis")):
+        p[3] = A
+        assert solve_point(*p).status.name == name
+    assert wall_bound_eta(-1 + 1e-3, 1.5) < 1e-2 < p[0] * p[1]
+    r = solve_point(*p[:3], -1.0, 1.5, sensitivities=True)
+    assert math.isnan(r.sensitivities["Delta"]["A"]) and math.isfinite(r.sensitivities["Delta"]["N"])

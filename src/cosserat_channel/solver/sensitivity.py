@@ -31,12 +31,16 @@ from .. import status as st
 from ..integrate import panels
 from ..physics import closure, model
 from ..physics import derivatives as dv
-from .layout import R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL
-from .stage2 import FIRST_PANEL, MAX_STEPS_STAGE2, STAGE2_TOL, TAIL_FRACTION, XI_FLOOR, _h_axis
+from ..integrate import stepping
+from .batch import solve_eta
+from .layout import METHOD_AUTO, N_R, R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL
+from .stage1 import stage1_arrays
+from .stage2 import (FIRST_PANEL, MAX_STEPS_STAGE2, STAGE2_TOL, TAIL_FRACTION, XI_FLOOR, _h_axis,
+                     stage2_arrays)
 from .stress_path import _delta_wall, _wall_increments, delta_D_at
 
-__all__ = ["sensitivity_kernel", "point_sensitivities", "profile_sensitivities", "PARAMETERS", "OUTPUTS",
-           "PROFILE_OUTPUTS"]
+__all__ = ["sensitivity_kernel", "sensitivity_batch", "point_sensitivities", "profile_sensitivities",
+           "chain_rule", "a_minus_one", "material_sensitivities", "PARAMETERS", "OUTPUTS", "PROFILE_OUTPUTS"]
 
 # Slots of the kernel's result vector; derivatives with respect to (eta, A, N) in three slots each.
 S_STATUS = 0
@@ -336,7 +340,7 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     out[S_STATUS] = st.OK
 
 
-def _a_minus_one(eta, N, eps_K, want_plug):
+def a_minus_one(eta, N, eps_K, want_plug):
     """The closed form of Appendix A (docs/model.md, section 6) differentiated: ``(mu, sigma_yx,
     J(0), 1 - xi_p)`` derivatives by ``(eta, A, N[, eps K])``; with respect to A they are NaN
     (the closed form holds at A = -1 alone)."""
@@ -379,7 +383,7 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
     eta, eps_K = eps * L, eps * K
     want_plug = not math.isnan(one_minus)
     if A == -1.0:
-        d_mu, d_sig, d_J, d_om = _a_minus_one(eta, N, eps_K, want_plug)
+        d_mu, d_sig, d_J, d_om = a_minus_one(eta, N, eps_K, want_plug)
     else:
         out = np.empty(N_S)
         sensitivity_kernel(eta, A, N, eps_K, one_minus if want_plug else nan, rtol, atol, ws.ax,
@@ -395,13 +399,30 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
         d_J = o[S_J_AXIS:S_J_AXIS + 3]
         d_om = o[S_ONE_MINUS:S_ONE_MINUS + 4]
 
+    J0 = float(ws.res[R_J_AXIS])
+    mu = float(ws.res[R_MU_WALL])
+    result = chain_rule(d_mu, d_sig, d_J, d_om, eps, L, K, J0, mu, one_minus)
+    if material is not None and any(n in _MATERIAL_OUTPUTS for n in names):
+        sig = float(ws.res[R_SIGMA_YX_WALL])
+        result.update(material_sensitivities(names, material, eps, N, L * mu, sig, result))
+    prof_sens = None
+    if profile is not None:
+        prof_sens = profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0)
+    return {n: result[n] for n in names}, prof_sens, code
+
+
+def chain_rule(d_mu, d_sig, d_J, d_om, eps, L, K, J0, mu, one_minus):
+    """``{output: {parameter: derivative}}`` of the scalar outputs without a material, from the
+    derivatives by ``(eta, A, N)`` of ``mu(1)``, ``sigma_yx(1)`` and ``J(0)`` and by ``(eta, A, N,
+    eps K)`` of ``1 - xi_p`` (sequences of three or four); floats or arrays of points alike
+    (elementwise, so a point and an array of them get the same bits)."""
+    eps_K = eps * K
+
     def by_point(x_eta, x_A, x_N, x_k=0.0):
         # (eta, A, N, eps K) -> (eps, L, K, A, N)
         return {"eps": L * x_eta + K * x_k, "L": eps * x_eta, "K": eps * x_k, "A": x_A, "N": x_N}
 
     result = {}
-    J0 = float(ws.res[R_J_AXIS])
-    mu = float(ws.res[R_MU_WALL])
     for n in OUTPUTS[:6]:
         if n == "Delta":
             d = by_point(*d_om)
@@ -422,13 +443,38 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
         else:
             continue
         result[n] = d
-    if material is not None and any(n in _MATERIAL_OUTPUTS for n in names):
-        sig = float(ws.res[R_SIGMA_YX_WALL])
-        result.update(_material(names, values, material, eps, N, L * mu, sig, result))
-    prof_sens = None
-    if profile is not None:
-        prof_sens = profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0)
-    return {n: result[n] for n in names}, prof_sens, code
+    return result
+
+
+@njit(**_JIT)
+def sensitivity_batch(eta, A, N, eps_K, offsets, one_minus, rtol, atol, max_steps_stage1,
+                      max_steps_stage2, out):
+    """:func:`sensitivity_kernel` for many ``(eta, A, N)`` triples (``A > -1``), each with its run
+    of ``eps K`` values ``eps_K[offsets[i]:offsets[i+1]]`` and their ``1 - xi_p`` in
+    ``one_minus``: one solve per triple (as ``solve_point`` runs it), one sensitivity march per
+    point (the plug edge's split depends on ``eps K``), into ``out[j]``; ``out[j, S_STATUS]``
+    is the triple's status where it has no solution or ``A = -1`` (NaN slots: the caller takes
+    the closed form, :func:`a_minus_one`). The same numbers as
+    :func:`point_sensitivities` per point, bit for bit."""
+    ax = np.empty(model.N_AX)
+    T1, Q1 = stage1_arrays(max_steps_stage1)
+    T2, Q2 = stage2_arrays(max_steps_stage2)
+    stats1 = np.zeros(stepping.N_STATS, dtype=np.int64)
+    stats2 = np.zeros(stepping.N_STATS, dtype=np.int64)
+    res = np.empty(N_R)
+    xis = np.empty(0)
+    F0 = np.empty(3)
+    prof = np.empty((N_PS, 1))
+    for i in range(eta.size):
+        code = solve_eta(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                         METHOD_AUTO, True)
+        for j in range(offsets[i], offsets[i + 1]):
+            if code == st.OK and A[i] > -1.0:
+                sensitivity_kernel(eta[i], A[i], N[i], eps_K[j], one_minus[j], rtol, atol, ax, res,
+                                   T1, Q1, out[j], xis, F0, prof)
+            else:  # no solution, or A = -1 (the closed form, by the caller)
+                out[j, :] = math.nan
+                out[j, S_STATUS] = code
 
 
 def _profile_nan(profile):
@@ -441,7 +487,7 @@ def _profile_nan(profile):
 _MATERIAL_OUTPUTS = ("nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
 
 
-def _material(names, values, material, eps, N, m_wall, sigma_yx_wall, result):
+def material_sensitivities(names, material, eps, N, m_wall, sigma_yx_wall, result):
     """The material outputs' derivatives (eq:35 through :func:`closure.solids_fraction_partials`,
     the stresses in Pa by the product rule of their definitions in :mod:`..outputs`)."""
     rho_g_W = material["rho_p"] * material["g"] * (material["d_p"] / eps)

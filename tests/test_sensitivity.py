@@ -124,7 +124,7 @@ def _check_profile(p, params=PARAMS, rel_step=1e-4):
     pointwise, so the sensitivity solve's own error is bounded by 100 rtol of the largest
     derivative over the profile (and the rounding term by the profile's largest value)."""
     xi_p = solve_point(*p).xi_p
-    xi = np.array([0.0, 1e-3, 0.05, 0.3, xi_p - 0.01, xi_p, xi_p + 0.01, 0.99, 1.0])
+    xi = np.clip([0.0, 1e-3, 0.05, 0.3, xi_p - 0.01, xi_p, xi_p + 0.01, 0.99, 1.0], 0.0, 1.0)
     r = solve_point(*p, rtol=RTOL_SENS, profile=xi, sensitivities=True)
     assert r.ok, r.status.message
     ps = r.profile_sensitivities
@@ -218,3 +218,17 @@ def test_axis_spin_unbounded_has_only_the_a_minus_one_line_next_to_it():
     assert wall_bound_eta(-1 + 1e-3, 1.5) < 1e-2 < p[0] * p[1]
     r = solve_point(*p[:3], -1.0, 1.5, sensitivities=True)
     assert math.isnan(r.sensitivities["Delta"]["A"]) and math.isfinite(r.sensitivities["Delta"]["N"])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_profile_sensitivities_at_random_points(seed):
+    rng = np.random.default_rng(100 + seed)
+    p = (float(rng.uniform(0.005, 0.2)), float(rng.uniform(2, 30)), float(rng.uniform(0, 2)),
+         float(rng.uniform(-0.5, 3)), float(rng.uniform(0.6, 3)))
+    if not solve_point(*p).ok:
+        pytest.skip("no solution at this draw")
+    _check_profile(p)
+
+
+def test_profile_sensitivities_next_to_the_path_edge():
+    _check_profile((0.325, 10, 0.5, 1 / 3, 1.0), rel_step=1e-5)

@@ -5,7 +5,8 @@ solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so tha
 and classifying points never imports numba. They are the one home of the analytic regime logic.
 Both take scalars; :func:`axis_margin` also takes arrays, :func:`classify_margins` is
 :func:`classify_margin` on arrays, and :func:`axis_edge_eta` and :func:`node_focus_switch_N`
-(the atlas and the figures need them without the solver) take arrays.
+(the atlas and the figures need them without the solver) and :func:`wall_bound_eta` take
+arrays.
 """
 
 from __future__ import annotations

@@ -15,8 +15,11 @@ with ``I(xi) = J(xi_0) - J(xi)`` for ``xi > xi_0`` (``xi_0 = 0`` for ``J(0)``, `
 edge). :func:`sensitivity_kernel` marches them from the wall to the axis on Chebyshev panels
 (:func:`panels.cumulative`) together with ``log omega_hat`` and ``J``, reading stage 1's solution
 as stage 2 does. The plug edge follows by the implicit function theorem on
-``J(xi_p) = 0.95 J(0) - 0.05 eps K``. Imported only when sensitivities are asked for: its kernels
-are compiled only then.
+``J(xi_p) = 0.95 J(0) - 0.05 eps K``. With profile points the same march also carries the
+forward sensitivities (:func:`profile_sensitivities`); :func:`sensitivity_batch` runs the
+kernel over the triples of an array (``solve(..., sensitivities=True)``), and
+:func:`chain_rule` takes both to ``eps, L, K``. Imported only when sensitivities are asked for:
+its kernels are compiled only then.
 """
 
 from __future__ import annotations

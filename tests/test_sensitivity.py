@@ -232,3 +232,15 @@ def test_profile_sensitivities_at_random_points(seed):
 
 def test_profile_sensitivities_next_to_the_path_edge():
     _check_profile((0.325, 10, 0.5, 1 / 3, 1.0), rel_step=1e-5)
+
+
+@pytest.mark.parametrize("p", [(0.0130432335, 10, 0.5, 0.921618019, 1.54290037),
+                               (0.0207407829, 10, 0.5, 0.522676899, 1.94290226)])
+def test_steep_spin_with_the_axis_series_to_xi_0_9(p):
+    # beta ~ 25 and stage 1 on its axis series up to xi = 0.9: omega_hat falls by 1e-12 within
+    # the sensitivity march, where J(0) - J is the difference of two quadratures (stage 2's and
+    # the march's) and has to give way to the axis asymptotics
+    r = solve_point(*p, sensitivities=True)
+    assert r.ok and math.isfinite(r.sensitivities["Delta"]["eps"])
+    _check(p)
+    _check_profile(p)

@@ -85,17 +85,18 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     ``TAIL_FRACTION * rtol`` of it, as stage 2 does.
 
     With profile points ``xis`` (not empty) and ``F0 = d delta(1)/d(eta, A, N)`` from a first call
-    (slots ``S_DELTA_WALL``), the same panels also carry the forward sensitivities, column ``i`` of
-    ``prof[N_PS, xis.size + 1]`` receiving those at ``xis[i]`` (rows ``PS_*``) and the last column
-    ``dJ(0)``: with ``S = d delta/dp = (F0 - int_xi^1 omega_hat df/dp) / omega_hat``,
+    (slots ``S_DELTA_WALL``), the same panels also carry the forward sensitivities, column ``i``
+    of ``prof[N_PS, xis.size + 1]`` receiving those at ``xis[i]`` (rows ``PS_*``; ``dJ`` NaN
+    below the march's end) and the last column the march's own ``dJ`` at its end: with
+    ``S = d delta/dp = (F0 - int_xi^1 omega_hat df/dp) / omega_hat``,
     ``d log omega_hat/dp = -int_xi^1 (dB/dp + B_delta S)`` and ``dJ/dp = int_xi^1 omega_hat
-    (dh/dp + h_delta S + h d log omega_hat/dp)``, each cumulative from the wall. ``S`` carries the
-    whole integral's quadrature error divided by ``omega_hat``, but enters ``J`` weighted by
+    (dh/dp + h_delta S + h d log omega_hat/dp)``, each cumulative from the wall. ``S`` carries
+    the whole integral's quadrature error divided by ``omega_hat``, but enters ``J`` weighted by
     ``omega_hat`` and ``omega_hat``'s derivative as ``omega_hat`` times it, so both keep the
     accuracy of the solve (``S`` itself, hence ``m`` and ``sigma_yx``, would not near the axis).
-    Points below the march's end continue its last slope (``log omega_hat`` linear in ``ln xi``,
-    as ``xi^beta``; ``J`` has converged there). The panels and every ``out`` slot are those of a
-    call without profile points, bit for bit.
+    Points below the march's end continue its last slope (``log omega_hat`` linear in
+    ``ln xi``, as ``xi^beta``). The panels and every ``out`` slot are those of a call without
+    profile points, bit for bit.
     """
     for i in range(N_S):
         out[i] = math.nan
@@ -197,10 +198,14 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
             # the adjoints psi of J(0) and of J(xi_p)
             above = have_p and a >= t_p
             # I = J(0) - J(xi), which is rounding noise once it falls below a few hundred ulps
-            # of J(0) (deep in the tail, where what is left of every integral is below 1e-13):
-            # there the axis asymptotics I = xi h omega_hat / (beta + 1) (omega_hat ~ xi^beta)
-            # stands in, and I/omega_hat stays finite.
-            asym = J0 - J_b < I_NOISE * _EPS * J0
+            # of J(0) (deep in the tail, where what is left of every integral is below 1e-13),
+            # and the difference of two quadratures (stage 2's J(0), this march's J) once what
+            # is left of J falls below their tolerance: there the axis asymptotics
+            # I = xi h omega_hat / (beta + 1) (omega_hat ~ xi^beta) stands in, and I/omega_hat
+            # stays finite (J(0) - J would leave ~qtol J(0) / omega_hat in psi, growing without
+            # bound towards the axis while the tail test waits for it to fall).
+            asym = (J0 - J_b < I_NOISE * _EPS * J0
+                    or xs[0] * P[dv.Q_H, 0] * w[0] < qtol * J0 * (beta + 1.0))
             for j in range(nn):
                 I0[j] = xs[j] * h_axis * w[j] / (beta + 1.0) if asym else J0 - Jn[j]
             for j in range(nn):
@@ -316,8 +321,9 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
         for i in range(n_pro):
             if todo[i]:
                 # below the march: log omega_hat ~ beta ln xi (slope: xi (B_p + B_delta S) ->
-                # dbeta/dp), J converged
-                prof[PS_J + row, i] = dJb[row]
+                # dbeta/dp); dJ is the caller's dJ(0) (NaN here: the tail test bounds what is
+                # left of the adjoint integrals, not of this one)
+                prof[PS_J + row, i] = math.nan
                 prof[PS_LOGW + row, i] = Lb[row] + slope[row] * (t_pro[i] - b)
         prof[PS_J + row, n_pro] = dJb[row]
         prof[PS_LOGW + row, n_pro] = math.nan
@@ -391,7 +397,7 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
         out = np.empty(N_S)
         sensitivity_kernel(eta, A, N, eps_K, one_minus if want_plug else nan, rtol, atol, ws.ax,
                            ws.res, ws.T1, ws.Q1, out, _NO_PROFILE, out[S_DELTA_WALL:], _NO_PROF)
-        F0 = out[S_DELTA_WALL:S_DELTA_WALL + 3].copy()
+        F0 = (out[S_DELTA_WALL:S_DELTA_WALL + 3].copy(), out[S_J_AXIS:S_J_AXIS + 3].copy())
         if out[S_STATUS] != st.OK:
             code = st.INTEGRATION_FAILED
             return {n: dict.fromkeys(PARAMETERS + (mat_keys if n in _MATERIAL_OUTPUTS else ()), nan)
@@ -535,13 +541,13 @@ def material_sensitivities(names, material, eps, N, m_wall, sigma_yx_wall, resul
 def profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0):
     """``{profile: {parameter: ndarray}}`` at ``profile["xi"]`` for a point solved (status ok) in
     workspace ``ws`` (``profile``: its profiles, as :func:`..outputs.derive_profiles` gives them;
-    ``F0``: ``d delta(1)/d(eta, A, N)`` from :func:`sensitivity_kernel`, None at ``A = -1``).
+    ``F0``: ``d delta(1)/d(eta, A, N)`` and ``dJ(0)/d(eta, A, N)`` from :func:`sensitivity_kernel`,
+    None at ``A = -1``).
 
     ``u_over_u0 = (eps K + J)/(eps K + J(0))`` and ``omega_hat`` by ``eps, L, K, A, N`` through
     the chain rule from the forward sensitivities of :func:`sensitivity_kernel` (a second march
-    over the same panels; ``J(0)``'s derivative is that march's own, so ``u_over_u0``'s vanishes
-    at the axis exactly). At ``A = -1`` from the closed form of docs/model.md section 6 (NaN by
-    ``A``).
+    over the same panels) and the adjoint's ``dJ(0)``. At ``A = -1`` from the closed form of
+    docs/model.md section 6 (NaN by ``A``).
     """
     xi = np.asarray(profile["xi"], dtype=np.float64)
     eta, eps_K = eps * L, eps * K
@@ -560,11 +566,14 @@ def profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0):
             prof = np.empty((N_PS, xi.size + 1))
             out = np.empty(N_S)
             sensitivity_kernel(eta, A, N, eps_K, math.nan, rtol, atol, ws.ax, ws.res, ws.T1, ws.Q1,
-                               out, np.ascontiguousarray(xi), F0, prof)
+                               out, np.ascontiguousarray(xi), F0[0], prof)
             if out[S_STATUS] != st.OK:
                 return _profile_nan(profile)
+            # dJ(0) of the adjoint, also below the march's end (whose forward value misses
+            # what is left below it): u/u(0) = 1 at the axis exactly
+            dJ0 = F0[1]
             dJ = prof[PS_J:PS_J + 3, :-1]
-            dJ0 = prof[PS_J:PS_J + 3, -1]
+            dJ = np.where(np.isnan(dJ), dJ0[:, None], dJ)
             dlogw = prof[PS_LOGW:PS_LOGW + 3, :-1]
         w = np.asarray(profile["omega_hat"])
         u = np.asarray(profile["u_over_u0"])

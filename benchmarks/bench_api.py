@@ -5,7 +5,9 @@ kernels against the kernels it runs (``solve_eta`` and the plug-edge root) on th
 best of ``--repeat`` (CPU time of the thread). ``solve`` on ``--points`` distinct random points (eps in [0.02, 0.1],
 L in [5, 20], K in [0.1, 2], A in [0, 1], N in [0.5, 2]) on one thread against one
 ``solve_batch`` call on the same points, CPU seconds of one run each.
-``solve_point(..., sensitivities=True)`` at the same point, side by side with the plain call.
+``solve_point(..., sensitivities=True)`` at the same point, side by side with the plain call, and
+with a profile of 21 points (reported); ``solve(..., sensitivities=True)`` on the first
+``--sens-points`` of the random points against the plain ``solve`` on them (reported).
 Targets: ``solve_point`` <= 25 us per call; ``solve`` <= 1.3x the kernel's own time; with
 sensitivities <= 2.5x the plain call.
 
@@ -68,10 +70,34 @@ def array_costs(n: int):
     return api, kernel, int(ds.attrs["n_solves"])
 
 
+def sensitivity_costs(n: int, repeat: int):
+    """Seconds per call of solve_point with a 21-point profile, plain and with sensitivities,
+    best of ``repeat``; CPU seconds of solve on ``n`` random points, plain and with them."""
+    xi = np.linspace(0.0, 1.0, 21)
+    solve_point(*README_POINT, profile=xi, sensitivities=True)  # compile first
+    prof = harness.best_of(lambda: solve_point(*README_POINT, profile=xi), repeat,
+                           min_seconds=0.2, clock=time.thread_time)
+    prof_s = harness.best_of(lambda: solve_point(*README_POINT, profile=xi, sensitivities=True),
+                             repeat, min_seconds=0.2, clock=time.thread_time)
+    rng = np.random.default_rng(0)
+    eps, L, K = rng.uniform(0.02, 0.1, n), rng.uniform(5, 20, n), rng.uniform(0.1, 2, n)
+    A, N = rng.uniform(0, 1, n), rng.uniform(0.5, 2, n)
+    solve(eps[:10], L[:10], K[:10], A[:10], N[:10], workers=1, sensitivities=True)
+    t0 = time.process_time()
+    solve(eps, L, K, A, N, workers=1)
+    plain = time.process_time() - t0
+    t0 = time.process_time()
+    solve(eps, L, K, A, N, workers=1, sensitivities=True)
+    with_s = time.process_time() - t0
+    return prof.seconds, prof_s.seconds, plain, with_s
+
+
 def main() -> int:
     ap = harness.parser(__doc__)
     ap.add_argument("--points", type=int, default=100_000, help="distinct points for solve")
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--sens-points", type=int, default=2_000,
+                    help="random points for solve with sensitivities")
     args = ap.parse_args()
     if args.points < 10:
         ap.error("--points must be at least 10")
@@ -85,6 +111,14 @@ def main() -> int:
     rec.row("solve", points=args.points, n_solves=n_solves, seconds=s_api, kernel_seconds=s_kern)
     print(f"solve on {args.points:,} points ({n_solves:,} integrations): {s_api:.3f} s CPU; "
           f"solve_batch alone {s_kern:.3f} s ({s_api / s_kern:.3f}x)")
+    prof, prof_s, plain, with_s = sensitivity_costs(max(10, args.sens_points), args.repeat)
+    n_s = max(10, args.sens_points)
+    rec.row("sensitivities", profile_us=1e6 * prof, profile_sensitivities_us=1e6 * prof_s,
+            points=n_s, solve_seconds=plain, solve_sensitivities_seconds=with_s)
+    print(f"solve_point with a 21-point profile: {1e6 * prof:.1f} us; with sensitivities "
+          f"{1e6 * prof_s:.1f} us ({prof_s / prof:.2f}x)")
+    print(f"solve on {n_s:,} points: {1e6 * plain / n_s:.1f} us a point; with sensitivities "
+          f"{1e6 * with_s / n_s:.1f} us a point ({with_s / plain:.1f}x)")
     verdicts = [
         rec.check(f"solve_point <= {TARGET_POINT_US:g} us per call", 1e6 * api <= TARGET_POINT_US,
                   f"{1e6 * api:.1f} us"),

@@ -80,3 +80,21 @@ def test_error_factor_is_bounded_and_monotone():
     assert panels.panel_error_factor(1e6, 1.0) == 0.2
     fs = [panels.panel_error_factor(e, 1.0) for e in (1e-6, 1e-3, 1.0, 10.0)]
     assert fs == sorted(fs, reverse=True)
+
+
+def test_partial_integrates_the_interpolant_between_the_nodes():
+    from cosserat_channel.integrate.panels import DEGREE, X, cumulative, partial
+
+    # a polynomial of degree DEGREE is its own interpolant: r int_(1-u)^1 is exact
+    c = np.random.default_rng(1).normal(size=DEGREE + 1)
+    v = np.polynomial.polynomial.polyval(X, c)
+    prim = np.polynomial.polynomial.polyint(c)
+    r = 0.37
+    for u in (0.0, 1e-9, 0.3, 1.0, 1.7, 2.0):
+        exact = r * (np.polynomial.polynomial.polyval(1.0, prim)
+                     - np.polynomial.polynomial.polyval(1.0 - u, prim))
+        assert abs(partial(v, r, u) - exact) <= 64 * np.finfo(float).eps * r * np.abs(c).sum()
+    out = np.empty(DEGREE + 1)
+    cumulative(v, r, out)
+    for j, x in enumerate(X):
+        assert abs(partial(v, r, 1.0 - x) - out[j]) <= 64 * np.finfo(float).eps * r * np.abs(c).sum()

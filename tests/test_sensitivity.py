@@ -116,3 +116,131 @@ def test_only_the_computed_outputs_and_plain_solves_unchanged():
     assert {k: repr(v) for k, v in plain.values.items()} == {k: repr(v) for k, v in with_s.values.items()}
     assert plain.sensitivities is None
     assert with_s.to_dict()["sensitivities"]["Delta"]["eps"] == with_s.sensitivities["Delta"]["eps"]
+
+
+def _check_profile(p, params=PARAMS, rel_step=1e-4):
+    """Profile sensitivities against central differences at the axis, near it, around xi_p and
+    at the wall. Each cumulative of the march is resolved relative to its whole magnitude, not
+    pointwise, so the sensitivity solve's own error is bounded by 100 rtol of the largest
+    derivative over the profile (and the rounding term by the profile's largest value)."""
+    xi_p = solve_point(*p).xi_p
+    xi = np.clip([0.0, 1e-3, 0.05, 0.3, xi_p - 0.01, xi_p, xi_p + 0.01, 0.99, 1.0], 0.0, 1.0)
+    r = solve_point(*p, rtol=RTOL_SENS, profile=xi, sensitivities=True)
+    assert r.ok, r.status.message
+    ps = r.profile_sensitivities
+    assert set(ps) == {"u_over_u0", "omega_hat"}
+    assert np.all(ps["u_over_u0"]["eps"][:1] == 0.0)  # u/u(0) = 1 at the axis, for every point
+    kw = dict(rtol=RTOL_REF, atol=1e-30, profile=xi)
+    for i, name in enumerate(PARAMS):
+        if name not in params:
+            continue
+        h = rel_step * max(abs(p[i]), 1e-2)
+        quotients = []
+        for step in (h, 2 * h):
+            plus, minus = list(p), list(p)
+            plus[i] += step
+            minus[i] -= step
+            a, b = solve_point(*plus, **kw), solve_point(*minus, **kw)
+            quotients.append({k: (a.profile[k] - b.profile[k]) / (2 * step) for k in ps})
+        for out, d in ps.items():
+            fd1, fd2 = quotients[0][out], quotients[1][out]
+            bound = (100 * RTOL_SENS * np.max(np.abs(fd1)) + np.abs(fd1 - fd2) / 3
+                     + 100 * RTOL_REF * np.max(np.abs(r.profile[out])) / h + 1e-300)
+            assert d[name].shape == xi.shape
+            assert np.all(np.abs(d[name] - fd1) <= bound), (p, out, name, d[name], fd1, bound)
+
+
+@pytest.mark.parametrize("p", [(1 / 30, 10, 0.5, 1 / 3, 1.0), (0.05, 4.0, 1.5, -0.4, 1.7),
+                               (0.2, 15.0, 0.1, 2.0, 0.8)])
+def test_profile_sensitivities_against_central_differences(p):
+    _check_profile(p)
+
+
+def test_profile_sensitivities_a_minus_one_closed_form():
+    _check_profile((1 / 30, 10, 0.5, -1.0, 1.5), params=("eps", "L", "K", "N"))
+
+
+def test_profile_sensitivities_leave_the_rest_unchanged_and_serialise():
+    p = (1 / 30, 10, 0.5, 1 / 3, 1.0)
+    xi = np.linspace(0, 1, 5)
+    with_p = solve_point(*p, profile=xi, sensitivities=True)
+    without = solve_point(*p, sensitivities=True)
+    assert with_p.sensitivities == without.sensitivities
+    assert without.profile_sensitivities is None
+    d = with_p.to_dict()["profile_sensitivities"]
+    assert d["u_over_u0"]["K"] == with_p.profile_sensitivities["u_over_u0"]["K"].tolist()
+    bad = solve_point(0.5, 10, 0.5, 1 / 3, 1.0, profile=xi, sensitivities=True)
+    assert not bad.ok
+    assert all(np.isnan(a).all() for s in bad.profile_sensitivities.values() for a in s.values())
+
+
+def test_next_to_the_wall_line():
+    # A = 0: wall_inadmissible below N = sqrt(1/2); at N = 0.7072 (1.3e-4 above it) the points
+    # with a solution are a window eta in (0.3487, 0.3729) (regimes.trace_edge), where D(1) is
+    # at most (A+1)(2N^2 - 1) = 2.8e-4
+    from cosserat_channel.physics.analytic import classify_margin
+
+    assert classify_margin(1.0, 0.0, 0.7071) != 0 and classify_margin(1.0, 0.0, 0.7072) == 0
+    _check((0.0361, 10, 0.5, 0.0, 0.7072), rel_step=1e-6)
+
+
+@pytest.mark.parametrize("A, N", [(0.0, 1.0), (0.5, 1.0), (-0.5, 1.0), (-0.99, 1.5), (0.0, 0.72),
+                                  (0.9, 0.5), (-0.9, 3.0)])
+def test_no_solution_next_to_the_axis_edge(A, N):
+    # eps_too_large_axis has no point with a solution next to it (A > -1): every eta above
+    # analytic.wall_bound_eta, which lies strictly below the axis edge, fails at the wall
+    # (the proof is in wall_bound_eta's docstring). Its only solvable neighbour is A = -1,
+    # the closed form's line (the A -> -1 limit of the axis edge is eta -> 0), checked with
+    # its parameters other than A in test_a_minus_one_closed_form.
+    from cosserat_channel.physics.analytic import axis_edge_eta, wall_bound_eta
+    from cosserat_channel.regimes import trace_edge
+
+    bound, axis = float(wall_bound_eta(A, N)), float(axis_edge_eta(A, N))
+    assert bound < axis
+    for eta in (bound * (1 + 1e-6), 0.5 * (bound + axis), axis * (1 - 1e-9), axis * (1 + 1e-9)):
+        r = solve_point(eta / 100, 100, 0.5, A, N)
+        assert r.status.name in ("eps_too_large_path", "eps_too_large_axis"), (eta, r.status.name)
+    assert trace_edge(A, N).eta_max <= bound
+
+
+def test_axis_spin_unbounded_has_only_the_a_minus_one_line_next_to_it():
+    # 1 - 2N^2 <= A < -1: its neighbours at fixed eta are A = -1 (closed form) and, for
+    # A > -1, eps_too_large_axis once eta > wall_bound_eta(A, N) -> 0 as A -> -1: no solvable
+    # point with A != -1 (derivatives by A at A = -1 are NaN; by eps, L, K, N checked in
+    # test_a_minus_one_closed_form)
+    from cosserat_channel.physics.analytic import wall_bound_eta
+
+    p = [1 / 30, 10, 0.5, None, 1.5]
+    for A, name in ((-1 - 1e-9, "axis_spin_unbounded"), (-1.0, "ok"),
+                    (-1 + 1e-9, "eps_too_large_axis")):
+        p[3] = A
+        assert solve_point(*p).status.name == name
+    assert wall_bound_eta(-1 + 1e-3, 1.5) < 1e-2 < p[0] * p[1]
+    r = solve_point(*p[:3], -1.0, 1.5, sensitivities=True)
+    assert math.isnan(r.sensitivities["Delta"]["A"]) and math.isfinite(r.sensitivities["Delta"]["N"])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_profile_sensitivities_at_random_points(seed):
+    rng = np.random.default_rng(100 + seed)
+    p = (float(rng.uniform(0.005, 0.2)), float(rng.uniform(2, 30)), float(rng.uniform(0, 2)),
+         float(rng.uniform(-0.5, 3)), float(rng.uniform(0.6, 3)))
+    if not solve_point(*p).ok:
+        pytest.skip("no solution at this draw")
+    _check_profile(p)
+
+
+def test_profile_sensitivities_next_to_the_path_edge():
+    _check_profile((0.325, 10, 0.5, 1 / 3, 1.0), rel_step=1e-5)
+
+
+@pytest.mark.parametrize("p", [(0.0130432335, 10, 0.5, 0.921618019, 1.54290037),
+                               (0.0207407829, 10, 0.5, 0.522676899, 1.94290226)])
+def test_steep_spin_with_the_axis_series_to_xi_0_9(p):
+    # beta ~ 25 and stage 1 on its axis series up to xi = 0.9: omega_hat falls by 1e-12 within
+    # the sensitivity march, where J(0) - J is the difference of two quadratures (stage 2's and
+    # the march's) and has to give way to the axis asymptotics
+    r = solve_point(*p, sensitivities=True)
+    assert r.ok and math.isfinite(r.sensitivities["Delta"]["eps"])
+    _check(p)
+    _check_profile(p)

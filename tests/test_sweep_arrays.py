@@ -169,3 +169,30 @@ def test_empty_arrays_give_an_empty_result():
     ds = solve(np.array([]), 10, 0.5, 1 / 3, 1)
     assert ds.Delta.shape == (0,) and ds.attrs["n_solves"] == 0
     assert math.isnan(float(solve(0.36, 10, 0.5, 1 / 3, 1).Delta))
+
+
+def test_sensitivities_are_solve_points_with_attributes():
+    from cosserat_channel.solver.point import solve_point
+
+    mat = {"d_p": 1e-3, "rho_p": 2500.0, "phi": 30.0}
+    K = np.array([0.5, 1.0, 250.0])
+    A = np.array([[1 / 3], [-0.4], [-1.0], [-0.5]])  # with A = -1 and, at eps 1/30 N 0.3, none
+    N = np.array([[1.2], [1.2], [1.5], [0.3]])
+    ds = solve(1 / 30, 10, K, A, N, material=mat, sensitivities=True, workers=1)
+    plain = solve(1 / 30, 10, K, A, N, material=mat, workers=1)
+    assert not [v for v in plain.data_vars if v.startswith("d")]
+    np.testing.assert_array_equal(ds.status.values, plain.status.values)
+    assert (ds.status.values[3] != 0).all() and (ds.status.values[:3] == 0).all()
+    names = [v for v in plain.data_vars if v not in ("status", "xi_stop")]
+    for name in names:
+        np.testing.assert_array_equal(ds[name].values, plain[name].values)
+    for i in range(4):
+        for j in range(3):
+            r = solve_point(1 / 30, 10, K[j], A[i, 0], N[i, 0], material=mat, sensitivities=True)
+            for name in names:
+                for p in ("eps", "L", "K", "A", "N"):
+                    var = ds[f"d{name}_d{p}"]
+                    assert var.dims == ds[name].dims
+                    assert var.attrs["long_name"] and var.attrs["units"]
+                    got, want = var.values[i, j], r.sensitivities[name][p]
+                    assert got == want or (math.isnan(got) and math.isnan(want)), (name, p, i, j)

@@ -38,7 +38,7 @@ from numpy.polynomial import chebyshev as _cheb
 from .._jit import JIT as _JIT
 
 __all__ = ["DEGREE", "N_NODES", "N_COEF", "TOP", "N_ROWS", "X", "integrate_panel", "panel_value",
-           "panel_value_d", "panel_value_d2", "panel_error_factor", "cumulative"]
+           "panel_value_d", "panel_value_d2", "panel_error_factor", "cumulative", "partial"]
 
 DEGREE = 8
 N_NODES = DEGREE + 1
@@ -171,6 +171,24 @@ def cumulative(v, r, out):
     for j in range(n):
         out[j] *= r
     return out[n - 1], r * _tail_estimate(v)
+
+
+@njit(**_JIT)
+def partial(v, r, u):
+    """``r int_(1-u)^1 v`` for the interpolant of ``v`` through the nodes, at any ``u`` in
+    ``[0, 2]``: :func:`cumulative` between the nodes, evaluated as :func:`panel_value` does."""
+    x2 = 2.0 * (1.0 - u)
+    d_prev = 0.0
+    d = -u
+    acc = 0.0
+    for k in range(1, N_COEF):
+        if k > 1:
+            d, d_prev = x2 * d - d_prev - 2.0 * u, d
+        c = 0.0
+        for i in range(N_NODES):
+            c += _INT_COEF[k, i] * v[i]
+        acc += c * d
+    return r * acc
 
 
 @njit(**_JIT)

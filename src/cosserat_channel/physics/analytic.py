@@ -5,7 +5,8 @@ solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so tha
 and classifying points never imports numba. They are the one home of the analytic regime logic.
 Both take scalars; :func:`axis_margin` also takes arrays, :func:`classify_margins` is
 :func:`classify_margin` on arrays, and :func:`axis_edge_eta` and :func:`node_focus_switch_N`
-(the atlas and the figures need them without the solver) take arrays.
+(the atlas and the figures need them without the solver) and :func:`wall_bound_eta` take
+arrays.
 """
 
 from __future__ import annotations
@@ -79,3 +80,23 @@ def node_focus_switch_N(A):
     A = np.asarray(A, dtype=float)
     inside = (A >= -1.0) & (A <= 1.0)
     return np.sqrt(np.where(inside, 0.5 * (5.0 + 3.0 * A), np.nan))
+
+
+def wall_bound_eta(A, N):
+    """An ``eta`` above which no stress path reaches the wall, for ``-1 < A < 1`` outside the
+    wall-inadmissible region: ``(A+1) / (2 q)`` with ``q = N - sqrt(N^2 - (1-A)/2)``.
+
+    Why: ``D = (A+1) [(A-1) xi^2 + 2 delta (2N - delta)]`` (eq:a3 with eq:20 at the axis), and
+    ``eta delta' = (A+1) xi - sqrt(D) <= (A+1) xi`` gives ``delta <= p xi^2``, ``p = (A+1)/(2 eta)``.
+    ``delta (2N - delta)`` increases up to ``delta = N``, so where ``p <= N``, ``D(1) <= (A+1)
+    [(A-1) + 2p (2N - p)]``, negative once ``p < q`` (the smaller root of ``2p(2N-p) = 1-A``).
+    At the axis edge :func:`axis_edge_eta`, ``p = (1-A)/(4N) < q``: this bound lies strictly
+    below it, so the axis edge has no point with a solution next to it. NaN outside the range.
+    """
+    A = np.asarray(A, dtype=float)
+    N = np.asarray(N, dtype=float)
+    inside = (A > -1.0) & (A < 1.0) & (A >= 1.0 - 2.0 * N * N)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        h = 0.5 * (1.0 - A)
+        q = h / (N + np.sqrt(N * N - h))  # N - sqrt(N^2 - h) without the cancellation
+        return np.where(inside, (A + 1.0) / (2.0 * q), np.nan)

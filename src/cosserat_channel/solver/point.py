@@ -72,6 +72,10 @@ class PointResult:
         ``sigma_xy``, ``sigma_yx`` (over nu).
     sensitivities : dict or None
         With ``sensitivities=True``: ``{output: {parameter: d output / d parameter}}``.
+    profile_sensitivities : dict or None
+        With ``profile=xi`` and ``sensitivities=True``: ``{profile: {parameter: ndarray}}`` for
+        ``u_over_u0``, ``omega_hat``, ``m`` and ``sigma_yx`` at ``xi``, by ``eps, L, K, A, N``
+        (NaN where the point has no solution).
     """
 
     eps: float
@@ -84,6 +88,7 @@ class PointResult:
     counters: dict = field(default_factory=dict)
     profile: dict | None = None
     sensitivities: dict | None = None
+    profile_sensitivities: dict | None = None
 
     def __getattr__(self, name):
         # Only reached when normal lookup fails: the outputs of the registry, NaN when not computed.
@@ -118,6 +123,10 @@ class PointResult:
         if self.sensitivities is not None:
             d["sensitivities"] = {k: {p: clean(v) for p, v in s.items()}
                                   for k, s in self.sensitivities.items()}
+        if self.profile_sensitivities is not None:
+            d["profile_sensitivities"] = {
+                k: {p: [clean(float(v)) for v in a] for p, a in s.items()}
+                for k, s in self.profile_sensitivities.items()}
         return d
 
 
@@ -233,7 +242,9 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
         over the solution (docs/model.md, section 10) to about the accuracy of the solve; at
         ``A = -1`` from the closed form, with NaN for ``A`` (that form holds at ``A = -1``
         alone). Where ``eq:13``'s target is not positive (``Delta = 0``) the plug edge's
-        derivatives are 0. Off by default: the first call compiles its kernels.
+        derivatives are 0. With ``profile`` also the profiles' derivatives, in
+        :attr:`PointResult.profile_sensitivities`. Off by default: the first call compiles its
+        kernels.
 
     Returns
     -------
@@ -277,8 +288,9 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     if sensitivities:
         from . import sensitivity  # its kernels compile only when asked for
 
-        result.sensitivities, code_s = sensitivity.point_sensitivities(
-            code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, mat)
+        result.sensitivities, result.profile_sensitivities, code_s = sensitivity.point_sensitivities(
+            code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, mat,
+            None if xi_prof is None else (result.profile or {"xi": xi_prof}))
         if code_s != code:
             result.status = st.Status(code_s)
     return result

@@ -15,8 +15,11 @@ with ``I(xi) = J(xi_0) - J(xi)`` for ``xi > xi_0`` (``xi_0 = 0`` for ``J(0)``, `
 edge). :func:`sensitivity_kernel` marches them from the wall to the axis on Chebyshev panels
 (:func:`panels.cumulative`) together with ``log omega_hat`` and ``J``, reading stage 1's solution
 as stage 2 does. The plug edge follows by the implicit function theorem on
-``J(xi_p) = 0.95 J(0) - 0.05 eps K``. Imported only when sensitivities are asked for: its kernels
-are compiled only then.
+``J(xi_p) = 0.95 J(0) - 0.05 eps K``. With profile points the same march also carries the
+forward sensitivities (:func:`profile_sensitivities`); :func:`sensitivity_batch` runs the
+kernel over the triples of an array (``solve(..., sensitivities=True)``), and
+:func:`chain_rule` takes both to ``eps, L, K``. Imported only when sensitivities are asked for:
+its kernels are compiled only then.
 """
 
 from __future__ import annotations
@@ -31,11 +34,16 @@ from .. import status as st
 from ..integrate import panels
 from ..physics import closure, model
 from ..physics import derivatives as dv
-from .layout import R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL
-from .stage2 import FIRST_PANEL, MAX_STEPS_STAGE2, STAGE2_TOL, TAIL_FRACTION, XI_FLOOR, _h_axis
+from ..integrate import stepping
+from .batch import solve_eta
+from .layout import METHOD_AUTO, N_R, R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL
+from .stage1 import stage1_arrays
+from .stage2 import (FIRST_PANEL, MAX_STEPS_STAGE2, STAGE2_TOL, TAIL_FRACTION, XI_FLOOR, _h_axis,
+                     stage2_arrays)
 from .stress_path import _delta_wall, _wall_increments, delta_D_at
 
-__all__ = ["sensitivity_kernel", "point_sensitivities", "PARAMETERS", "OUTPUTS"]
+__all__ = ["sensitivity_kernel", "sensitivity_batch", "point_sensitivities", "profile_sensitivities",
+           "chain_rule", "a_minus_one", "material_sensitivities", "PARAMETERS", "OUTPUTS", "PROFILE_OUTPUTS"]
 
 # Slots of the kernel's result vector; derivatives with respect to (eta, A, N) in three slots each.
 S_STATUS = 0
@@ -44,12 +52,21 @@ S_SIGMA_YX_WALL = 4  # d(sigma_yx(1)/nu)/d(eta, A, N)
 S_J_AXIS = 7  # dJ(0)/d(eta, A, N)
 S_ONE_MINUS = 10  # d(1 - xi_p)/d(eta, A, N, eps K): four slots
 S_PANELS = 14  # accepted panels
-N_S = 15
+S_DELTA_WALL = 15  # d delta(1)/d(eta, A, N): the input ``F0`` of a profile call
+N_S = 18
+# Rows of a profile call's ``prof`` (each by eta, A, N): dJ(xi), d log omega_hat(xi).
+PS_J = 0
+PS_LOGW = 3
+N_PS = 6
 
 # The parameters of a point, and the outputs that have sensitivities.
 PARAMETERS = ("eps", "L", "K", "A", "N")
 OUTPUTS = ("Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall", "nu", "sigma_xx_wall_Pa",
            "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
+# The profiles that have sensitivities (by eps, L, K, A, N).
+PROFILE_OUTPUTS = ("u_over_u0", "omega_hat")
+_NO_PROFILE = np.empty(0)
+_NO_PROF = np.empty((N_PS, 1))
 # Rows of the accumulated integrals: d delta(1), dJ(0), dJ(xi_p) at fixed xi_p, three each.
 _N_ACC = 9
 # J(0) - J(xi) below this many ulps of J(0) is rounding noise (see sensitivity_kernel).
@@ -57,7 +74,8 @@ I_NOISE = 256.0
 
 
 @njit(**_JIT)
-def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1, out):
+def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1, out, xis, F0,
+                       prof):
     """Derivatives of a solved ``(eta, A, N)`` (``A > -1``) into ``out[N_S]`` (slots ``S_*``).
 
     ``ax``, ``res`` and ``(T1, Q1)`` are those the solve left (status ok, stage 2 run);
@@ -65,6 +83,20 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     stage 1's steps and resolve the integrands to ``STAGE2_TOL * rtol`` (relative to the sum of
     their magnitudes), and stop once what is left down to the axis is below
     ``TAIL_FRACTION * rtol`` of it, as stage 2 does.
+
+    With profile points ``xis`` (not empty) and ``F0 = d delta(1)/d(eta, A, N)`` from a first call
+    (slots ``S_DELTA_WALL``), the same panels also carry the forward sensitivities, column ``i``
+    of ``prof[N_PS, xis.size + 1]`` receiving those at ``xis[i]`` (rows ``PS_*``; ``dJ`` NaN
+    below the march's end) and the last column the march's own ``dJ`` at its end: with
+    ``S = d delta/dp = (F0 - int_xi^1 omega_hat df/dp) / omega_hat``,
+    ``d log omega_hat/dp = -int_xi^1 (dB/dp + B_delta S)`` and ``dJ/dp = int_xi^1 omega_hat
+    (dh/dp + h_delta S + h d log omega_hat/dp)``, each cumulative from the wall. ``S`` carries
+    the whole integral's quadrature error divided by ``omega_hat``, but enters ``J`` weighted by
+    ``omega_hat`` and ``omega_hat``'s derivative as ``omega_hat`` times it, so both keep the
+    accuracy of the solve (``S`` itself, hence ``m`` and ``sigma_yx``, would not near the axis).
+    Points below the march's end continue its last slope (``log omega_hat`` linear in
+    ``ln xi``, as ``xi^beta``). The panels and every ``out`` slot are those of a call without
+    profile points, bit for bit.
     """
     for i in range(N_S):
         out[i] = math.nan
@@ -101,6 +133,20 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     pan_err = np.empty(_N_ACC)
     low = np.empty(_N_ACC)
     t_floor = math.log(XI_FLOOR)
+    n_pro = xis.size
+    t_pro = np.empty(n_pro)
+    todo = np.ones(n_pro, dtype=np.bool_)
+    for i in range(n_pro):
+        t_pro[i] = math.log(xis[i]) if xis[i] > 0.0 else -math.inf
+    vF = np.empty((3, nn))
+    vB = np.empty((3, nn))
+    vJ = np.empty((3, nn))
+    Sn = np.empty(nn)
+    Ln = np.empty(nn)
+    Fb = np.zeros(3)
+    Lb = np.zeros(3)
+    dJb = np.zeros(3)
+    slope = np.zeros(3)
     k = n1 - 1
     b = 0.0
     y_b = 0.0
@@ -152,10 +198,14 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
             # the adjoints psi of J(0) and of J(xi_p)
             above = have_p and a >= t_p
             # I = J(0) - J(xi), which is rounding noise once it falls below a few hundred ulps
-            # of J(0) (deep in the tail, where what is left of every integral is below 1e-13):
-            # there the axis asymptotics I = xi h omega_hat / (beta + 1) (omega_hat ~ xi^beta)
-            # stands in, and I/omega_hat stays finite.
-            asym = J0 - J_b < I_NOISE * _EPS * J0
+            # of J(0) (deep in the tail, where what is left of every integral is below 1e-13),
+            # and the difference of two quadratures (stage 2's J(0), this march's J) once what
+            # is left of J falls below their tolerance: there the axis asymptotics
+            # I = xi h omega_hat / (beta + 1) (omega_hat ~ xi^beta) stands in, and I/omega_hat
+            # stays finite (J(0) - J would leave ~qtol J(0) / omega_hat in psi, growing without
+            # bound towards the axis while the tail test waits for it to fall).
+            asym = (J0 - J_b < I_NOISE * _EPS * J0
+                    or xs[0] * P[dv.Q_H, 0] * w[0] < qtol * J0 * (beta + 1.0))
             for j in range(nn):
                 I0[j] = xs[j] * h_axis * w[j] / (beta + 1.0) if asym else J0 - Jn[j]
             for j in range(nn):
@@ -218,6 +268,32 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
                 return
             continue
         accepted += 1
+        if n_pro > 0:
+            for row in range(3):
+                for j in range(nn):
+                    vF[row, j] = xs[j] * (w[j] * P[dv.Q_F + row, j])
+                panels.cumulative(vF[row], r, cum)
+                for j in range(nn):
+                    Sn[j] = (F0[row] - (Fb[row] + cum[j])) / w[j]
+                    vB[row, j] = xs[j] * (P[dv.Q_BP + row, j] + P[dv.Q_B_DELTA, j] * Sn[j])
+                panels.cumulative(vB[row], r, cum)
+                for j in range(nn):
+                    Ln[j] = Lb[row] - cum[j]
+                    vJ[row, j] = xs[j] * w[j] * (P[dv.Q_HP + row, j] + P[dv.Q_H_DELTA, j] * Sn[j]
+                                                 + P[dv.Q_H, j] * Ln[j])
+                dJ_pan, _ = panels.cumulative(vJ[row], r, cum)
+                slope[row] = vB[row, last]
+                for i in range(n_pro):
+                    if todo[i] and a <= t_pro[i] <= b:
+                        u = min(2.0, max(0.0, (b - t_pro[i]) / r))
+                        prof[PS_J + row, i] = dJb[row] + panels.partial(vJ[row], r, u)
+                        prof[PS_LOGW + row, i] = Lb[row] - panels.partial(vB[row], r, u)
+                Fb[row] += pan[row]
+                Lb[row] = Ln[last]
+                dJb[row] += dJ_pan
+            for i in range(n_pro):
+                if a <= t_pro[i] <= b:
+                    todo[i] = False
         for c in range(_N_ACC):
             acc[c] += pan[c]
             acc_abs[c] += pan_abs[c]
@@ -241,9 +317,20 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
             lo = math.log(T1[k]) if k >= 0 else t_floor
     else:
         return
+    for row in range(3):
+        for i in range(n_pro):
+            if todo[i]:
+                # below the march: log omega_hat ~ beta ln xi (slope: xi (B_p + B_delta S) ->
+                # dbeta/dp); dJ is the caller's dJ(0) (NaN here: the tail test bounds what is
+                # left of the adjoint integrals, not of this one)
+                prof[PS_J + row, i] = math.nan
+                prof[PS_LOGW + row, i] = Lb[row] + slope[row] * (t_pro[i] - b)
+        prof[PS_J + row, n_pro] = dJb[row]
+        prof[PS_LOGW + row, n_pro] = math.nan
     sq = math.sqrt(D1)
     D_d, D_A, D_N = dv.yield_D_partials(1.0, delta1, A, N)
     for i in range(3):
+        out[S_DELTA_WALL + i] = acc[i]
         out[S_MU_WALL + i] = acc[i]
         out[S_J_AXIS + i] = acc[3 + i]
         out[S_SIGMA_YX_WALL + i] = -D_d * acc[i] / (2.0 * sq)
@@ -262,7 +349,7 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     out[S_STATUS] = st.OK
 
 
-def _a_minus_one(eta, N, eps_K, want_plug):
+def a_minus_one(eta, N, eps_K, want_plug):
     """The closed form of Appendix A (docs/model.md, section 6) differentiated: ``(mu, sigma_yx,
     J(0), 1 - xi_p)`` derivatives by ``(eta, A, N[, eps K])``; with respect to A they are NaN
     (the closed form holds at A = -1 alone)."""
@@ -283,9 +370,12 @@ def _a_minus_one(eta, N, eps_K, want_plug):
     return (0.0, nan, -1.0), (0.0, nan, 0.0), (J_c * c_eta, nan, J_c * c_N), one_minus
 
 
-def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, material):
-    """``({output: {parameter: derivative}}, status code)`` for a point ``solve_point`` just solved
-    in workspace ``ws`` (``one_minus``: its ``1 - xi_p``, NaN when not computed).
+def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, material,
+                        profile=None):
+    """``({output: {parameter: derivative}}, profile sensitivities, status code)`` for a point
+    ``solve_point`` just solved in workspace ``ws`` (``one_minus``: its ``1 - xi_p``, NaN when not
+    computed; ``profile``: its profiles, or None, then the second item is None too, else
+    :func:`profile_sensitivities`'s).
 
     Only outputs in ``values`` that :data:`OUTPUTS` lists get derivatives: by ``eps, L, K, A, N``
     and, for those that need a material, by each of its inputs. NaN where the point has no
@@ -297,32 +387,51 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
     nan = math.nan
     if code != st.OK:
         return {n: dict.fromkeys(PARAMETERS + (mat_keys if n in _MATERIAL_OUTPUTS else ()), nan)
-                for n in names}, code
+                for n in names}, _profile_nan(profile), code
+    F0 = None
     eta, eps_K = eps * L, eps * K
     want_plug = not math.isnan(one_minus)
     if A == -1.0:
-        d_mu, d_sig, d_J, d_om = _a_minus_one(eta, N, eps_K, want_plug)
+        d_mu, d_sig, d_J, d_om = a_minus_one(eta, N, eps_K, want_plug)
     else:
         out = np.empty(N_S)
         sensitivity_kernel(eta, A, N, eps_K, one_minus if want_plug else nan, rtol, atol, ws.ax,
-                           ws.res, ws.T1, ws.Q1, out)
+                           ws.res, ws.T1, ws.Q1, out, _NO_PROFILE, out[S_DELTA_WALL:], _NO_PROF)
+        F0 = (out[S_DELTA_WALL:S_DELTA_WALL + 3].copy(), out[S_J_AXIS:S_J_AXIS + 3].copy())
         if out[S_STATUS] != st.OK:
             code = st.INTEGRATION_FAILED
             return {n: dict.fromkeys(PARAMETERS + (mat_keys if n in _MATERIAL_OUTPUTS else ()), nan)
-                    for n in names}, code
+                    for n in names}, _profile_nan(profile), code
         o = out.tolist()
         d_mu = o[S_MU_WALL:S_MU_WALL + 3]
         d_sig = o[S_SIGMA_YX_WALL:S_SIGMA_YX_WALL + 3]
         d_J = o[S_J_AXIS:S_J_AXIS + 3]
         d_om = o[S_ONE_MINUS:S_ONE_MINUS + 4]
 
+    J0 = float(ws.res[R_J_AXIS])
+    mu = float(ws.res[R_MU_WALL])
+    result = chain_rule(d_mu, d_sig, d_J, d_om, eps, L, K, J0, mu, one_minus)
+    if material is not None and any(n in _MATERIAL_OUTPUTS for n in names):
+        sig = float(ws.res[R_SIGMA_YX_WALL])
+        result.update(material_sensitivities(names, material, eps, N, L * mu, sig, result))
+    prof_sens = None
+    if profile is not None:
+        prof_sens = profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0)
+    return {n: result[n] for n in names}, prof_sens, code
+
+
+def chain_rule(d_mu, d_sig, d_J, d_om, eps, L, K, J0, mu, one_minus):
+    """``{output: {parameter: derivative}}`` of the scalar outputs without a material, from the
+    derivatives by ``(eta, A, N)`` of ``mu(1)``, ``sigma_yx(1)`` and ``J(0)`` and by ``(eta, A, N,
+    eps K)`` of ``1 - xi_p`` (sequences of three or four); floats or arrays of points alike
+    (elementwise, so a point and an array of them get the same bits)."""
+    eps_K = eps * K
+
     def by_point(x_eta, x_A, x_N, x_k=0.0):
         # (eta, A, N, eps K) -> (eps, L, K, A, N)
         return {"eps": L * x_eta + K * x_k, "L": eps * x_eta, "K": eps * x_k, "A": x_A, "N": x_N}
 
     result = {}
-    J0 = float(ws.res[R_J_AXIS])
-    mu = float(ws.res[R_MU_WALL])
     for n in OUTPUTS[:6]:
         if n == "Delta":
             d = by_point(*d_om)
@@ -343,16 +452,51 @@ def point_sensitivities(code, eps, L, K, A, N, rtol, atol, ws, one_minus, values
         else:
             continue
         result[n] = d
-    if material is not None and any(n in _MATERIAL_OUTPUTS for n in names):
-        sig = float(ws.res[R_SIGMA_YX_WALL])
-        result.update(_material(names, values, material, eps, N, L * mu, sig, result))
-    return {n: result[n] for n in names}, code
+    return result
+
+
+@njit(**_JIT)
+def sensitivity_batch(eta, A, N, eps_K, offsets, one_minus, rtol, atol, max_steps_stage1,
+                      max_steps_stage2, out):
+    """:func:`sensitivity_kernel` for many ``(eta, A, N)`` triples (``A > -1``), each with its run
+    of ``eps K`` values ``eps_K[offsets[i]:offsets[i+1]]`` and their ``1 - xi_p`` in
+    ``one_minus``: one solve per triple (as ``solve_point`` runs it), one sensitivity march per
+    point (the plug edge's split depends on ``eps K``), into ``out[j]``; ``out[j, S_STATUS]``
+    is the triple's status where it has no solution or ``A = -1`` (NaN slots: the caller takes
+    the closed form, :func:`a_minus_one`). The same numbers as
+    :func:`point_sensitivities` per point, bit for bit."""
+    ax = np.empty(model.N_AX)
+    T1, Q1 = stage1_arrays(max_steps_stage1)
+    T2, Q2 = stage2_arrays(max_steps_stage2)
+    stats1 = np.zeros(stepping.N_STATS, dtype=np.int64)
+    stats2 = np.zeros(stepping.N_STATS, dtype=np.int64)
+    res = np.empty(N_R)
+    xis = np.empty(0)
+    F0 = np.empty(3)
+    prof = np.empty((N_PS, 1))
+    for i in range(eta.size):
+        code = solve_eta(eta[i], A[i], N[i], rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                         METHOD_AUTO, True)
+        for j in range(offsets[i], offsets[i + 1]):
+            if code == st.OK and A[i] > -1.0:
+                sensitivity_kernel(eta[i], A[i], N[i], eps_K[j], one_minus[j], rtol, atol, ax, res,
+                                   T1, Q1, out[j], xis, F0, prof)
+            else:  # no solution, or A = -1 (the closed form, by the caller)
+                out[j, :] = math.nan
+                out[j, S_STATUS] = code
+
+
+def _profile_nan(profile):
+    if profile is None:
+        return None
+    size = np.asarray(profile["xi"]).size
+    return {n: {p: np.full(size, math.nan) for p in PARAMETERS} for n in PROFILE_OUTPUTS}
 
 
 _MATERIAL_OUTPUTS = ("nu", "sigma_xx_wall_Pa", "sigma_xy_wall_Pa", "sigma_yx_wall_Pa", "m_wall_Pa_m")
 
 
-def _material(names, values, material, eps, N, m_wall, sigma_yx_wall, result):
+def material_sensitivities(names, material, eps, N, m_wall, sigma_yx_wall, result):
     """The material outputs' derivatives (eq:35 through :func:`closure.solids_fraction_partials`,
     the stresses in Pa by the product rule of their definitions in :mod:`..outputs`)."""
     rho_g_W = material["rho_p"] * material["g"] * (material["d_p"] / eps)
@@ -392,3 +536,56 @@ def _material(names, values, material, eps, N, m_wall, sigma_yx_wall, result):
             out[n] = {p: S * d_p * (m.get(p, 0.0) + m_wall * (
                 d_lnS[p] + (1.0 / d_p if p == "d_p" else 0.0))) for p in keys}
     return out
+
+
+def profile_sensitivities(eps, L, K, A, N, rtol, atol, ws, profile, F0):
+    """``{profile: {parameter: ndarray}}`` at ``profile["xi"]`` for a point solved (status ok) in
+    workspace ``ws`` (``profile``: its profiles, as :func:`..outputs.derive_profiles` gives them;
+    ``F0``: ``d delta(1)/d(eta, A, N)`` and ``dJ(0)/d(eta, A, N)`` from :func:`sensitivity_kernel`,
+    None at ``A = -1``).
+
+    ``u_over_u0 = (eps K + J)/(eps K + J(0))`` and ``omega_hat`` by ``eps, L, K, A, N`` through
+    the chain rule from the forward sensitivities of :func:`sensitivity_kernel` (a second march
+    over the same panels) and the adjoint's ``dJ(0)``. At ``A = -1`` from the closed form of
+    docs/model.md section 6 (NaN by ``A``).
+    """
+    xi = np.asarray(profile["xi"], dtype=np.float64)
+    eta, eps_K = eps * L, eps * K
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if A == -1.0:
+            # J = 2 (1 - xi^(c+1))/(c+1), omega_hat = xi^c, c = 2N/eta
+            c = model.a_minus_one_xi_B(eta, N)
+            c_p = np.array([-c / eta, math.nan, 2.0 / eta])
+            lx = np.log(np.where(xi > 0.0, xi, 1.0))
+            xc1 = xi ** (c + 1.0)
+            J_c = -2.0 * (1.0 - xc1) / (c + 1.0) ** 2 - 2.0 * xc1 * lx / (c + 1.0)
+            dJ = J_c[None, :] * c_p[:, None]
+            dJ0 = -2.0 / (c + 1.0) ** 2 * c_p
+            dlogw = lx[None, :] * c_p[:, None]
+        else:
+            prof = np.empty((N_PS, xi.size + 1))
+            out = np.empty(N_S)
+            sensitivity_kernel(eta, A, N, eps_K, math.nan, rtol, atol, ws.ax, ws.res, ws.T1, ws.Q1,
+                               out, np.ascontiguousarray(xi), F0[0], prof)
+            if out[S_STATUS] != st.OK:
+                return _profile_nan(profile)
+            # dJ(0) of the adjoint, also below the march's end (whose forward value misses
+            # what is left below it): u/u(0) = 1 at the axis exactly
+            dJ0 = F0[1]
+            dJ = prof[PS_J:PS_J + 3, :-1]
+            dJ = np.where(np.isnan(dJ), dJ0[:, None], dJ)
+            dlogw = prof[PS_LOGW:PS_LOGW + 3, :-1]
+        w = np.asarray(profile["omega_hat"])
+        u = np.asarray(profile["u_over_u0"])
+        U = eps_K + float(ws.res[R_J_AXIS])
+        d_u = (dJ - u[None, :] * dJ0[:, None]) / U
+        # omega_hat = 0 at the axis (beta > 0) whatever the parameters
+        d_w = np.where(w[None, :] > 0.0, w[None, :] * dlogw, 0.0)
+    d_u_k = (1.0 - u) / U  # d u_over_u0 / d(eps K)
+
+    def by_point(x, x_k):
+        # (eta, A, N, eps K) -> (eps, L, K, A, N)
+        return {"eps": L * x[0] + K * x_k, "L": eps * x[0], "K": eps * x_k, "A": x[1].copy(),
+                "N": x[2].copy()}
+
+    return {"u_over_u0": by_point(d_u, d_u_k), "omega_hat": by_point(d_w, np.zeros(xi.size))}

@@ -37,7 +37,7 @@ BLOCKS_PER_WORKER = 4
 
 
 def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=None, outputs=None,
-          workers=None, reduce=True) -> xr.Dataset:
+          workers=None, reduce=True, sensitivities=False) -> xr.Dataset:
     """Solve every point of the broadcast ``(eps, L, K, A, N)`` in memory; a labelled Dataset.
 
     Parameters
@@ -59,6 +59,11 @@ def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=Non
     reduce : bool
         One integration per distinct ``(eps L, A, N)`` (True) or per point (False); the values
         are the same to the bit.
+    sensitivities : bool
+        Also ``d<output>_d<param>`` (``dDelta_deps`` ...) for every computed output that
+        :func:`.point.solve_point` differentiates and each of ``eps, L, K, A, N``, equal to its
+        ``sensitivities`` (NaN without a solution): one more solve per distinct ``(eps L, A, N)``
+        and one sensitivity march per point, on this thread.
 
     Returns
     -------
@@ -101,11 +106,77 @@ def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=Non
     for name in names:
         d, value, attrs = dataset.output_variable(inputs, name, dims)
         data_vars[name] = (d, value.reshape(shape), attrs)
+    if sensitivities:
+        data_vars.update(_sensitivities(flat, eta, names, mat, rtol, atol, shape, dims, status,
+                                        one_minus, per_point))
     data_vars["status"] = dataset.status_variable(status.reshape(shape), dims)
     attrs = dataset.provenance("cosserat-channel solve", "cosserat_channel.solve", rtol, atol,
                                bool(reduce))
     attrs["n_solves"] = n_solves
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)
+
+
+def _sensitivities(flat, eta, names, mat, rtol, atol, shape, dims, status, one_minus,
+                   per_point) -> dict:
+    """``{d<output>_d<param>: (dims, values, attrs)}``: :func:`..solver.sensitivity.
+    sensitivity_batch` on the distinct triples (one solve each, one sensitivity march per point),
+    the chain rule to ``eps, L, K`` on whole arrays; the same numbers as ``solve_point``'s.
+    ``status`` turns ``integration_failed`` where a sensitivity march gives up (as there)."""
+    from ..solver import sensitivity as sv
+    from ..solver import stage1, stage2
+    from .. import status as st
+
+    diff = [n for n in names if n in sv.OUTPUTS]
+    n = eta.size
+    order, starts = _triples(flat, eta, True)
+    offsets = np.append(starts, n).astype(np.int64)
+    first = order[starts]
+    eps_K = (flat["eps"] * flat["K"])[order]
+    out_sorted = np.empty((n, sv.N_S))
+    sv.sensitivity_batch(eta[first], flat["A"][first], flat["N"][first], eps_K, offsets,
+                         np.ascontiguousarray(one_minus[order]), rtol, atol,
+                         stage1.MAX_STEPS_STAGE1, stage2.MAX_STEPS_STAGE2, out_sorted)
+    out = np.empty_like(out_sorted)
+    out[order] = out_sorted
+    failed = (status == st.OK) & (out[:, sv.S_STATUS] != st.OK) & (flat["A"] != -1.0)
+    status[failed] = st.INTEGRATION_FAILED
+    rows = {"mu": sv.S_MU_WALL, "sig": sv.S_SIGMA_YX_WALL, "J": sv.S_J_AXIS, "om": sv.S_ONE_MINUS}
+    d = {k: [out[:, r + c].copy() for c in range(4 if k == "om" else 3)] for k, r in rows.items()}
+    for i in np.flatnonzero((flat["A"] == -1.0) & (status == st.OK)):
+        closed = sv.a_minus_one(float(eta[i]), float(flat["N"][i]),
+                                float(flat["eps"][i] * flat["K"][i]), not math.isnan(one_minus[i]))
+        for k, vals in zip(rows, closed):
+            for c, v in enumerate(vals):
+                d[k][c][i] = v
+    eps, L, K = flat["eps"], flat["L"], flat["K"]
+    result = sv.chain_rule(d["mu"], d["sig"], d["J"], d["om"], eps, L, K, per_point["J_axis"],
+                           per_point["mu_wall"], one_minus)
+    if mat is not None and any(o in sv._MATERIAL_OUTPUTS for o in diff):
+        # the material's derivatives are scalar Python per point (the closure's root)
+        mats = {o: {p: np.full(n, math.nan) for p in sv.PARAMETERS} for o in diff
+                if o in sv._MATERIAL_OUTPUTS}
+        for i in np.flatnonzero(status == st.OK):
+            point = {o: {p: float(v[i]) for p, v in result[o].items()} for o in result}
+            m = sv.material_sensitivities(diff, mat, float(eps[i]), float(flat["N"][i]),
+                                          float(L[i] * per_point["mu_wall"][i]),
+                                          float(per_point["sigma_yx_wall"][i]), point)
+            for o, ds in m.items():
+                for p in sv.PARAMETERS:
+                    mats[o][p][i] = ds[p]
+        result.update(mats)
+    variables = {}
+    for o in diff:
+        for p in sv.PARAMETERS:
+            v = np.where(status == st.OK, np.asarray(result[o][p], dtype=np.float64) * np.ones(n),
+                         math.nan)
+            units = out_.OUTPUTS[o].attrs.get("units", "1")
+            p_units = PARAMETERS[p].attrs.get("units", "1")
+            if p_units != "1":
+                units = f"({units}) / ({p_units})"
+            attrs = {"long_name": f"derivative of {out_.OUTPUTS[o].attrs.get('long_name', o)} "
+                                  f"by {p}", "units": units}
+            variables[f"d{o}_d{p}"] = (dims, v.reshape(shape), attrs)
+    return variables
 
 
 def _check_workers(workers) -> int:

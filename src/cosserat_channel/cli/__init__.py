@@ -171,8 +171,13 @@ def register(name: str, help: str, configure: Callable[[argparse.ArgumentParser]
     return decorate
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser with one subparser per registered command."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The top-level parser with one subparser per registered command.
+
+    With ``command`` (a registered name) only that subparser gets its arguments: the others
+    are listed but not configured, since some configurations import what their help text
+    quotes (the atlas's defaults, the fit's quantities).
+    """
     from .. import __version__
 
     # allow_abbrev=False: an abbreviation that works today breaks when a later option shares it.
@@ -182,15 +187,21 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for cmd in COMMANDS.values():
         p = sub.add_parser(cmd.name, help=cmd.help, description=cmd.help, allow_abbrev=False)
-        cmd.configure(p)
+        if command not in COMMANDS or command == cmd.name:
+            cmd.configure(p)
         p.set_defaults(_run=cmd.run)
     return parser
 
 
 def main(argv=None) -> int:
     """Run the command line on ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    if argv is None:
+        argv = sys.argv[1:]
+    # The top level takes no option with a value: the first word that is not an option names
+    # the command.
+    command = next((a for a in argv if not a.startswith("-")), None)
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser(command).parse_args(argv)
         code = args._run(args)
         sys.stdout.flush()  # a reader gone (``| head -1``) shows here, not at the interpreter's exit
         return code

@@ -116,6 +116,50 @@ class FitResult:
         """``{name: standard error}``."""
         return dict(zip(self.names, self.std_errors.tolist()))
 
+    def ellipse(self, x: str, y: str, level: float = 0.95, n: int = 241):
+        """The boundary of the ``level`` confidence region of parameters ``x`` and ``y`` jointly,
+        ``(x values, y values)`` of ``n`` points (closed: the last is the first).
+
+        The region of the linearised fit, ``d^T C^-1 d <= q`` with ``C`` the pair's covariance
+        and ``q = -2 ln(1 - level)`` (the ``level`` quantile of chi^2 with 2 degrees of freedom);
+        NaN where the pair's covariance is not determined.
+        """
+        i, j = self._pair(x, y)
+        if not 0.0 < level < 1.0:
+            raise ValueError(f"level must be in (0, 1); got {level!r}")
+        C = self.covariance[np.ix_([i, j], [i, j])]
+        centre = self.estimates[[i, j]]
+        if not np.all(np.isfinite(C)):
+            return np.full(n, np.nan), np.full(n, np.nan)
+        lam, vec = np.linalg.eigh(C)
+        t = np.linspace(0.0, 2.0 * np.pi, n)
+        radius = math.sqrt(-2.0 * math.log1p(-level))
+        pts = centre[:, None] + radius * vec @ (np.sqrt(np.maximum(lam, 0.0))[:, None]
+                                                * np.vstack([np.cos(t), np.sin(t)]))
+        return pts[0], pts[1]
+
+    def mahalanobis(self, x: str, y: str, xs, ys) -> np.ndarray:
+        """The distance of each point ``(xs, ys)`` from the estimate in standard deviations of
+        the pair ``(x, y)`` (the Mahalanobis distance ``sqrt(d^T C^-1 d)``; the ``level``
+        region of :meth:`ellipse` is where it is below ``sqrt(-2 ln(1 - level))``)."""
+        i, j = self._pair(x, y)
+        C = self.covariance[np.ix_([i, j], [i, j])]
+        d = np.stack(np.broadcast_arrays(np.asarray(xs, dtype=float) - self.estimates[i],
+                                         np.asarray(ys, dtype=float) - self.estimates[j]), -1)
+        if not np.all(np.isfinite(C)):
+            return np.full(d.shape[:-1], np.nan)
+        w = np.linalg.solve(C, d.reshape(-1, 2).T).T.reshape(d.shape)
+        return np.sqrt(np.maximum(np.sum(d * w, axis=-1), 0.0))
+
+    def _pair(self, x: str, y: str) -> tuple[int, int]:
+        for name in (x, y):
+            if name not in self.names:
+                raise ValueError(f"{name!r} is not a free parameter of this fit (free: "
+                                 f"{', '.join(self.names)})")
+        if x == y:
+            raise ValueError(f"give two different parameters; got {x!r} twice")
+        return self.names.index(x), self.names.index(y)
+
     def plot(self, path=None):
         """The residual figure (:func:`cosserat_channel.plot.fit.residuals_figure`); written to
         ``path`` when given."""

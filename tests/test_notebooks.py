@@ -9,14 +9,17 @@ renders it.
 """
 
 import json
+import os
 import pathlib
 
 import nbclient  # the `test` extra installs nbclient, nbformat and ipykernel
 import nbformat
 import pytest
 
-NOTEBOOKS = pathlib.Path(__file__).resolve().parent.parent / "notebooks"
-NAMES = ["01_quickstart", "02_paper_figures", "03_solvability_regions", "04_work_precision"]
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+NOTEBOOKS = ROOT / "notebooks"
+NAMES = ["01_quickstart", "02_paper_figures", "03_solvability_regions", "04_work_precision",
+         "05_calibration"]
 SLOW = {"03_solvability_regions", "04_work_precision"}  # 20-30 s each in their kernel
 
 
@@ -38,6 +41,11 @@ def test_notebook_runs_in_a_kernel_and_shows_every_figure(name, tmp_path, monkey
     # developer's shell or CI may set (it must not matter: the figures never use pyplot).
     monkeypatch.setenv("COSSERAT_NOTEBOOK_SMALL", "1")
     monkeypatch.delenv("MPLBACKEND", raising=False)
+    # The kernel runs in tmp_path: a relative PYTHONPATH (``PYTHONPATH=src``) would not reach
+    # this tree's sources there, and the kernel would import an installed copy instead.
+    paths = [str(ROOT / "src")] + [os.path.abspath(p) for p in
+                                   os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(paths))
     client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
                                      resources={"metadata": {"path": str(tmp_path)}})
     client.execute()  # raises CellExecutionError, with the traceback, if a cell fails

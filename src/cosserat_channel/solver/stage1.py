@@ -153,10 +153,13 @@ def stage1_rtol(rtol, A, N, ax):
     return min(rtol, max(STAGE1_RTOL_FLOOR, 1e-3 * rho))
 
 
-# Each integrator's march is a kernel of its own, and the kernels above them take ``tight``:
-# None, or True for a run whose rtol never exceeds DOP853_RTOL (stage 1 only tightens it), which
-# never marches with Dormand-Prince. Numba drops a branch on ``tight is None`` when it compiles,
-# so batch.solve_eta_tight compiles no Dormand-Prince.
+# Each integrator's march is a kernel of its own, and the kernels above them take two flags,
+# each None or True, that leave integrators out of what they compile (Numba drops a branch on
+# ``flag is None`` when it compiles): ``tight=True`` for a run whose rtol never exceeds
+# DOP853_RTOL (stage 1 only tightens it), which never marches with Dormand-Prince, and
+# ``explicit=True`` for a kernel without RODAS4P2, which returns STIFF_NOT_COMPILED instead of
+# marching a point that takes the stiff path (batch.solve_eta_auto then calls one with it).
+STIFF_NOT_COMPILED = -1
 
 
 @njit(**_JIT)
@@ -185,13 +188,13 @@ def _march_rodas(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
 
 
 @njit(**_JIT_INLINE)
-def _march_stage1(tight, stiff, xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
+def _march_stage1(tight, explicit, stiff, xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1,
+                  stats1):
     # The only place that picks stage 1's integrator; all write the same dense-output layout.
-    if stiff:
+    # (With explicit=True, stiff is False here: solve_stage1_with returned before.)
+    if explicit is None and stiff:
         return _march_rodas(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
-    if rtol <= DOP853_RTOL:
-        return _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
-    if tight is None:
+    if tight is None and not rtol <= DOP853_RTOL:
         return _march_dopri5(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
     return _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
 
@@ -250,7 +253,8 @@ def stage1_start(ax, rtol1):
 
 
 @njit(**_JIT_INLINE)
-def _stage1_from_series(tight, stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res, max_step):
+def _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res,
+                        max_step):
     """Stage 1 marched again at a tighter ``rtol1``, from where the axis series is good to it
     (:func:`stage1_start`, which moves closer to the axis); records that start in ``res[R_XI1]``.
     Returns what :func:`_stage1_pass` does (``max_step`` as there).
@@ -260,7 +264,8 @@ def _stage1_from_series(tight, stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, r
     integrators that it links (about 4 s of the first run's compilation)."""
     xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
-    return _stage1_pass(tight, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step)
+    return _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1,
+                        max_step)
 
 
 @njit(**_JIT_INLINE)
@@ -271,7 +276,7 @@ def _add_stats(stats, more):
 
 
 @njit(**_JIT)
-def _stage1_pass(tight, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step):
+def _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step):
     """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
     ``max_step > 0`` caps each step at that fraction of the stretch it marches.
 
@@ -292,13 +297,14 @@ def _stage1_pass(tight, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max
     # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
     # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
     end = N if split else 1.0
-    s1, n1, t1 = _march_stage1(tight, stiff, xi1, y0, end, xi1, max_step * (end - xi1), args1,
-                               rtol1, atol1, T1, Q1, stats_r)
+    s1, n1, t1 = _march_stage1(tight, explicit, stiff, xi1, y0, end, xi1, max_step * (end - xi1),
+                               args1, rtol1, atol1, T1, Q1, stats_r)
     _add_stats(stats1, stats_r)
     if split and s1 == stepping.SUCCESS and n1 > 0:
         y0[0] = Q1[n1 - 1, 0, 0] + Q1[n1 - 1, 1, 0]  # w(N): the last step's end
-        s1, n_more, t1 = _march_stage1(tight, stiff, N, y0, 1.0, 0.0, max_step * (1.0 - N), args1,
-                                       rtol1, atol1, T1[n1:], Q1[n1:], stats_r)
+        s1, n_more, t1 = _march_stage1(tight, explicit, stiff, N, y0, 1.0, 0.0,
+                                       max_step * (1.0 - N), args1, rtol1, atol1, T1[n1:], Q1[n1:],
+                                       stats_r)
         n1 += n_more
         _add_stats(stats1, stats_r)
     for _ in range(EVENT_REFINEMENTS):
@@ -310,8 +316,9 @@ def _stage1_pass(tight, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max
             break
         y0[0] = Q1[k, 0, 0]
         stop = min(Q1.shape[0], k + REFINE_MAX_STEPS)
-        s_new, nb, t_new = _march_stage1(tight, stiff, T1[k], y0, 1.0, span / 16.0, span / 16.0,
-                                         args1, rtol1, atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
+        s_new, nb, t_new = _march_stage1(tight, explicit, stiff, T1[k], y0, 1.0, span / 16.0,
+                                         span / 16.0, args1, rtol1, atol1, T1[k:stop + 1],
+                                         Q1[k:stop], stats_r)
         _add_stats(stats1, stats_r)
         n1 = k + nb
         if s_new == stepping.SUCCESS:
@@ -386,13 +393,14 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     within ``WALL_D_FALLBACK`` resolutions of zero, where a stage-2 failure means D(1) = 0 within
     the dense output's resolution (see :func:`solve_eta`).
     """
-    return solve_stage1_with(None, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)
+    return solve_stage1_with(None, None, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)
 
 
 @njit(**_JIT)
-def solve_stage1_with(tight, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method):
-    """:func:`solve_stage1`; ``tight=True`` (for ``rtol <= DOP853_RTOL`` only) compiles without
-    Dormand-Prince, ``None`` with it (see :func:`_march_stage1`)."""
+def solve_stage1_with(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method):
+    """:func:`solve_stage1` compiled without Dormand-Prince (``tight=True``, for ``rtol <=
+    DOP853_RTOL`` only) or RODAS4P2 (``explicit=True``: returns ``(STIFF_NOT_COMPILED, False)``
+    for a point that takes the stiff path), with them where the flag is None."""
     for i in range(N_R):
         res[i] = math.nan
     for i in range(stats1.size):
@@ -444,8 +452,11 @@ def solve_stage1_with(tight, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, met
     res[R_XI1] = xi1
     stiff = (use_stiff_path(eta, A, N, ax, xi1, rtol1) if method == METHOD_AUTO
              else method == METHOD_STIFF)
+    if explicit is not None and stiff:
+        return STIFF_NOT_COMPILED, False
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
-    s1, n1, t1 = _stage1_pass(tight, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, 0.0)
+    s1, n1, t1 = _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1,
+                              0.0)
     if s1 == stepping.EVENT and rtol1 > STAGE1_RTOL_FLOOR:
         # Where the path meets D = 0, D often falls to zero nearly tangentially (D ~ (xi_stop -
         # xi)^2 over the last percent), so xi_stop moves by ~sqrt(the error of D): 2.6e-4 at
@@ -453,8 +464,8 @@ def solve_stage1_with(tight, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, met
         # starts on the axis series. The status is certain; for xi_stop, march again 1000x tighter.
         rtol1 = max(STAGE1_RTOL_FLOOR, 1e-3 * rtol1)
         atol1[0] = atol * min(1.0, rtol1 / rtol)
-        s1, n1, t1 = _stage1_from_series(tight, stiff, ax, args1, rtol1, atol1, T1, Q1, stats1,
-                                         res, 0.0)
+        s1, n1, t1 = _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1,
+                                         stats1, res, 0.0)
     if s1 == stepping.SUCCESS:
         delta_wall = _delta_wall(T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
@@ -468,8 +479,8 @@ def solve_stage1_with(tight, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, met
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
             atol1[0] = atol * min(1.0, rtol1 / rtol)
-            s1, n1, t1 = _stage1_from_series(tight, stiff, ax, args1, rtol1, atol1, T1, Q1,
-                                             stats1, res, EDGE_MAX_STEP)
+            s1, n1, t1 = _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1,
+                                             Q1, stats1, res, EDGE_MAX_STEP)
             if s1 == stepping.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)

@@ -260,8 +260,8 @@ def _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1,
     Returns what :func:`_stage1_pass` does (``max_step`` as there).
 
     Inlined, and every call passes ``max_step``: a kernel of its own, or a default left out,
-    is one more specialisation whose compilation re-optimises all of stage 1's inlined
-    integrators that it links (about 4 s of the first run's compilation)."""
+    is one more specialisation whose compilation re-optimises all of stage 1's integrators
+    that it links (about 4 s of the first run's compilation)."""
     xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
     return _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1,

@@ -1,5 +1,6 @@
 """solve_point against an independent scipy reference, the paper's numbers and model.md's facts."""
 
+import json
 import math
 
 import numpy as np
@@ -401,3 +402,31 @@ def test_default_workspace_is_reused_without_carrying_state():
     assert [key(solve_point(*p)) for p in points + points[::-1]] == fresh + fresh[::-1]
     with ThreadPoolExecutor(2) as pool:
         assert list(pool.map(lambda p: key(solve_point(*p)), points * 3)) == fresh * 3
+
+
+@pytest.mark.slow
+def test_a_point_compiles_only_the_integrators_it_marches_with(tmp_path, monkeypatch):
+    """On an empty kernel cache, a point on the explicit path at the default rtol compiles DOP853
+    alone, neither Dormand-Prince nor RODAS4P2; a point on the stiff path then adds RODAS4P2, and
+    the first point solved again through that entry gives the same bits."""
+    from support import run_python
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # a fresh interpreter: every kernel compiles
+    code = """if True:
+        import json
+        import cosserat_channel as cc
+        from cosserat_channel.solver import stage1
+
+        def compiled():  # signatures of Dormand-Prince's, DOP853's and RODAS4P2's march
+            return [len(f.signatures) for f in (stage1._march_dopri5, stage1._march_dop853,
+                                                 stage1._march_rodas)]
+
+        first = cc.solve_point(1 / 30, 10, 0.5, 1 / 3, 1)
+        after_first = compiled()
+        stiff = cc.solve_point(1e-4, 1, 0.5, 1 / 3, 1)
+        after_stiff = compiled()
+        again = cc.solve_point(1 / 30, 10, 0.5, 1 / 3, 1)
+        print(json.dumps([first.counters["stage1_path"], stiff.counters["stage1_path"], after_first,
+                          after_stiff, first.status.name, again.to_dict() == first.to_dict()]))
+    """
+    assert json.loads(run_python(code)) == ["explicit", "stiff", [0, 1, 0], [0, 1, 1], "ok", True]

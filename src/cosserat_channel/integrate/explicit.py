@@ -48,9 +48,7 @@ def _work_arrays(y0, n_rows):
     # The run's state and scratch, allocated once: y (a copy of y0), y_new, the method's work
     # vector w, ytmp, and the stages K.
     n = y0.shape[0]
-    y = np.empty(n)
-    y[:] = y0
-    return y, np.empty(n), np.empty(n), np.empty(n), np.empty((n_rows, n))
+    return y0.copy(), np.empty(n), np.empty(n), np.empty(n), np.empty((n_rows, n))
 
 
 @njit(**_JIT_INLINE)
@@ -138,6 +136,9 @@ def explicit_rk(trial, control, dense, n_rows, k_new, order, memory0, stiff_dy, 
             return EVENT, nsteps, t_event
         if last:
             return SUCCESS, nsteps, t_end
-        y[:] = y_new
-        K[0, :] = K[k_new]
+        # Element loops, not slice assignments: those compile Numba's shape-mismatch error
+        # message (string formatting), seconds of the first run's compilation.
+        for i in range(y.size):
+            y[i] = y_new[i]
+            K[0, i] = K[k_new, i]
         t = T[nsteps]

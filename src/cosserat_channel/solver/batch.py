@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .._jit import JIT as _JIT
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .. import status as st
 from ..integrate import dense, panels
 from ..physics import model
@@ -21,7 +21,8 @@ from ..physics.model import AX_BETA, N_AX
 from .layout import (METHOD_AUTO, N_R, P_DELTA, P_J, P_OMEGA_HAT, P_SIGMA_YX, R_J_AXIS, R_LOGW2,
                      R_MU_WALL, R_N1, R_N2, R_STATUS, R_T_TAIL, R_XI1, R_XI2, R_XI_STOP)
 from .plug_edge import _one_minus_xi_p, _plug_constants
-from .stage1 import solve_stage1, stage1_arrays
+from .stage1 import (DOP853_RTOL, STIFF_NOT_COMPILED, solve_stage1, solve_stage1_with,
+                     stage1_arrays)
 from .stage2 import _march_stage2, _series_I, stage2_arrays
 from .stress_path import _delta_at, _stage1_work
 
@@ -42,9 +43,63 @@ def solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, me
     Fills ``res[N_R]`` (slots ``R_*``), the axis constants ``ax``, the dense outputs (T1, Q1) of
     stage 1 and (T2, Q2) of stage 2 and the counters. Returns the status code.
     """
+    return _solve_eta(None, None, eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                      method, stage2)
+
+
+@njit(**_JIT)
+def solve_eta_tight(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                    method=METHOD_AUTO, stage2=True):
+    """:func:`solve_eta` for ``rtol <= stage1.DOP853_RTOL`` (the same bits), compiled without
+    Dormand-Prince 5(4), which only a looser tolerance marches with."""
+    return _solve_eta(True, None, eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                      method, stage2)
+
+
+@njit(**_JIT)
+def solve_eta_dop853(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                     method=METHOD_AUTO, stage2=True):
+    """:func:`solve_eta_tight` compiled without RODAS4P2 too: DOP853 is its one integrator, and
+    a point that takes the stiff path returns ``stage1.STIFF_NOT_COMPILED`` before marching."""
+    return _solve_eta(True, True, eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                      method, stage2)
+
+
+# Whether this process has met a point on the stiff path at rtol <= DOP853_RTOL: from then on
+# solve_eta_auto calls the entry with RODAS4P2 at once.
+_stiff_met = False
+
+
+def solve_eta_auto(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                   method=METHOD_AUTO, stage2=True):
+    """:func:`solve_eta` from Python, through the entry that compiles (on an empty kernel cache)
+    only the integrators the point can reach: :func:`solve_eta` above ``stage1.DOP853_RTOL``,
+    else :func:`solve_eta_dop853` until a point takes the stiff path, then
+    :func:`solve_eta_tight`. Every entry gives the same bits."""
+    global _stiff_met
+    if not rtol <= DOP853_RTOL:
+        return solve_eta(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method,
+                         stage2)
+    if not _stiff_met:
+        code = solve_eta_dop853(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+                                method, stage2)
+        if code != STIFF_NOT_COMPILED:
+            return code
+        _stiff_met = True
+    return solve_eta_tight(eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res, method,
+                           stage2)
+
+
+@njit(**_JIT_INLINE)
+def _solve_eta(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1, T2, Q2, stats1, stats2, res,
+               method, stage2):
+    # The body of the entries, with the flags of stage1.solve_stage1_with (inlined: a kernel of
+    # its own would be one more level of linked code that each caller's compilation optimises
+    # again).
     for i in range(stats2.size):
         stats2[i] = 0
-    code, near_edge = solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)
+    code, near_edge = solve_stage1_with(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1,
+                                        stats1, res, method)
     if code != st.OK or not (stage2 or near_edge):
         return code
     code = _march_stage2(eta, A, N, rtol, atol, ax, res[R_XI1], T1, Q1, int(res[R_N1]), T2, Q2,

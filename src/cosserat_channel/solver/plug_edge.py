@@ -45,10 +45,12 @@ def _series_plug_level(t, packed):
             4.0 * q * (1.0 - q) + 8.0 * x * x * d2F / F)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _series_root(fb, consts, ax, t0):
-    # the root of _series_plug_level for log I(xi2) - log(level) = fb > 0, from t0
-    t2, log_F2, slope, fa0, slope2, quiet = consts[:6]
+    # the root of _series_plug_level for log I(xi2) - log(level) = fb > 0, from t0; consts are
+    # the first six of _plug_constants. A kernel, not inlined: its two callers share one compiled
+    # Newton search, half of the plug edge's compilation (the root costs ~1 % more, bench_plug_edge).
+    t2, log_F2, slope, fa0, slope2, quiet = consts
     c = fb - log_F2  # c + log F(x2) = log I(xi2): c + slope (t - t2) + log F(x) is log I - log(level)
     fa = c + fa0
     a = math.log(XI_FLOOR)
@@ -131,7 +133,7 @@ def _series_plug_edge(target, res, ax, consts):
     fb = res[R_LOGI2] - L
     if not fb > 0.0:
         return consts[0]
-    return _series_root(fb, consts, ax, _series_start(L, consts))
+    return _series_root(fb, consts[:6], ax, _series_start(L, consts))
 
 
 # T_k(1 - u) - 1 and its u-derivative at the panel's ends u = 0 and u = 2, for k < N_COEF

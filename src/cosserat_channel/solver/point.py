@@ -146,7 +146,7 @@ class Workspace:
 
         ``stage2=False``: stage 2 only where it decides the status (:func:`batch.solve_eta`).
         """
-        return batch.solve_eta(
+        return batch.solve_eta_auto(
             eta, A, N, rtol, atol, self.ax, self.T1, self.Q1, self.T2, self.Q2,
             self.stats1, self.stats2, self.res, method, stage2,
         )

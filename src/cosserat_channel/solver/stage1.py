@@ -153,23 +153,50 @@ def stage1_rtol(rtol, A, N, ax):
     return min(rtol, max(STAGE1_RTOL_FLOOR, 1e-3 * rho))
 
 
+# Each integrator's march is a kernel of its own, and the kernels above them take two flags,
+# each None or True, that leave integrators out of what they compile (Numba drops a branch on
+# ``flag is None`` when it compiles): ``tight=True`` for a run whose rtol never exceeds
+# DOP853_RTOL (stage 1 only tightens it), which never marches with Dormand-Prince, and
+# ``explicit=True`` for a kernel without RODAS4P2, which returns STIFF_NOT_COMPILED instead of
+# marching a point that takes the stiff path (batch.solve_eta_auto then calls one with it).
+STIFF_NOT_COMPILED = -1
+
+
 @njit(**_JIT)
-def _march_stage1(stiff, xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
-    # The only place that picks stage 1's integrator; all write the same dense-output layout.
-    if stiff:
-        return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, xi_end, args1,
-                                 rtol, atol1, h0, h_max, T1, Q1, stats1)
+def _march_dopri5(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
     # The explicit pairs check their first step against the exact |df/dw| at the start (later
     # steps against their own estimate): a first step of xi1, or half the stretch, is often far
     # beyond their stability boundary, where their error estimate can vanish (stepping's
     # beyond_stability).
     rho0 = abs(_stage1_jac(xi0, y0, args1)[0])
-    if rtol <= DOP853_RTOL:
-        cap = DOP853_MAX_STEP * (xi_end - xi0)
-        return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
-                             cap if not (0.0 < h_max < cap) else h_max, T1, Q1, stats1, rho0)
     return rk45.dopri5(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0, h_max,
                        T1, Q1, stats1, rho0)
+
+
+@njit(**_JIT)
+def _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
+    rho0 = abs(_stage1_jac(xi0, y0, args1)[0])  # as in _march_dopri5
+    cap = DOP853_MAX_STEP * (xi_end - xi0)
+    return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
+                         cap if not (0.0 < h_max < cap) else h_max, T1, Q1, stats1, rho0)
+
+
+@njit(**_JIT)
+def _march_rodas(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
+    return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, xi_end, args1,
+                             rtol, atol1, h0, h_max, T1, Q1, stats1)
+
+
+@njit(**_JIT_INLINE)
+def _march_stage1(tight, explicit, stiff, xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1,
+                  stats1):
+    # The only place that picks stage 1's integrator; all write the same dense-output layout.
+    # (With explicit=True, stiff is False here: solve_stage1_with returned before.)
+    if explicit is None and stiff:
+        return _march_rodas(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
+    if tight is None and not rtol <= DOP853_RTOL:
+        return _march_dopri5(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
+    return _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
 
 
 @njit(**_JIT)
@@ -226,17 +253,19 @@ def stage1_start(ax, rtol1):
 
 
 @njit(**_JIT_INLINE)
-def _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res, max_step):
+def _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res,
+                        max_step):
     """Stage 1 marched again at a tighter ``rtol1``, from where the axis series is good to it
     (:func:`stage1_start`, which moves closer to the axis); records that start in ``res[R_XI1]``.
     Returns what :func:`_stage1_pass` does (``max_step`` as there).
 
     Inlined, and every call passes ``max_step``: a kernel of its own, or a default left out,
-    is one more specialisation whose compilation re-optimises all of stage 1's inlined
-    integrators that it links (about 4 s of the first run's compilation)."""
+    is one more specialisation whose compilation re-optimises all of stage 1's integrators
+    that it links (about 4 s of the first run's compilation)."""
     xi1, w1 = stage1_start(ax, rtol1)
     res[R_XI1] = xi1
-    return _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step)
+    return _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1,
+                        max_step)
 
 
 @njit(**_JIT_INLINE)
@@ -247,7 +276,7 @@ def _add_stats(stats, more):
 
 
 @njit(**_JIT)
-def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step):
+def _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step):
     """Stage 1 from the axis series to the wall or to D = 0; counters are added to ``stats1``.
     ``max_step > 0`` caps each step at that fraction of the stretch it marches.
 
@@ -268,13 +297,14 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step):
     # First step = xi1: off the axis the solution varies on the scale of xi itself, and the
     # generic first-step guesses (built on |f|, which is tiny there) jump far too far.
     end = N if split else 1.0
-    s1, n1, t1 = _march_stage1(stiff, xi1, y0, end, xi1, max_step * (end - xi1), args1, rtol1,
-                               atol1, T1, Q1, stats_r)
+    s1, n1, t1 = _march_stage1(tight, explicit, stiff, xi1, y0, end, xi1, max_step * (end - xi1),
+                               args1, rtol1, atol1, T1, Q1, stats_r)
     _add_stats(stats1, stats_r)
     if split and s1 == stepping.SUCCESS and n1 > 0:
         y0[0] = Q1[n1 - 1, 0, 0] + Q1[n1 - 1, 1, 0]  # w(N): the last step's end
-        s1, n_more, t1 = _march_stage1(stiff, N, y0, 1.0, 0.0, max_step * (1.0 - N), args1, rtol1,
-                                       atol1, T1[n1:], Q1[n1:], stats_r)
+        s1, n_more, t1 = _march_stage1(tight, explicit, stiff, N, y0, 1.0, 0.0,
+                                       max_step * (1.0 - N), args1, rtol1, atol1, T1[n1:], Q1[n1:],
+                                       stats_r)
         n1 += n_more
         _add_stats(stats1, stats_r)
     for _ in range(EVENT_REFINEMENTS):
@@ -286,8 +316,9 @@ def _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, max_step):
             break
         y0[0] = Q1[k, 0, 0]
         stop = min(Q1.shape[0], k + REFINE_MAX_STEPS)
-        s_new, nb, t_new = _march_stage1(stiff, T1[k], y0, 1.0, span / 16.0, span / 16.0, args1,
-                                         rtol1, atol1, T1[k:stop + 1], Q1[k:stop], stats_r)
+        s_new, nb, t_new = _march_stage1(tight, explicit, stiff, T1[k], y0, 1.0, span / 16.0,
+                                         span / 16.0, args1, rtol1, atol1, T1[k:stop + 1],
+                                         Q1[k:stop], stats_r)
         _add_stats(stats1, stats_r)
         n1 = k + nb
         if s_new == stepping.SUCCESS:
@@ -352,7 +383,7 @@ def _wall_D_sensitivity(A, N, delta_wall):
     return 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_AUTO):
     """Stage 1 for one ``(eta, A, N)``: the regime, the march from the axis and the wall values.
 
@@ -362,6 +393,14 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     within ``WALL_D_FALLBACK`` resolutions of zero, where a stage-2 failure means D(1) = 0 within
     the dense output's resolution (see :func:`solve_eta`).
     """
+    return solve_stage1_with(None, None, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method)
+
+
+@njit(**_JIT)
+def solve_stage1_with(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method):
+    """:func:`solve_stage1` compiled without Dormand-Prince (``tight=True``, for ``rtol <=
+    DOP853_RTOL`` only) or RODAS4P2 (``explicit=True``: returns ``(STIFF_NOT_COMPILED, False)``
+    for a point that takes the stiff path), with them where the flag is None."""
     for i in range(N_R):
         res[i] = math.nan
     for i in range(stats1.size):
@@ -413,8 +452,11 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
     res[R_XI1] = xi1
     stiff = (use_stiff_path(eta, A, N, ax, xi1, rtol1) if method == METHOD_AUTO
              else method == METHOD_STIFF)
+    if explicit is not None and stiff:
+        return STIFF_NOT_COMPILED, False
     res[R_PATH] = PATH_STIFF if stiff else PATH_EXPLICIT
-    s1, n1, t1 = _stage1_pass(stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1, 0.0)
+    s1, n1, t1 = _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, stats1,
+                              0.0)
     if s1 == stepping.EVENT and rtol1 > STAGE1_RTOL_FLOOR:
         # Where the path meets D = 0, D often falls to zero nearly tangentially (D ~ (xi_stop -
         # xi)^2 over the last percent), so xi_stop moves by ~sqrt(the error of D): 2.6e-4 at
@@ -422,8 +464,8 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         # starts on the axis series. The status is certain; for xi_stop, march again 1000x tighter.
         rtol1 = max(STAGE1_RTOL_FLOOR, 1e-3 * rtol1)
         atol1[0] = atol * min(1.0, rtol1 / rtol)
-        s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res,
-                                         0.0)
+        s1, n1, t1 = _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1,
+                                         stats1, res, 0.0)
     if s1 == stepping.SUCCESS:
         delta_wall = _delta_wall(T1, Q1, n1, buf)
         D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
@@ -437,8 +479,8 @@ def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_A
         if D_wall > 0.0 and rtol_cond < 0.5 * rtol1 and rtol1 > STAGE1_RTOL_FLOOR:
             rtol1 = max(STAGE1_RTOL_FLOOR, rtol_cond)
             atol1[0] = atol * min(1.0, rtol1 / rtol)
-            s1, n1, t1 = _stage1_from_series(stiff, ax, args1, rtol1, atol1, T1, Q1, stats1, res,
-                                             EDGE_MAX_STEP)
+            s1, n1, t1 = _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1,
+                                             Q1, stats1, res, EDGE_MAX_STEP)
             if s1 == stepping.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)

@@ -148,7 +148,9 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         length = min(length, FIRST_PANEL / abs(B1))
     lo = math.log(T1[k]) if k >= 0 and not free else t_end
     T2[0] = 0.0
-    p = 0
+    # int64 from the start: Numba types the calls below with a literal 0 first and compiled
+    # integrate_panel and panel_value once more for it.
+    p = np.int64(0)
     tail = False
     while b > t_end:
         a = b - length

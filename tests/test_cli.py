@@ -294,7 +294,8 @@ def test_boundary_reuses_its_own_file_and_keeps_another(capsys, tmp_path, monkey
 
     b = tmp_path / "b.nc"
     def args(n="1", *extra):
-        return ["boundary", "--A", "0.3333333333333333", "--N", n, "--coarse", "8", "-o", str(b),
+        return ["boundary", "--A", "0.3333333333333333", "--N", n, "--coarse", "8", "--trace",
+                "-o", str(b),
                 *extra]
 
     assert cli.main(args()) == 0
@@ -307,6 +308,40 @@ def test_boundary_reuses_its_own_file_and_keeps_another(capsys, tmp_path, monkey
         assert cli.main(args("2")) == 2
         assert "--overwrite" in capsys.readouterr().err
     assert cli.main(args("2", "--overwrite")) == 0
+
+
+def test_boundary_draws_from_the_shipped_atlas_and_says_so(capsys, tmp_path, monkeypatch):
+    """Without --atlas or --trace, boundary answers from the shipped whole-plane atlas without
+    tracing, names it on stderr and in the file, and agrees with a trace to the atlas's
+    tolerance; --trace traces; --atlas with --trace is refused in one line."""
+    import numpy as np
+    import xarray as xr
+
+    from cosserat_channel import regimes
+
+    argv = ["boundary", "--A", "0.3333333333333333,2", "--N", "1.5"]
+    with monkeypatch.context() as m:
+        m.setattr(regimes, "trace_boundary", lambda *a, **k: pytest.fail("traced"))
+        assert cli.main([*argv, "-o", str(tmp_path / "a.nc")]) == 0
+    err = capsys.readouterr().err
+    assert "shipped atlas" in err and "whole_plane.nc" in err and "tol 1e-08" in err
+    assert cli.main([*argv, "--trace", "-o", str(tmp_path / "t.nc")]) == 0
+    assert "atlas" not in capsys.readouterr().err
+    with xr.open_dataset(tmp_path / "a.nc") as a, xr.open_dataset(tmp_path / "t.nc") as t:
+        assert "shipped atlas" in a.attrs["atlas"]
+        assert np.array_equal(a["edge_kind"].values, t["edge_kind"].values)
+        np.testing.assert_allclose(a["eta_max"].values, t["eta_max"].values, rtol=2e-8)
+    assert cli.main([*argv, "--trace", "--atlas", str(tmp_path / "a.nc"), "-o",
+                     str(tmp_path / "x.nc")]) == 2
+    assert "--atlas and --trace" in capsys.readouterr().err
+    # Next to N = 1 (where eta_min leaves the range) the atlas's deepest cells state errors
+    # above its tolerance: there boundary traces, and gives the paper's point to 1e-10.
+    assert cli.main(["boundary", "--A", "0.3333333333333333", "--N", "1", "-o",
+                     str(tmp_path / "p.nc")]) == 0
+    assert "tracing instead" in capsys.readouterr().err
+    with xr.open_dataset(tmp_path / "p.nc") as p:
+        assert "atlas" not in p.attrs
+        assert abs(float(p["eta_max"].values[0, 0]) / 3.30886055554 - 1) < 1e-10
 
 
 @pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
@@ -661,7 +696,7 @@ def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
     real = cli.Progress.update
     monkeypatch.setattr(cli.Progress, "update", lambda self, text: (seen.append(text),
                                                                      real(self, text)))
-    code = cli.main(["boundary", "--A", "0,0.5", "--N", "1", "--coarse", "8",
+    code = cli.main(["boundary", "--A", "0,0.5", "--N", "1", "--coarse", "8", "--trace",
                      "-o", str(tmp_path / "b.nc")])
     assert code == 0
     assert capsys.readouterr().err == ""

@@ -942,7 +942,8 @@ def test_a_toml_integer_beyond_the_largest_float_is_one_line(tmp_path, capsys, e
     (["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1"], None),
     (["point", "--eps", "0.0333", "--L", "10", "--K", "0.5", "--A", "0.33", "--N", "1", "--plot",
       "p.png"], "p.png"),
-    (["boundary", "--A", "0.3333333333333333", "--N", "1", "--coarse", "8", "-o", "b.nc"],
+    (["boundary", "--A", "0.3333333333333333", "--N", "1", "--coarse", "8", "--trace", "-o",
+      "b.nc"],
      "b.nc"),
 ])
 def test_a_reader_that_leaves_early_is_one_line_and_keeps_the_files(tmp_path, argv, written):

@@ -393,7 +393,7 @@ def tool_files(tmp_path_factory):
     paths = {k: str(d / f"{k}.nc") for k in ("atlas", "traced", "drawn")}
     assert cli.main(["atlas", "-o", paths["atlas"], "--A", "0.25:0.5", "--N", "0.8:0.9",
                      "--tol", "1e-3", "--degree", "2", "--max-depth", "0", "--workers", "1"]) == 0
-    assert cli.main(["boundary", "--A", "0.3,0.4", "--N", "0.85", "--coarse", "8",
+    assert cli.main(["boundary", "--A", "0.3,0.4", "--N", "0.85", "--coarse", "8", "--trace",
                      "-o", paths["traced"]]) == 0
     assert cli.main(["boundary", "--A", "0.3,0.4,0.45", "--N", "0.85", "--atlas", paths["atlas"],
                      "-o", paths["drawn"]]) == 0

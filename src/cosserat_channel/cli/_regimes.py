@@ -78,7 +78,7 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--atlas", metavar="ATLAS.nc",
                    help="draw the edges from this atlas (written by 'atlas') instead of tracing "
                    "(default: the cached atlas, else the shipped whole-plane one, where it covers "
-                   "the grid and --eta-range is its own)")
+                   "the grid, holds its tolerance there and --eta-range is its own)")
     p.add_argument("--trace", action="store_true",
                    help="trace the edges (by continuation along the grid) even where an atlas "
                    "covers the grid; --coarse applies to tracing only")
@@ -128,6 +128,13 @@ def _boundary(args: argparse.Namespace) -> int:
                                                      note=_note)
         if atlas is not None and atlas.eta_range != (lo, hi):
             atlas = None
+        drawn = None if atlas is None else atlas.boundary(A, N)
+        if drawn is not None and _above_tolerance(drawn, atlas.tol):
+            # The default atlas answers only where it holds its tolerance; a cell that could
+            # not reach it (an envelope next to a singular curve) is traced instead.
+            _note(f"the {which} atlas states an error above its tolerance ({atlas.tol:g}) at "
+                  f"{_above_tolerance(drawn, atlas.tol)} of the (A, N) pairs; tracing instead")
+            atlas = None
     if args.atlas is not None or atlas is not None:
         if args.atlas is not None:
             check_not_input(args.output, [args.atlas], "-o")
@@ -137,7 +144,7 @@ def _boundary(args: argparse.Namespace) -> int:
         else:
             _note(f"edges drawn from the {atlas_mod.describe(atlas, path, which)} "
                   "(--trace to trace them)")
-            ds = atlas.boundary(A, N)
+            ds = drawn
             ds.attrs["atlas"] = atlas_mod.describe(atlas, path, which)
     else:
         ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
@@ -173,6 +180,16 @@ def _boundary(args: argparse.Namespace) -> int:
             print(f"{a:12.6g} {n:10.6g} {ds['eta_max'].values[i, j]:18.12g} "
                   f"{regimes.EDGE_KINDS[k]:<20} {name}")
     return EXIT_OK
+
+
+def _above_tolerance(ds, tol) -> int:
+    """How many (A, N) pairs of an atlas's boundary Dataset it leaves undecided or answers with
+    a stated error above ``tol``."""
+    import numpy as np
+
+    with np.errstate(invalid="ignore"):
+        rough = ds["eta_error"].values > tol * (1.0 + 1e-9)
+    return int(np.sum(rough | ~ds["resolved"].values))
 
 
 def _boundary_from_atlas(path, A, N, lo, hi):

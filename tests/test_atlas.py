@@ -572,7 +572,8 @@ def test_continued_atlas_against_an_independent_solver():
         for t, ok_below in zip(eta[k], (False, True)):
             for f, ok in ((1 - 2e-8, ok_below), (1 + 2e-8, not ok_below)):
                 e = t * f
-                got = reference(e / 10.0, 10.0, 0.5, A[k], N[k], method="Radau")["status"]
+                got = reference(e / 10.0, 10.0, 0.5, A[k], N[k], method="Radau",
+                                status_only=True)["status"]
                 assert (got == "ok") == ok, (A[k], N[k], t, f, got)
 
 

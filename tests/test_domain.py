@@ -287,7 +287,8 @@ def test_either_side_of_the_traced_path_edge(A, N):
     if outside.status == st.Status.eps_too_large_path:
         assert 0.9 < outside.xi_stop <= 1.0
     for f, want in ((1 - 1e-4, "ok"), (1 + 1e-4, outside.status.name)):
-        assert reference(edge * f, L, 0.5, A, N, method="Radau")["status"] == want
+        assert reference(edge * f, L, 0.5, A, N, method="Radau",
+                         status_only=True)["status"] == want
 
 
 @pytest.mark.parametrize(

@@ -38,8 +38,12 @@ def classify(eps, L, A, N):
     return None
 
 
-def reference(eps, L, K, A, N, method="DOP853", rtol=RTOL):
-    """Reference outputs (dict) for one point; ``status`` by name."""
+def reference(eps, L, K, A, N, method="DOP853", rtol=RTOL, status_only=False):
+    """Reference outputs (dict) for one point; ``status`` by name.
+
+    With ``status_only`` the status alone, from stage 1 (next to an edge, where D(1) is tiny,
+    stage 2's ``B ~ 1/sqrt(D)`` makes its march long, and the status does not need it).
+    """
     out = {"status": classify(eps, L, A, N)}
     if out["status"] is not None:
         return out
@@ -80,6 +84,9 @@ def reference(eps, L, K, A, N, method="DOP853", rtol=RTOL):
     if Dw <= 0:
         out["status"] = "eps_too_large_path"
         out["xi_stop"] = 1.0
+        return out
+    if status_only:
+        out["status"] = "ok"
         return out
 
     def delta_at(xi):

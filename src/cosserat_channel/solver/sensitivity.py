@@ -40,7 +40,7 @@ from .layout import METHOD_AUTO, N_R, R_J_AXIS, R_MU_WALL, R_N1, R_SIGMA_YX_WALL
 from .stage1 import stage1_arrays
 from .stage2 import (FIRST_PANEL, MAX_STEPS_STAGE2, STAGE2_TOL, TAIL_FRACTION, XI_FLOOR, _h_axis,
                      stage2_arrays)
-from .stress_path import _delta_wall, _wall_increments, delta_D_at
+from .stress_path import _delta_wall, _wall_increments, delta_D_at, xi_of_log
 
 __all__ = ["sensitivity_kernel", "sensitivity_batch", "point_sensitivities", "profile_sensitivities",
            "chain_rule", "a_minus_one", "material_sensitivities", "PARAMETERS", "OUTPUTS", "PROFILE_OUTPUTS"]
@@ -168,12 +168,7 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
         good = True
         for j in range(nn):
             t = b if j == 0 else (a if j == last else mid + r * X[j])
-            if t > -0.5:
-                s = -math.expm1(t)
-                xi = 1.0 - s
-            else:
-                xi = math.exp(t)
-                s = 1.0 - xi
+            xi, s = xi_of_log(t)
             xs[j] = xi
             delta, D, _ = delta_D_at(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
             if not D > 0.0:

@@ -19,7 +19,7 @@ from ..physics import model
 from ..physics.model import AX_BETA, AX_C0
 from .layout import (R_J2, R_J_AXIS, R_LOGI2, R_LOGW2, R_N2, R_RTOL1, R_STATUS, R_T_TAIL, R_XI2)
 from .stage1 import SERIES_TOL
-from .stress_path import _delta_wall, _wall_increments, delta_D_at
+from .stress_path import _delta_wall, _wall_increments, delta_D_at, xi_of_log
 
 MAX_STEPS_STAGE2 = 20_000  # panels: bounded work per point (integration_failed beyond)
 # Stage 2 stops once the rest of J, down to the axis, is below this fraction of rtol * J.
@@ -161,13 +161,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         noise_y = 0.0
         for j in range(panels.N_NODES):
             t = b if j == 0 else (a if j == last else mid + r * X[j])
-            # one exponential: s = 1 - xi to full relative precision where the wall form needs it
-            if t > -0.5:
-                s = -math.expm1(t)
-                xi = 1.0 - s
-            else:
-                xi = math.exp(t)
-                s = 1.0 - xi
+            xi, s = xi_of_log(t)
             if free:
                 k = dense.find_step_from(T1, n1, xi, k) if xi > xi1 else -1
             f[j], g[j], rel_noise[j] = _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C, delta1, D1)

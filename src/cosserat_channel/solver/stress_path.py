@@ -7,6 +7,8 @@ from increments (:func:`_wall_form`), so that ``B ~ 1/sqrt(D)`` stays smooth whe
 
 from __future__ import annotations
 
+import math
+
 
 import numpy as np
 from numba import njit
@@ -25,6 +27,17 @@ W_STEP = 0  # the stage-1 step of the last lookup
 N_W = 1
 # Above this xi stage 2 evaluates D as D(1) + [D(xi) - D(1)] (see _wall_form).
 XI_WALL_FORM = 0.5
+
+
+@njit(**_JIT_INLINE)
+def xi_of_log(t):
+    """``(xi, s)`` with ``xi = exp(t)`` and ``s = 1 - xi``, each from one exponential and to full
+    relative precision where it is small (``s`` next to the wall, where the wall form needs it)."""
+    if t > -0.5:
+        s = -math.expm1(t)
+        return 1.0 - s, s
+    xi = math.exp(t)
+    return xi, 1.0 - xi
 
 
 @njit(**_JIT_INLINE)

@@ -129,11 +129,12 @@ def _boundary(args: argparse.Namespace) -> int:
         if atlas is not None and atlas.eta_range != (lo, hi):
             atlas = None
         drawn = None if atlas is None else atlas.boundary(A, N)
-        if drawn is not None and _above_tolerance(drawn, atlas.tol):
+        rough = 0 if drawn is None else _above_tolerance(drawn, atlas.tol)
+        if rough:
             # The default atlas answers only where it holds its tolerance; a cell that could
             # not reach it (an envelope next to a singular curve) is traced instead.
             _note(f"the {which} atlas states an error above its tolerance ({atlas.tol:g}) at "
-                  f"{_above_tolerance(drawn, atlas.tol)} of the (A, N) pairs; tracing instead")
+                  f"{rough} of the (A, N) pairs; tracing instead")
             atlas = None
     if args.atlas is not None or atlas is not None:
         if args.atlas is not None:

@@ -154,17 +154,50 @@ def test_classify_decides_analytic_regimes_exactly(atlas):
 
 
 def test_a_mixed_cell_at_the_deepest_level_is_an_envelope():
-    """A box across N = 1 (where eta_min leaves the range) at depth 0 is not left unresolved: its
-    leaf decides where every node agrees (eta = 0.5: a solution, as a solve says) and leaves the
-    cluster of eta_min's undecided (eta = 0.005), with its width as its error."""
-    a = at.build_atlas((0.25, 0.5), (0.9, 1.1), tol=1e-3, degree=2, max_depth=0)
+    """A cell at depth 0 where the window of solutions closes (eta_min and eta_max meet next to
+    the wall line near A = -0.9, N = 0.97: some nodes have both, some none) is not left
+    unresolved: its leaf decides where every node agrees (below and above every node's window:
+    no solution, as a solve says) and leaves the cluster of transitions undecided, with its
+    width as its error."""
+    box_a, box_n = (-0.90625, -0.890625), (0.9609375, 0.975)
+    a = at.build_atlas(box_a, box_n, tol=1e-3, degree=2, max_depth=0)
+    assert set(zip(a.samples["low"].tolist(), a.samples["n"].tolist())) == {(0, 0), (0, 2)}
     assert (a.leaf_n >= 0).all() and a.leaf_degree.tolist() == [[0, 0]] and a.leaf_error[0] > 1e-3
-    A, N = [0.3, 0.4], [0.95, 1.05]
-    codes = at.classify(0.5, 1.0, 0.5, A, N, atlas=a)
+    A, N = [-0.893, -0.8915], [0.974, 0.9745]  # beside the wall line A = 1 - 2 N^2
     ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
-    assert codes.tolist() == [_status(0.5, x, y, ws) for x, y in zip(A, N)] == [st.OK] * 2
-    assert (at.classify(0.005, 1.0, 0.5, A, N, atlas=a) == at.UNDECIDED).all()
-    assert a.boundary([0.3], [0.95, 1.05])["resolved"].values.all()
+    for eta in (0.0012, 0.05):  # below and above every node's window
+        codes = at.classify(eta, 1.0, 0.5, A, N, atlas=a)
+        assert codes.tolist() == [_status(eta, x, y, ws) for x, y in zip(A, N)]
+        assert codes.tolist() == [st.EPS_TOO_LARGE_PATH] * 2
+    lo, hi = np.exp(a.coef[0, :, 0, 0])
+    assert (at.classify(math.sqrt(lo * hi), 1.0, 0.5, A, N, atlas=a) == at.UNDECIDED).all()
+    assert a.boundary([-0.893], [0.974, 0.9745])["resolved"].values.all()
+
+
+def test_a_transition_leaving_the_range_keeps_the_others_interpolated():
+    """Across N = 1 eta_min leaves the traced range: the nodes below have two transitions, those
+    above one. The cell is not an envelope: eta_max is interpolated to tol over the whole box
+    (the paper's point A = 1/3, N = 1 against a fresh trace), and where eta_min reaches into the
+    answered range of a deepest cell it is that cell's envelope, its error stated."""
+    a = at.build_atlas((0.3, 0.36), (0.96, 1.02), tol=1e-8, max_depth=2)
+    assert set(zip(a.samples["low"].tolist(), a.samples["n"].tolist())) == {(0, 2), (1, 1)}
+    assert (a.leaf_degree > 0).all()  # no envelope leaf
+    last = a.leaf_transition_error[np.arange(a.leaf_n.size), a.leaf_n - 1]
+    assert (last <= 1e-8).all()  # eta_max everywhere
+    edge = regimes.trace_edge(1 / 3, 1.0, eta_range=(5e-4, 200))
+    got = a.boundary([1 / 3], [1.0])
+    assert abs(math.log(float(got["eta_max"].values.ravel()[0]) / edge.transitions[-1])) \
+        <= at.SAFETY * 1e-8
+    # eta_min is answered for where it is above 1e-3: within its stated error of a fresh trace
+    rng = np.random.default_rng(4)
+    A, N = rng.uniform(0.3, 0.36, 6), rng.uniform(0.96, 1.0, 6)
+    leaf, _, eta, _ = a.transitions(A, N)
+    for k in range(A.size):
+        edge = regimes.trace_edge(A[k], N[k], eta_range=(5e-4, 200))
+        for t in edge.transitions[edge.transitions >= 1e-3]:
+            d = np.abs(np.log(eta[k] / t))
+            m = int(np.nanargmin(d))
+            assert d[m] <= at.SAFETY * max(1e-8, a.leaf_transition_error[leaf[k], m]), (A[k], N[k])
 
 
 def test_boundary_dataset_matches_traced_boundary(atlas):
@@ -575,6 +608,44 @@ def test_continued_atlas_against_an_independent_solver():
                 got = reference(e / 10.0, 10.0, 0.5, A[k], N[k], method="Radau",
                                 status_only=True)["status"]
                 assert (got == "ok") == ok, (A[k], N[k], t, f, got)
+
+
+def test_unify_aligns_nodes_that_differ_by_a_transition_beyond_the_range():
+    """eta_min below the range at some nodes, eta_max above it at others: the missing ones are
+    clamped at the range's ends and marked; a window that closes is not unified."""
+    lo, hi = 5e-4, 200.0
+    traces = [(False, np.array([0.01, 2.0])), (True, np.array([2.05])),
+              (False, np.array([0.02]))]  # eta_min below the range; eta_max above it
+    low, logt, clamped = at._unify(traces, (lo, hi))
+    assert low is False and logt.shape == (3, 2) and clamped.tolist() == [True, True]
+    np.testing.assert_allclose(np.exp(logt), [[0.01, 2.0], [lo, 2.05], [0.02, hi]])
+    # one signature: nothing is added
+    low, logt, clamped = at._unify(traces[:1] * 2, (lo, hi))
+    assert logt.shape == (2, 2) and not clamped.any()
+    # a window of solutions closing (two transitions meet): not one signature
+    assert at._unify([(False, np.array([0.01, 0.02])), (False, np.empty(0))], (lo, hi)) is None
+
+
+def test_cluster_columns_keeps_interpolants_and_envelopes_the_clamped_one():
+    """A deepest cell keeps each transition's interpolant unless it is clamped and answered, or
+    its nodes' envelope states less than its estimate; an envelope that overlaps its neighbour's
+    values is refused."""
+    logt = np.log(np.array([[[5e-4, 2.0], [0.002, 2.01]], [[0.003, 2.02], [0.004, 2.03]]]))
+    coef = at._coefficients(np.moveaxis(logt, -1, 0), 1, 1)
+    errs = np.array([0.3, 1e-9])
+    got, got_errs = at._cluster_columns(coef, errs, logt, [0])
+    assert np.array_equal(got[1], coef[1]) and got_errs[1] == 1e-9
+    assert np.count_nonzero(got[0]) == 1
+    c0, c1 = math.log(5e-4), math.log(0.004)
+    assert got[0, 0, 0] == pytest.approx(0.5 * (c0 + c1))
+    assert got_errs[0] == pytest.approx(0.75 * (c1 - c0) / at.SAFETY)
+    # a large estimate of eta_max is replaced by its (smaller) envelope
+    _, e2 = at._cluster_columns(coef, np.array([0.3, 0.5]), logt, [0])
+    assert e2[1] == pytest.approx(0.75 * math.log(2.03 / 2.0) / at.SAFETY)
+    # eta_min's envelope reaching eta_max's values: refused
+    close = logt.copy()
+    close[..., 0] = np.log([[5e-4, 1.9], [0.003, 0.004]])
+    assert at._cluster_columns(coef, errs, close, [0]) is None
 
 
 def test_envelope_leaf_decides_where_its_nodes_agree():

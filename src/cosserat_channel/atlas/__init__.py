@@ -9,8 +9,11 @@ transitions say the status of every ``eta`` at that ``(A, N)``.
 The atlas interpolates them. The box is cut into a quadtree of cells; on each cell the transitions
 are sampled on a tensor grid of Chebyshev-Lobatto nodes (``degree + 1`` per side to start with)
 and interpolated in ``log eta`` by the tensor Chebyshev polynomial through them. A cell is split
-into four when its nodes do not all have the same signature (a transition enters or leaves the
-searched range, an ``eta_min`` appears, the wall line crosses it). Where they do, the error
+into four when its nodes do not all have the same signature (an ``eta_min`` appears, a window
+of solutions closes, the wall line crosses it). Nodes that differ only by a transition that left
+the searched range (``eta_min`` below it, ``eta_max`` above it) are aligned first
+(:func:`_unify`: the nodes beyond the crossing get it clamped at the range's end); such a cell
+is split only where the clamped transition reaches into the answered range. Where they agree, the error
 estimate of the interpolant (:func:`_estimate`: the Chebyshev tail of each direction, extrapolated
 where the coefficients decay geometrically) decides: below ``tol`` the cell is a leaf; above it the
 degree is doubled along a direction whose coefficients still decay (the nodes are nested: every
@@ -19,9 +22,12 @@ trace is kept), else the cell is split. A cell that the node/focus switch crosse
 than raised in degree while it can be: the edge is not analytic across that curve, so a higher
 degree buys little there; and a refinement that does not cut the tail (the raw
 two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than ``tol``: the solver's edge is not
-smooth at that level). Splits go down to ``max_depth``. A cell still mixed there becomes an
-*envelope* leaf: it decides wherever its nodes agree and states, per cluster of transitions
-between, the width it leaves undecided (``leaf_transition_error``); a leaf whose estimate is still
+smooth at that level). Splits go down to ``max_depth``. There a cell whose nodes align keeps
+the interpolants of its transitions, each with its own estimate, except a clamped one that reaches
+into the answered range, which is kept as the envelope of its nodes' values
+(:func:`_cluster_columns`); a cell still mixed becomes an *envelope* leaf: it decides wherever
+its nodes agree and states, per cluster of transitions between, the width it leaves undecided
+(``leaf_transition_error``); a leaf whose estimate is still
 above ``tol`` keeps its own estimate, which :func:`classify` uses in place of ``tol``. No leaf is
 left without an answer (``leaf_n = -1``, unresolved, appears only in files of older formats). A
 transition whose interpolant stays outside the answered ``eta`` range by twice its estimate need
@@ -75,8 +81,10 @@ from __future__ import annotations
 from .build import (  # noqa: F401
     _Counting,
     _crosses_switch,
+    _cluster_columns,
     _envelope,
     _levels,
+    _unify,
     build_atlas,
     check_build_arguments,
 )

@@ -116,7 +116,8 @@ class _Predictor:
     bounds: tuple
     coef: np.ndarray  # (transition, p + 1, q + 1)
     low: bool
-    err: float
+    err: float  # the estimate of the transitions it answers for (:func:`_answered`)
+    errs: np.ndarray  # each transition's own estimate
 
     def __call__(self, a, n):
         a_lo, a_hi, n_lo, n_hi = self.bounds
@@ -152,7 +153,7 @@ class _Leaf:
     coef: np.ndarray
     degree: tuple
     band: float = 0.0
-    errors: np.ndarray = None  # per transition (an envelope's clusters); else err for each
+    errors: np.ndarray = None  # per transition: its own estimate, or its envelope cluster's width
 
 
 def _levels(pa, pn):
@@ -209,6 +210,67 @@ def _envelope(traces, lo, hi):
     return bool(low), np.array(centres), np.array(errs)
 
 
+def _unify(traces, trace_range):
+    """One signature for nodes whose signatures differ only by transitions beyond the traced range.
+
+    ``traces``: the nodes' ``(low, transitions)``. Where a transition leaves the traced ``eta``
+    range across a cell (``eta_min`` below it, ``eta_max`` above it), the nodes beyond the
+    crossing lack it: their feasibility at that end of the range differs from the others'. Such a
+    node gets the transition at the end of the range (the function clamped there), which keeps the
+    cell's other transitions aligned, so they are interpolated as in any cell; the clamped one
+    stays outside the answered range (:data:`TRACE_WIDEN`), where :func:`_answered` leaves it out
+    of the estimate wherever its interpolant keeps off that range. Nodes that differ otherwise (a
+    window of feasibility closing: two transitions meeting) are not unified.
+
+    Returns ``(low, log_transitions, clamped)``: the transitions ``(node, k)`` in ``log eta``
+    ascending and which of the ``k`` were clamped at some node; or ``None`` where no feasibility
+    at the two ends makes the numbers of transitions agree.
+    """
+    lows = [bool(low) for low, _ in traces]
+    ns = [int(t.size) for _, t in traces]
+    tops = [low ^ (n % 2 == 1) for low, n in zip(lows, ns)]
+    options = []
+    for bottom in (False, True):
+        for top in (False, True):
+            counts = {n + (low != bottom) + (tp != top) for low, n, tp in zip(lows, ns, tops)}
+            if len(counts) == 1:
+                options.append((counts.pop(), bottom, top))
+    if not options:
+        return None
+    k, bottom, top = min(options)  # the fewest transitions: none added where all agree
+    lo, hi = math.log(trace_range[0]), math.log(trace_range[1])
+    logt = np.empty((len(traces), k))
+    clamped = np.zeros(k, dtype=bool)
+    for row, ((_, t), low, tp) in zip(logt, zip(traces, lows, tops)):
+        row[:] = np.r_[[lo] * (low != bottom), np.log(t), [hi] * (tp != top)]
+        clamped[:1] |= low != bottom
+        clamped[k - 1:] |= tp != top
+    return bottom, logt, clamped
+
+
+def _cluster_columns(coef, errs, logt, hard):
+    """A deepest cell's interpolant, each transition in ``hard`` (clamped by :func:`_unify` and
+    reaching into the answered range) and each whose nodes' envelope states a smaller error than
+    its own estimate replaced by that envelope: the centre of its nodes' values, with three
+    quarters of their spread as its error (over ``SAFETY``), as :func:`_envelope` states a
+    cluster. The other transitions keep their interpolants and estimates. ``None`` where an
+    envelope overlaps the nodes' values of a neighbouring transition (the order of the
+    transitions would not hold over the cell)."""
+    coef, errs = coef.copy(), errs.copy()
+    for k in range(coef.shape[0]):
+        c0, c1 = float(logt[..., k].min()), float(logt[..., k].max())
+        width = max(0.75 * (c1 - c0), TOL_MIN) / SAFETY
+        if k not in hard and width >= errs[k]:
+            continue
+        if (k > 0 and logt[..., k - 1].max() >= c0 - 0.25 * (c1 - c0)) or \
+                (k + 1 < coef.shape[0] and logt[..., k + 1].min() <= c1 + 0.25 * (c1 - c0)):
+            return None
+        coef[k] = 0.0
+        coef[k, 0, 0] = 0.5 * (c0 + c1)
+        errs[k] = width
+    return coef, errs
+
+
 def _answered(coef, log_range):
     """The transitions of a cell that its error estimate must hold to ``tol``: all but those
     whose interpolant stays outside the ``eta`` the atlas answers for, on an
@@ -224,19 +286,53 @@ def _answered(coef, log_range):
     return keep
 
 
-def _nearest(index, cell_size, key):
-    """The traced nodes nearest ``key`` within the index's neighbouring buckets, one per
-    signature, nearest first."""
-    a, n = key
-    ia, jn = int(math.floor(a / cell_size[0])), int(math.floor(n / cell_size[1]))
-    best = {}
-    for da in (-1, 0, 1):
-        for dn in (-1, 0, 1):
-            for k, tr in index.get((ia + da, jn + dn), ()):
-                d = ((k[0] - a) / cell_size[0]) ** 2 + ((k[1] - n) / cell_size[1]) ** 2
-                if tr.signature not in best or d < best[tr.signature][0]:
-                    best[tr.signature] = (d, tr)
-    return [tr for _, tr in sorted(best.values(), key=lambda v: v[0])]
+class _Index:
+    """Traced nodes by bucket of ``cell_size``: the nearest of each signature to a point.
+
+    A bucket keeps its nodes' coordinates and signatures in arrays, so a query costs a few
+    vectorised passes over the nine buckets around the point, however many nodes they hold (a
+    deep cell traces hundreds).
+    """
+
+    def __init__(self, cell_size):
+        self.cell_size = cell_size
+        self.buckets = {}  # (ia, jn) -> [coordinates (capacity, 2), codes (capacity,), traces]
+
+    def _bucket(self, a, n):
+        return int(math.floor(a / self.cell_size[0])), int(math.floor(n / self.cell_size[1]))
+
+    def add(self, key, tr):
+        b = self.buckets.setdefault(self._bucket(*key), [np.empty((16, 2)), np.empty(16, int), []])
+        m = len(b[2])
+        if m == b[1].size:
+            b[0] = np.concatenate([b[0], np.empty_like(b[0])])
+            b[1] = np.concatenate([b[1], np.empty_like(b[1])])
+        b[0][m] = key
+        b[1][m] = 2 * tr.transitions.size + int(tr.low)  # one code per signature
+        b[2].append(tr)
+
+    def nearest(self, key):
+        """The traced nodes nearest ``key`` within the neighbouring buckets, one per signature,
+        nearest first (the first met of equally near ones)."""
+        a, n = key
+        ia, jn = self._bucket(a, n)
+        best = {}
+        for da in (-1, 0, 1):
+            for dn in (-1, 0, 1):
+                b = self.buckets.get((ia + da, jn + dn))
+                if b is None:
+                    continue
+                m = len(b[2])
+                xy, codes = b[0][:m], b[1][:m]
+                d = ((xy[:, 0] - a) / self.cell_size[0]) ** 2 + \
+                    ((xy[:, 1] - n) / self.cell_size[1]) ** 2
+                found, first = np.unique(codes, return_index=True)
+                for c in found[np.argsort(first)]:
+                    sel = np.flatnonzero(codes == c)
+                    k = sel[np.argmin(d[sel])]
+                    if c not in best or d[k] < best[c][0]:
+                        best[c] = (d[k], b[2][k])
+        return [tr for _, tr in sorted(best.values(), key=lambda v: v[0])]
 
 
 def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree=DEGREE,
@@ -329,7 +425,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
     # of a node, for the kinds and slopes of its transitions and where no interpolant covers it.
     bucket = (max((A_range[1] - A_range[0]) / (8 * roots[0]), NEAR_NODE),
               max((N_range[1] - N_range[0]) / (8 * roots[1]), NEAR_NODE))
-    index = {}
+    index = _Index(bucket)
     tally = {"predicted": 0, "fallback": 0}
 
     def traced(job):
@@ -347,17 +443,23 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
         # The interpolant's transitions (with the kinds and slopes of the nearest node of its
         # signature), then each other signature traced nearby: tried in that order.
         out = []
-        found = [tr for tr in _nearest(index, bucket, key) if tr.edge is not None]
+        found = [tr for tr in index.nearest(key) if tr.edge is not None]
         near = [tr for tr in found if max(abs(tr.edge.A - key[0]),
                                           abs(tr.edge.N - key[1])) <= NEAR_NODE]
         if predictor is not None:
             sig = (predictor.low, predictor.coef.shape[0])
+            lt = predictor(*key)
+            spread = np.minimum(np.maximum(10.0 * predictor.errs, 1e3 * tau), NEAR_SPREAD)
+            # A transition predicted within its spread of the traced range's ends may be one
+            # _unify clamped there: it is predicted to be beyond the range, absent from the trace.
+            below = lt - log_trace[0] <= spread
+            keep = ~below & (log_trace[1] - lt > spread)
+            sig = (predictor.low ^ (int(below.sum()) % 2 == 1), int(keep.sum()))
             src = next((tr for tr in found if tr.signature == sig), None)
             if src is not None:
                 low, guesses = regimes.guesses_from(src.edge)
-                spread = min(max(10.0 * predictor.err, 1e3 * tau), NEAR_SPREAD)
-                for g, lt in zip(guesses, predictor(*key)):
-                    g.eta, g.spread = float(np.exp(lt)), spread
+                for g, x, sp in zip(guesses, lt[keep], spread[keep]):
+                    g.eta, g.spread = float(np.exp(x)), float(sp)
                 out.append((low, guesses))
                 near = [tr for tr in near if tr is not src]
         out += [regimes.guesses_from(tr.edge, NEAR_SPREAD) for tr in near]
@@ -379,8 +481,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
             else:
                 tr = known[k] = next(results)
             cache[k] = tr
-            index.setdefault((int(math.floor(k[0] / bucket[0])),
-                              int(math.floor(k[1] / bucket[1]))), []).append((k, tr))
+            index.add(k, tr)
             if pred is not None:
                 tally["predicted"] += 1
                 tally["fallback"] += not tr.edge.continued
@@ -397,19 +498,36 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
         return x
 
     def grid_fit(na, nn, pa, pn, bounds):
-        """The signature set of a grid; where it is one with transitions, its interpolant."""
-        sig = {cache[(a, b)].signature for a in na for b in nn}
-        if len(sig) != 1:
-            return sig, None, None
-        low, n_tr = next(iter(sig))
-        if not n_tr:
-            return sig, None, None
-        logt = np.log([[cache[(a, b)].transitions for b in nn] for a in na])  # (p, q, k)
+        """The signature set of a grid, one where :func:`_unify` aligns its nodes and no
+        transition it clamped reaches into the answered range; and wherever it aligns them with
+        transitions, their interpolant ``(predictor, estimate, hard, log_transitions,
+        answered)``: the estimate over the answered transitions but the clamped ones (``hard``),
+        which only a cell that may not be split keeps (:func:`_cluster_columns`)."""
+        traces = [(cache[(a, b)].low, cache[(a, b)].transitions) for a in na for b in nn]
+        unified = _unify(traces, trace_range)
+        if unified is None:
+            return {(bool(low), t.size) for low, t in traces}, None, None
+        low, logt, clamped = unified
+        if not logt.shape[1]:
+            return {(low, 0)}, None, None
+        logt = logt.reshape(pa + 1, pn + 1, -1)  # (p, q, k)
         coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
-        est = _estimate(coef[_answered(coef, log_range)])
-        return sig, coef, (_Predictor(bounds, coef, low, _estimate(coef)[0]), est)
+        answered = _answered(coef, log_range)
+        hard = [k for k in answered if clamped[k]]
+        est = _estimate(coef[[k for k in answered if not clamped[k]]])
+        errs = np.array([_estimate(c[None])[0] for c in coef])
+        sig = {(bool(low), t.size) for low, t in traces} if hard else {(low, logt.shape[-1])}
+        return sig, coef, (_Predictor(bounds, coef, low, est[0], errs), est, hard, logt, answered)
 
     log_range = (math.log(eta_range[0]), math.log(eta_range[1]))
+    log_trace = (math.log(trace_range[0]), math.log(trace_range[1]))
+
+    def envelope_leaf(level, i, j, na, nn):
+        traces = [(cache[(a, b)].low, cache[(a, b)].transitions) for a in na for b in nn]
+        low, logt, errs = _envelope(traces, *trace_range)
+        band = max([float(np.nanmax(cache[(a, b)].bands, initial=0.0)) for a in na for b in nn])
+        return _Leaf(level, i, j, int(low), logt.size, float(np.max(errs, initial=0.0)),
+                     logt.reshape(-1, 1, 1), (0, 0), band, errs)
 
     leaves = []
     queue = [_Cell(0, i, j, degree, degree) for i in range(roots[0]) for j in range(roots[1])]
@@ -429,13 +547,16 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                 na, nn = nodes(a_lo, a_hi, p), nodes(n_lo, n_hi, q)
                 prefetch(na, nn, predictor)
                 sig, coef, fit = grid_fit(na, nn, p, q, bounds)
-                if len(sig) > 1 or (uniform and can_split):
+                # A cell that may not be split goes on where only transitions clamped at the
+                # traced range's ends differ: the others still reach tol.
+                mixed = len(sig) > 1 and (can_split or fit is None)
+                if mixed or (uniform and can_split):
                     break  # mixed (or the uniform baseline): split before tracing finer grids
                 if fit is not None and (predictor is None or fit[0].err < predictor.err):
                     predictor = fit[0]
             children = [_Cell(level + 1, 2 * i + di, 2 * j + dj, degree, degree)
                         for di in (0, 1) for dj in (0, 1)]
-            if len(sig) > 1 or (uniform and can_split):
+            if mixed or (uniform and can_split):
                 if can_split:
                     own = fit[0] if fit is not None else (
                         cell.predictor if len(sig) == 1 else None)
@@ -443,26 +564,18 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                         c.predictor = own
                     queue.extend(children)
                 else:
-                    lo_t, hi_t = trace_range
-                    traces = [(cache[(a, b)].low, cache[(a, b)].transitions)
-                              for a in na for b in nn]
-                    low, logt, errs = _envelope(traces, lo_t, hi_t)
-                    coef = logt.reshape(-1, 1, 1)
-                    band = max([float(np.nanmax(cache[(a, b)].bands, initial=0.0))
-                                for a in na for b in nn])
-                    leaves.append(_Leaf(level, i, j, int(low), logt.size,
-                                        float(np.max(errs, initial=0.0)), coef, (0, 0), band,
-                                        errs))
+                    leaves.append(envelope_leaf(level, i, j, na, nn))
             else:
-                low, n_tr = next(iter(sig))
+                low, n_tr = (fit[0].low, fit[0].coef.shape[0]) if fit else next(iter(sig))
                 coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
                 tails, rates = np.zeros(2), np.zeros(2)
-                band = 0.0
+                band, errs, hard = 0.0, None, []
                 if n_tr:
-                    _, err_tails_rates_raw = fit
-                    coef = fit[0].coef
+                    _, err_tails_rates_raw, hard, logt, answered = fit
+                    coef, errs = fit[0].coef, fit[0].errs
                     err, tails, rates, raw = err_tails_rates_raw
-                    band = max(float(cache[(a, b)].bands.max()) for a in na for b in nn)
+                    band = max(float(np.max(cache[(a, b)].bands, initial=0.0))
+                               for a in na for b in nn)
                 # Across the node/focus switch the edge is not analytic: a higher degree buys little
                 # there (the tail of a degree-8 cell fell 2-4x at degree 16, against 130-1000x beside
                 # it), so such a cell is split while it can be.
@@ -477,8 +590,24 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                 gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
                 stalled = raw > cell.before / gain or (raw > cell.parent / gain and not any(grow))
                 own = fit[0] if fit is not None else None
-                if err <= tol or stalled:
-                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
+                if not can_split and n_tr and (err <= tol or stalled or not any(grow)):
+                    # The deepest cells: a transition clamped by _unify that reaches into the
+                    # answered range, or one whose nodes' envelope states less than its
+                    # estimate, is kept as that envelope (_cluster_columns).
+                    clustered = _cluster_columns(coef, errs, logt, hard)
+                    if clustered is not None:
+                        coef, errs = clustered
+                        err = float(np.max(errs[answered], initial=0.0)) or err
+                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn),
+                                            band, errs))
+                    elif hard:
+                        leaves.append(envelope_leaf(level, i, j, na, nn))
+                    else:
+                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn),
+                                            band, errs))
+                elif err <= tol or stalled:
+                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band,
+                                        errs))
                 elif any(grow):
                     queue.insert(0, _Cell(level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]),
                                           raw, cell.parent, own))
@@ -487,7 +616,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                         c.parent, c.predictor = raw, own
                     queue.extend(children)
                 else:
-                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band))
+                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band,
+                                        errs))
             if progress is not None:
                 progress(len(leaves), len(leaves) + len(queue),
                          f"cells done, {len(cache)} edges traced")

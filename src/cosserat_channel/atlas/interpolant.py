@@ -141,7 +141,9 @@ class Atlas:
         low : ndarray of int8
             Feasibility at the low end (-1 where unknown: outside, or an unresolved leaf).
         eta : ndarray
-            ``A.shape + (n_max,)`` transitions in ``eta``, ascending, NaN-padded.
+            ``A.shape + (n_max,)`` transitions in ``eta``, ascending, NaN-padded. Where a
+            transition leaves the traced range across a leaf, the leaf keeps it clamped at that
+            range's end: outside ``eta_range``, which is all the atlas answers for.
         error : ndarray
             The leaf's error estimate (NaN where unknown).
         """

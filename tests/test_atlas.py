@@ -617,13 +617,29 @@ def test_unify_aligns_nodes_that_differ_by_a_transition_beyond_the_range():
     traces = [(False, np.array([0.01, 2.0])), (True, np.array([2.05])),
               (False, np.array([0.02]))]  # eta_min below the range; eta_max above it
     low, logt, clamped = at._unify(traces, (lo, hi))
-    assert low is False and logt.shape == (3, 2) and clamped.tolist() == [True, True]
+    assert low is False and logt.shape == (3, 2) and clamped.tolist() == [1, 2]  # low, high end
     np.testing.assert_allclose(np.exp(logt), [[0.01, 2.0], [lo, 2.05], [0.02, hi]])
     # one signature: nothing is added
     low, logt, clamped = at._unify(traces[:1] * 2, (lo, hi))
     assert logt.shape == (2, 2) and not clamped.any()
     # a window of solutions closing (two transitions meet): not one signature
     assert at._unify([(False, np.array([0.01, 0.02])), (False, np.empty(0))], (lo, hi)) is None
+
+
+def test_variants_predict_a_clamped_transition_absent_next_to_the_range_end():
+    """A transition clamped at the low end is predicted absent first where the interpolant puts
+    it within its spread of that end (feasibility at the low end then flips), present first
+    elsewhere; one clamped at the high end likewise (no flip); the other way comes next."""
+    ends = (math.log(5e-4), math.log(200.0))
+    lt = np.log([6e-4, 2.0])
+    got = at._variants(lt, np.array([0.5, 1e-6]), np.array([1, 0]), ends)
+    assert [(m.tolist(), f) for m, f in got] == [([False, True], True), ([True, True], False)]
+    got = at._variants(np.log([0.01, 2.0]), np.array([0.05, 1e-6]), np.array([1, 0]), ends)
+    assert [(m.tolist(), f) for m, f in got] == [([True, True], False), ([False, True], True)]
+    got = at._variants(np.log([0.01, 190.0]), np.array([1e-6, 0.1]), np.array([0, 2]), ends)
+    assert [(m.tolist(), f) for m, f in got] == [([True, False], False), ([True, True], False)]
+    got = at._variants(np.log([0.01, 2.0]), np.array([1e-6, 1e-6]), np.array([0, 0]), ends)
+    assert [(m.tolist(), f) for m, f in got] == [([True, True], False)]
 
 
 def test_cluster_columns_keeps_interpolants_and_envelopes_the_clamped_one():

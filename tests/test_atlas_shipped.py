@@ -85,6 +85,20 @@ def test_transitions_agree_with_fresh_traces_over_the_plane(shipped):
     assert checked >= 10
 
 
+def test_the_paper_point_and_its_row_are_within_tol(shipped):
+    """Along N = 1, where eta_min leaves the traced range, eta_max is interpolated, not an
+    envelope: at the paper's A = 1/3 and across the row it is within SAFETY * tol of a fresh
+    trace, and the atlas states no more than tol for it."""
+    A = np.r_[1 / 3, np.linspace(-0.5, 2.5, 5)]
+    got = shipped.boundary(A, [1.0])
+    lo, hi = shipped.eta_range
+    for k, a in enumerate(A):
+        edge = regimes.trace_edge(a, 1.0, eta_range=(lo / at.TRACE_WIDEN, hi * at.TRACE_WIDEN))
+        eta_max = float(got["eta_max"].values[k, 0])
+        assert abs(np.log(eta_max / edge.transitions[-1])) <= at.SAFETY * shipped.tol, (a, eta_max)
+        assert float(got["eta_error"].values[k, 0]) <= shipped.tol, a
+
+
 def test_its_nodes_are_what_a_fresh_trace_gives(shipped):
     """At a few of the atlas's own nodes, spread over the plane, a fresh trace (no prediction)
     has the transitions the file keeps, to the tolerance it was traced at."""

@@ -85,6 +85,7 @@ from .build import (  # noqa: F401
     _envelope,
     _levels,
     _unify,
+    _variants,
     build_atlas,
     check_build_arguments,
 )

@@ -118,6 +118,7 @@ class _Predictor:
     low: bool
     err: float  # the estimate of the transitions it answers for (:func:`_answered`)
     errs: np.ndarray  # each transition's own estimate
+    clamped: np.ndarray  # each transition: clamped at the low (1) or high (2) end somewhere
 
     def __call__(self, a, n):
         a_lo, a_hi, n_lo, n_hi = self.bounds
@@ -223,8 +224,9 @@ def _unify(traces, trace_range):
     window of feasibility closing: two transitions meeting) are not unified.
 
     Returns ``(low, log_transitions, clamped)``: the transitions ``(node, k)`` in ``log eta``
-    ascending and which of the ``k`` were clamped at some node; or ``None`` where no feasibility
-    at the two ends makes the numbers of transitions agree.
+    ascending and, for each of the ``k``, where some node has it clamped (0 nowhere, 1 at the
+    low end, 2 at the high end); or ``None`` where no feasibility at the two ends makes the
+    numbers of transitions agree.
     """
     lows = [bool(low) for low, _ in traces]
     ns = [int(t.size) for _, t in traces]
@@ -240,11 +242,11 @@ def _unify(traces, trace_range):
     k, bottom, top = min(options)  # the fewest transitions: none added where all agree
     lo, hi = math.log(trace_range[0]), math.log(trace_range[1])
     logt = np.empty((len(traces), k))
-    clamped = np.zeros(k, dtype=bool)
+    clamped = np.zeros(k, dtype=np.int8)
     for row, ((_, t), low, tp) in zip(logt, zip(traces, lows, tops)):
         row[:] = np.r_[[lo] * (low != bottom), np.log(t), [hi] * (tp != top)]
-        clamped[:1] |= low != bottom
-        clamped[k - 1:] |= tp != top
+        clamped[:1] |= 1 if low != bottom else 0
+        clamped[k - 1:] |= 2 if tp != top else 0
     return bottom, logt, clamped
 
 
@@ -269,6 +271,34 @@ def _cluster_columns(coef, errs, logt, hard):
         coef[k, 0, 0] = 0.5 * (c0 + c1)
         errs[k] = width
     return coef, errs
+
+
+def _variants(lt, spread, clamped, log_trace):
+    """The transitions an interpolant's prediction ``lt`` keeps, most likely first: a list of
+    ``(mask, flip)``, ``flip`` whether feasibility at the low end differs from the
+    interpolant's (its low transition dropped).
+
+    A transition that :func:`_unify` clamped at an end of the traced range (``clamped``) may be
+    beyond that end at the predicted point: absent from its trace. It is taken as absent first
+    where it is predicted within its ``spread`` of the end, as present first elsewhere, and the
+    other way next (the corrector rejects the wrong one in a few solves, where a fresh trace
+    would cost dozens).
+    """
+    first = np.ones(lt.size, dtype=bool)
+    ends = []
+    if lt.size and clamped[0] & 1:
+        ends.append(0)
+        first[0] = lt[0] - log_trace[0] > spread[0]
+    if lt.size and clamped[-1] & 2 and not (lt.size == 1 and ends):
+        ends.append(lt.size - 1)
+        first[-1] = log_trace[1] - lt[-1] > spread[-1]
+    bottom = bool(ends) and ends[0] == 0 and bool(clamped[0] & 1)
+    out = [first]
+    for k in ends:
+        other = first.copy()
+        other[k] = not other[k]
+        out.append(other)
+    return [(m, bottom and not m[0]) for m in out]
 
 
 def _answered(coef, log_range):
@@ -441,27 +471,26 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
 
     def prediction_for(key, predictor):
         # The interpolant's transitions (with the kinds and slopes of the nearest node of its
-        # signature), then each other signature traced nearby: tried in that order.
+        # signature), then each other signature traced nearby: tried in that order; the node
+        # whose kinds and slopes were taken too where the interpolant is no better than it (its
+        # spread at NEAR_SPREAD: the interpolant of a coarse grid or across a crossing).
         out = []
         found = [tr for tr in index.nearest(key) if tr.edge is not None]
         near = [tr for tr in found if max(abs(tr.edge.A - key[0]),
                                           abs(tr.edge.N - key[1])) <= NEAR_NODE]
         if predictor is not None:
-            sig = (predictor.low, predictor.coef.shape[0])
             lt = predictor(*key)
             spread = np.minimum(np.maximum(10.0 * predictor.errs, 1e3 * tau), NEAR_SPREAD)
-            # A transition predicted within its spread of the traced range's ends may be one
-            # _unify clamped there: it is predicted to be beyond the range, absent from the trace.
-            below = lt - log_trace[0] <= spread
-            keep = ~below & (log_trace[1] - lt > spread)
-            sig = (predictor.low ^ (int(below.sum()) % 2 == 1), int(keep.sum()))
-            src = next((tr for tr in found if tr.signature == sig), None)
-            if src is not None:
-                low, guesses = regimes.guesses_from(src.edge)
-                for g, x, sp in zip(guesses, lt[keep], spread[keep]):
-                    g.eta, g.spread = float(np.exp(x)), float(sp)
-                out.append((low, guesses))
-                near = [tr for tr in near if tr is not src]
+            for keep, flip in _variants(lt, spread, predictor.clamped, log_trace):
+                sig = (predictor.low ^ flip, int(keep.sum()))
+                src = next((tr for tr in found if tr.signature == sig), None)
+                if src is not None:
+                    low, guesses = regimes.guesses_from(src.edge)
+                    for g, x, sp in zip(guesses, lt[keep], spread[keep]):
+                        g.eta, g.spread = float(np.exp(x)), float(sp)
+                    out.append((low, guesses))
+                    if (spread[keep] < NEAR_SPREAD).all():
+                        near = [tr for tr in near if tr is not src]
         out += [regimes.guesses_from(tr.edge, NEAR_SPREAD) for tr in near]
         return out or None
 
@@ -517,7 +546,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
         est = _estimate(coef[[k for k in answered if not clamped[k]]])
         errs = np.array([_estimate(c[None])[0] for c in coef])
         sig = {(bool(low), t.size) for low, t in traces} if hard else {(low, logt.shape[-1])}
-        return sig, coef, (_Predictor(bounds, coef, low, est[0], errs), est, hard, logt, answered)
+        return sig, coef, (_Predictor(bounds, coef, low, est[0], errs, clamped), est, hard, logt,
+                           answered)
 
     log_range = (math.log(eta_range[0]), math.log(eta_range[1]))
     log_trace = (math.log(trace_range[0]), math.log(trace_range[1]))
@@ -552,6 +582,8 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                 mixed = len(sig) > 1 and (can_split or fit is None)
                 if mixed or (uniform and can_split):
                     break  # mixed (or the uniform baseline): split before tracing finer grids
+                if len(sig) > 1 and set(fit[4]) <= set(fit[2]):
+                    break  # only clamped transitions are answered: finer grids would not help
                 if fit is not None and (predictor is None or fit[0].err < predictor.err):
                     predictor = fit[0]
             children = [_Cell(level + 1, 2 * i + di, 2 * j + dj, degree, degree)
@@ -598,7 +630,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                     if clustered is not None:
                         coef, errs = clustered
                         err = float(np.max(errs[answered], initial=0.0)) or err
-                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn),
+                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (p, q),
                                             band, errs))
                     elif hard:
                         leaves.append(envelope_leaf(level, i, j, na, nn))

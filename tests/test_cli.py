@@ -334,14 +334,21 @@ def test_boundary_draws_from_the_shipped_atlas_and_says_so(capsys, tmp_path, mon
     assert cli.main([*argv, "--trace", "--atlas", str(tmp_path / "a.nc"), "-o",
                      str(tmp_path / "x.nc")]) == 2
     assert "--atlas and --trace" in capsys.readouterr().err
-    # Next to N = 1 (where eta_min leaves the range) the atlas's deepest cells state errors
-    # above its tolerance: there boundary traces, and gives the paper's point to 1e-10.
+    # The paper's point (eta_min beyond the range there): from the atlas, to its tolerance.
     assert cli.main(["boundary", "--A", "0.3333333333333333", "--N", "1", "-o",
                      str(tmp_path / "p.nc")]) == 0
-    assert "tracing instead" in capsys.readouterr().err
+    assert "shipped atlas" in capsys.readouterr().err
     with xr.open_dataset(tmp_path / "p.nc") as p:
-        assert "atlas" not in p.attrs
-        assert abs(float(p["eta_max"].values[0, 0]) / 3.30886055554 - 1) < 1e-10
+        assert abs(float(p["eta_max"].values[0, 0]) / 3.30886055554 - 1) < 2e-8
+    # Just below, where eta_min enters the answered range inside one deepest cell, the atlas
+    # states more than its tolerance for it: there boundary traces.
+    assert cli.main(["boundary", "--A", "0.3333333333333333", "--N", "0.98", "-o",
+                     str(tmp_path / "q.nc")]) == 0
+    assert "tracing instead" in capsys.readouterr().err
+    with xr.open_dataset(tmp_path / "q.nc") as q:
+        assert "atlas" not in q.attrs
+        ref = regimes.trace_edge(1 / 3, 0.98)
+        assert abs(float(q["eta_max"].values[0, 0]) / ref.eta_max - 1) < 1e-10
 
 
 @pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),

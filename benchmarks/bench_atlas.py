@@ -268,8 +268,6 @@ def independent(args, atlas, A_rng, N_rng, rng, ws, summary):
     bisection, at random (A, N): a quarter uniform over the box, the rest next to A = -1, the
     wall line A = 1 - 2 N^2, the node/focus switch N^2 = (5 + 3A)/2 and in N in [0.9, 1.1]
     (within the box); the number of transitions against a fresh trace (regimes.trace_edge)."""
-    from cosserat_channel import regimes
-
     n = args.independent
     k = n // 4
     A = list(rng.uniform(*A_rng, k))

@@ -71,8 +71,8 @@ and xarray only: building one (:func:`build_atlas`) imports the solver.
 
 Layer: above :mod:`cosserat_channel.regimes` (which the build calls for its traces); below the
 figures and the command line. Reading and deciding (:mod:`.interpolant`, :mod:`.decide`,
-:mod:`.store`, :mod:`.chebyshev`, :mod:`.settings`) import numpy and xarray only; the build
-(:mod:`.build`, :mod:`.assemble`) imports the solver through ``regimes`` when it runs. Never
+:mod:`.store`, :mod:`.chebyshev`, :mod:`.settings`, :mod:`.signatures`) import numpy and xarray
+only; the build (:mod:`.build`, :mod:`.assemble`) imports the solver through ``regimes`` when it runs. Never
 imports plotting, sweeps or the CLI.
 """
 
@@ -81,11 +81,7 @@ from __future__ import annotations
 from .build import (  # noqa: F401
     _Counting,
     _crosses_switch,
-    _cluster_columns,
-    _envelope,
     _levels,
-    _unify,
-    _variants,
     build_atlas,
     check_build_arguments,
 )
@@ -93,6 +89,7 @@ from .chebyshev import _coefficients, _direction_tail, _estimate, _tail, _vander
 from .decide import classify  # noqa: F401
 from .interpolant import Atlas, classify_analytic  # noqa: F401
 from .settings import *  # noqa: F401,F403 (the atlas's constants, under the names callers use)
+from .signatures import _cluster_columns, _envelope, _unify, _variants  # noqa: F401
 from .store import (  # noqa: F401
     cache_path,
     default_atlas,

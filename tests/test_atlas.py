@@ -608,3 +608,30 @@ def test_continued_atlas_against_an_independent_solver():
                 got = reference(e / 10.0, 10.0, 0.5, A[k], N[k], method="Radau",
                                 status_only=True)["status"]
                 assert (got == "ok") == ok, (A[k], N[k], t, f, got)
+
+
+def test_index_finds_the_nearest_node_of_each_signature():
+    """The build's bucketed index against a brute-force search over the nine buckets around a
+    point: one node per signature, the nearest, nearest first."""
+    from cosserat_channel.atlas.build import _Index, _Trace
+
+    rng = np.random.default_rng(9)
+    size = (0.125, 0.1)
+    index, nodes = _Index(size), []
+    for _ in range(600):
+        key = (float(rng.uniform(0, 1)), float(rng.uniform(0, 1)))
+        tr = _Trace(bool(rng.integers(2)), np.ones(int(rng.integers(3))), np.zeros(0))
+        index.add(key, tr)
+        nodes.append((key, tr))
+    for _ in range(50):
+        a, n = rng.uniform(0, 1, 2)
+        ia, jn = math.floor(a / size[0]), math.floor(n / size[1])
+        best = {}
+        for (x, y), tr in nodes:
+            if abs(math.floor(x / size[0]) - ia) <= 1 and abs(math.floor(y / size[1]) - jn) <= 1:
+                d = ((x - a) / size[0]) ** 2 + ((y - n) / size[1]) ** 2
+                if tr.signature not in best or d < best[tr.signature][0]:
+                    best[tr.signature] = (d, tr)
+        want = [tr for _, tr in sorted(best.values(), key=lambda v: v[0])]
+        got = index.nearest((a, n))
+        assert [id(t) for t in got] == [id(t) for t in want]

@@ -497,29 +497,24 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
                     # answered range, or one whose nodes' envelope states less than its
                     # estimate, is kept as that envelope (_cluster_columns).
                     clustered = _cluster_columns(coef, errs, logt, hard)
-                    if clustered is not None:
-                        coef, errs = clustered
-                        err = float(np.max(errs[answered], initial=0.0)) or err
-                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (p, q),
-                                            band, errs))
-                    elif hard:
+                    if clustered is None and hard:
                         leaves.append(envelope_leaf(level, i, j, na, nn))
                     else:
-                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn),
+                        if clustered is not None:
+                            coef, errs = clustered
+                            err = float(np.max(errs[answered], initial=0.0)) or err
+                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (p, q),
                                             band, errs))
-                elif err <= tol or stalled:
+                elif err <= tol or stalled or not (any(grow) or can_split):
                     leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band,
                                         errs))
                 elif any(grow):
                     queue.insert(0, _Cell(level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]),
                                           raw, cell.parent, own))
-                elif can_split:
+                else:
                     for c in children:
                         c.parent, c.predictor = raw, own
                     queue.extend(children)
-                else:
-                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band,
-                                        errs))
             if progress is not None:
                 progress(len(leaves), len(leaves) + len(queue),
                          f"cells done, {len(cache)} edges traced")

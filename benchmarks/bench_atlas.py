@@ -301,7 +301,7 @@ def independent(args, atlas, A_rng, N_rng, rng, ws, summary):
             results = list(pool.map(job, work, chunksize=4))
     else:
         results = [job(w) for w in work]
-    rows, stated, bad_count, missing, above = [], [], 0, 0, 0
+    rows, stated, bad_count, missing = [], [], 0, 0
     for lines, rel, within, bad, miss in results:
         for line in lines:
             log(line)

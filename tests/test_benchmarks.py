@@ -80,3 +80,35 @@ def test_plug_edge_benchmark_writes_its_json_record(tmp_path, monkeypatch, capsy
     (v,) = d["verdicts"]
     assert v["verdict"] in ("PASS", "FAIL") and v["target"].startswith("plug-edge root")
     assert v["verdict"] in printed
+
+
+def test_the_atlas_check_finds_a_transition_moved_beyond_its_stated_error():
+    """bench_atlas's independent check of the shipped atlas at the paper's point: eta_max within
+    1e-8 of a scipy bisection, every gap decided as scipy decides it; the same transition moved
+    by 1e-6 is reported beyond tol and beyond the atlas's stated uncertainty, and the gap it
+opens decided wrongly against both references; next to A = -1,
+    where the atlas states its eta_max no closer than a factor e, it is within that statement."""
+    import numpy as np
+
+    from cosserat_channel import atlas as at
+
+    check = runpy.run_path(str(BENCHMARKS / "bench_atlas.py"),
+                           run_name="benchmark_under_test")["_independent_point"]
+    atlas = at.default_atlas()[0]
+    lo, hi = atlas.eta_range
+
+    def work(a, n, shift=1.0):
+        leaf, low, eta, _ = atlas.transitions(np.array([a]), np.array([n]))
+        k = max(int(leaf[0]), 0)
+        return (a, n, int(low[0]), eta[0] * shift, atlas.leaf_transition_error[k],
+                atlas.leaf_band[k])
+
+    lines, rels, within, counts, _ = check(work(1 / 3, 1.0), lo, hi, 1e-8)
+    assert len(rels) == 1 and rels[0] <= 1e-8 and within == [] and lines == []
+    assert counts == {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0}
+    lines, rels, within, counts, _ = check(work(1 / 3, 1.0, 1 + 1e-6), lo, hi, 1e-8)
+    assert abs(rels[0] - 1e-6) < 1e-8 and within == [False]
+    assert any("beyond tol" in line for line in lines)
+    assert counts["fresh"] == counts["scipy"] == 1  # the gap between it and the true edge
+    lines, rels, within, counts, _ = check(work(-0.999, 2.2), lo, hi, 1e-8)
+    assert counts["coarse"] == 1 and rels[0] > 1 and within == [True]

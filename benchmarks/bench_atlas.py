@@ -46,6 +46,7 @@ import functools
 import math
 import multiprocessing
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -74,6 +75,8 @@ def main():
                          "independent,classify")
     ap.add_argument("--independent", type=int, default=300,
                     help="random (A, N) of the independent scipy bisection (part independent)")
+    ap.add_argument("--point-seconds", type=float, default=600.0,
+                    help="time allowed each (A, N) of part independent (default 600)")
     ap.add_argument("--atlas-in", help="read this atlas instead of building one")
     ap.add_argument("--probe", type=int, default=16,
                     help="statuses probed between atlas and reference where the estimate is exceeded")
@@ -245,8 +248,10 @@ def scipy_feasible(eta, A, N, d_atol=1e-20):
     model.axis_constants(eta, A, N, ax)
     xi1, w1 = stage1.ivp_start(ax)
     xs = max(0.5, xi1)
+    # t_eval at the end only: solve_ivp then keeps no step of the march (a march of ~10^8 tiny
+    # steps kept them all: 17 GB).
     sol = solve_ivp(lambda x, w: [model.dw_dxi(x, w[0], eta, A, N, ax)], [xi1, xs], [w1],
-                    method="LSODA", rtol=1e-13, atol=1e-16)
+                    method="LSODA", rtol=1e-13, atol=1e-16, t_eval=[xs])
     if sol.status != 0:
         return False
     d0 = xs * xs * sol.y[0, -1]
@@ -265,7 +270,7 @@ def scipy_feasible(eta, A, N, d_atol=1e-20):
     hit.terminal, hit.direction = True, -1
     try:
         sol = solve_ivp(f, [xs, 1.0], [d0, D0], method="LSODA", rtol=1e-12,
-                        atol=[1e-16, d_atol * max(abs(D0), 1e-300)], events=hit)
+                        atol=[1e-16, d_atol * max(abs(D0), 1e-300)], events=hit, t_eval=[1.0])
     except ValueError:
         # D changed sign over a step but not on scipy's dense output of it (its event root
         # finder then has no bracket): the path met D = 0 inside that step.
@@ -349,10 +354,11 @@ def independent(args, atlas, A_rng, N_rng, rng, ws, summary):
     noise = atlas.leaf_band[np.maximum(leaf, 0)]
     lo, hi = atlas.eta_range
     t0 = time.perf_counter()
-    job = functools.partial(_independent_point, lo=lo, hi=hi, tol=args.tol)
+    job = functools.partial(_independent_point, lo=lo, hi=hi, tol=args.tol,
+                            seconds=args.point_seconds)
     work = [(A[i], N[i], int(low[i]), eta[i], terr[i], noise[i]) for i in range(n)]
     rows, stated, finished = [], [], []
-    counts = {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0}
+    counts = {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0, "timeout": 0}
 
     def done(i, result):
         # Each point is reported as it finishes, so that a stopped run still tells what it saw.
@@ -381,19 +387,21 @@ def independent(args, atlas, A_rng, N_rng, rng, ws, summary):
     above = sum(r > args.tol for r in rows)
     beyond = above - sum(stated)
     wrong = counts["fresh"] + counts["scipy"]
+    unref = counts["missing"] + counts["timeout"]
     log(f"independent: {len(rows)} transitions at {n} random (A, N) against scipy bisections to "
         f"{XTOL:g} (the {counts['coarse']} the atlas states no closer than {COARSE:g} against the "
         f"fresh trace): max {worst:.2e}, median {np.median(rows) if rows else math.nan:.1e}; "
         f"{above} beyond tol, of which {beyond} beyond the atlas's stated uncertainty; "
         f"feasibility outside that uncertainty: {counts['fresh']} gaps against a fresh trace, "
         f"{counts['scipy']} against scipy; {counts['missing']} transitions without a scipy "
-        f"reference; {time.perf_counter() - t0:.0f} s on {args.workers} processes; {uptime()}")
+        f"reference; {counts['timeout']} points without an answer within {args.point_seconds:g} "
+        f"s; {time.perf_counter() - t0:.0f} s on {args.workers} processes; {uptime()}")
     summary.append(f"every transition within tol ({args.tol:g}) of an independent bisection at "
                    f"{n} random (A, N): max {worst:.2e}, {above} of {len(rows)} beyond tol: "
-                   f"{verdict(above == 0 and counts['missing'] == 0)}; within the atlas's stated "
+                   f"{verdict(above == 0 and unref == 0)}; within the atlas's stated "
                    f"uncertainty, and feasibility right outside it: {beyond} beyond, {wrong} wrong "
-                   f"gaps, {counts['missing']} unreferenced: "
-                   f"{verdict(beyond == 0 and wrong == 0 and counts['missing'] == 0)}")
+                   f"gaps, {counts['missing']} transitions and {counts['timeout']} points "
+                   f"unreferenced: {verdict(beyond == 0 and wrong == 0 and unref == 0)}")
 
 
 def _merged(intervals):
@@ -407,17 +415,38 @@ def _merged(intervals):
     return out
 
 
-def _independent_point(work, lo, hi, tol):
+def _independent_point(work, lo, hi, tol, seconds=600.0):
     """One (A, N) of :func:`independent`: ``(log lines, relative errors, [within the stated
     uncertainty] for each beyond tol, {"fresh", "scipy": wrong gaps, "missing": transitions
-    without a reference}, seconds)``."""
+    without a reference, "coarse": checked against the fresh trace, "timeout": no answer within
+    ``seconds``}, seconds taken)``."""
+    a, b, low, eta, terr, noise = work
+    t0 = time.perf_counter()
+    where = f"A = {a:.6f}, N = {b:.6f}"
+
+    def out_of_time(signum, frame):
+        raise TimeoutError
+
+    # A worker runs its jobs in its main thread, where the alarm interrupts scipy's callbacks.
+    previous = signal.signal(signal.SIGALRM, out_of_time)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        return _check_point(a, b, low, eta, terr, noise, lo, hi, tol, where, t0)
+    except TimeoutError:
+        return ([f"  {where}: no answer within {seconds:g} s (the scipy marches there are stiff)"],
+                [], [], {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0, "timeout": 1},
+                time.perf_counter() - t0)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _check_point(a, b, low, eta, terr, noise, lo, hi, tol, where, t0):
+    """The body of :func:`_independent_point`."""
     from cosserat_channel import regimes
     from cosserat_channel.atlas.settings import SAFETY
     from cosserat_channel.solver.point import Workspace
 
-    a, b, low, eta, terr, noise = work
-    t0 = time.perf_counter()
-    where = f"A = {a:.6f}, N = {b:.6f}"
     ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
     fresh = regimes.trace_edge(a, b, eta_range=(lo, hi), workspace=ws)
     ft = np.log(fresh.transitions)
@@ -425,7 +454,7 @@ def _independent_point(work, lo, hi, tol):
                                                      == fresh.transitions[0])
     keep = np.isfinite(eta)
     at, band = np.log(eta[keep]), SAFETY * np.fmax(tol, np.fmax(terr[keep], noise))
-    counts = {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0}
+    counts = {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0, "timeout": 0}
     lines, rels, within = [], [], []
     if low < 0:
         return [f"  {where}: the atlas does not know this point"], [], [], counts, 0.0

@@ -105,7 +105,7 @@ opens decided wrongly against both references; next to A = -1,
 
     lines, rels, within, counts, _ = check(work(1 / 3, 1.0), lo, hi, 1e-8)
     assert len(rels) == 1 and rels[0] <= 1e-8 and within == [] and lines == []
-    assert counts == {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0}
+    assert counts == {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0, "timeout": 0}
     lines, rels, within, counts, _ = check(work(1 / 3, 1.0, 1 + 1e-6), lo, hi, 1e-8)
     assert abs(rels[0] - 1e-6) < 1e-8 and within == [False]
     assert any("beyond tol" in line for line in lines)

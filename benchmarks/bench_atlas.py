@@ -229,13 +229,13 @@ def uptime():
 def scipy_feasible(eta, A, N, d_atol=1e-20):
     """Whether an independent stage 1 reaches the wall with D(1) > 0: scipy's LSODA at rtol
     1e-13 from next to the axis (stage1.ivp_start) to xi = 0.5 in w = delta/xi^2 (at small eta
-    that march is stiff: DOP853 took ~10^6 steps where LSODA takes ~500, to the same 1e-15),
+    that march is stiff: DOP853 took ~10^6 evaluations where LSODA takes ~500, to the same 1e-15),
     then LSODA in (delta, D) at rtol 1e-12 with D carried as a state of its own and a terminal
     event at D = 0.
 
     D's absolute tolerance is ``d_atol`` times D at xi = 0.5: next to an edge D(1) is many
     orders below D's scale along the march, and its sign is what is asked. A fixed tiny atol
-    (1e-30) costs ~10^5 LSODA steps per march where D touches zero at the wall."""
+    (1e-30) costs 10^5-10^6 LSODA evaluations per march where D touches zero at the wall."""
     from scipy.integrate import solve_ivp
 
     from cosserat_channel.physics import model
@@ -248,8 +248,8 @@ def scipy_feasible(eta, A, N, d_atol=1e-20):
     model.axis_constants(eta, A, N, ax)
     xi1, w1 = stage1.ivp_start(ax)
     xs = max(0.5, xi1)
-    # t_eval at the end only: solve_ivp then keeps no step of the march (a march of ~10^8 tiny
-    # steps kept them all: 17 GB).
+    # t_eval at the end only: solve_ivp then keeps no step of the march (kept, the tiny steps
+    # of one march filled 17 GB).
     sol = solve_ivp(lambda x, w: [model.dw_dxi(x, w[0], eta, A, N, ax)], [xi1, xs], [w1],
                     method="LSODA", rtol=1e-13, atol=1e-16, t_eval=[xs])
     if sol.status != 0:

@@ -280,6 +280,10 @@ def scipy_feasible(eta, A, N, d_atol=1e-20):
 
 XTOL = 1e-10  # the references' relative width: 1 % of the atlas's tolerance
 COARSE = 1e-2  # a transition the atlas states no closer than this is checked by a fresh trace
+# What the independent check counts: wrong gaps against the fresh trace and against scipy,
+# transitions without a scipy reference, transitions checked against the fresh trace, points
+# without an answer in time.
+COUNTS = ("fresh", "scipy", "missing", "coarse", "timeout")
 
 
 def scipy_bisect(t, ok_below, A, N, width=1e-5, xtol=XTOL, d_atol=1e-20):
@@ -351,14 +355,14 @@ def independent(args, atlas, A_rng, N_rng, rng, ws, summary):
     A, N = np.array(A), np.array(N)
     leaf, low, eta, _ = atlas.transitions(A, N)
     terr = atlas.leaf_transition_error[np.maximum(leaf, 0)]
-    noise = atlas.leaf_band[np.maximum(leaf, 0)]
+    band = atlas.undecided_band(leaf)
     lo, hi = atlas.eta_range
     t0 = time.perf_counter()
     job = functools.partial(_independent_point, lo=lo, hi=hi, tol=args.tol,
                             seconds=args.point_seconds)
-    work = [(A[i], N[i], int(low[i]), eta[i], terr[i], noise[i]) for i in range(n)]
+    work = [(A[i], N[i], int(low[i]), eta[i], terr[i], band[i]) for i in range(n)]
     rows, stated, finished = [], [], []
-    counts = {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0, "timeout": 0}
+    counts = dict.fromkeys(COUNTS, 0)
 
     def done(i, result):
         # Each point is reported as it finishes, so that a stopped run still tells what it saw.
@@ -417,10 +421,10 @@ def _merged(intervals):
 
 def _independent_point(work, lo, hi, tol, seconds=600.0):
     """One (A, N) of :func:`independent`: ``(log lines, relative errors, [within the stated
-    uncertainty] for each beyond tol, {"fresh", "scipy": wrong gaps, "missing": transitions
-    without a reference, "coarse": checked against the fresh trace, "timeout": no answer within
-    ``seconds``}, seconds taken)``."""
-    a, b, low, eta, terr, noise = work
+    uncertainty] for each beyond tol, {COUNTS: count}, seconds taken)``. ``work`` is ``(A, N,
+    low, transitions, their errors, their bands)``, as :meth:`Atlas.transitions` and
+    :meth:`Atlas.undecided_band` give them."""
+    a, b, low, eta, terr, band = work
     t0 = time.perf_counter()
     where = f"A = {a:.6f}, N = {b:.6f}"
 
@@ -431,30 +435,26 @@ def _independent_point(work, lo, hi, tol, seconds=600.0):
     previous = signal.signal(signal.SIGALRM, out_of_time)
     signal.setitimer(signal.ITIMER_REAL, seconds)
     try:
-        return _check_point(a, b, low, eta, terr, noise, lo, hi, tol, where, t0)
+        return _check_point(a, b, low, eta, terr, band, lo, hi, tol, where, t0)
     except TimeoutError:
         return ([f"  {where}: no answer within {seconds:g} s (the scipy marches there are stiff)"],
-                [], [], {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0, "timeout": 1},
-                time.perf_counter() - t0)
+                [], [], dict(dict.fromkeys(COUNTS, 0), timeout=1), time.perf_counter() - t0)
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
 
 
-def _check_point(a, b, low, eta, terr, noise, lo, hi, tol, where, t0):
+def _check_point(a, b, low, eta, terr, band, lo, hi, tol, where, t0):
     """The body of :func:`_independent_point`."""
     from cosserat_channel import regimes
-    from cosserat_channel.atlas.settings import SAFETY
     from cosserat_channel.solver.point import Workspace
 
     ws = Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS)
     fresh = regimes.trace_edge(a, b, eta_range=(lo, hi), workspace=ws)
     ft = np.log(fresh.transitions)
-    f_low = fresh.kind != regimes.EDGE_NONE and not (ft.size and fresh.eta_min
-                                                     == fresh.transitions[0])
     keep = np.isfinite(eta)
-    at, band = np.log(eta[keep]), SAFETY * np.fmax(tol, np.fmax(terr[keep], noise))
-    counts = {"fresh": 0, "scipy": 0, "missing": 0, "coarse": 0, "timeout": 0}
+    at, band = np.log(eta[keep]), band[keep]
+    counts = dict.fromkeys(COUNTS, 0)
     lines, rels, within = [], [], []
     if low < 0:
         return [f"  {where}: the atlas does not know this point"], [], [], counts, 0.0
@@ -466,7 +466,7 @@ def _check_point(a, b, low, eta, terr, noise, lo, hi, tol, where, t0):
             continue  # the atlas states it does not decide this gap
         x = 0.5 * (x0 + x1)
         mine = bool(low) ^ (int(np.sum(at < x)) % 2 == 1)
-        theirs = bool(f_low) ^ (int(np.sum(ft < x)) % 2 == 1)
+        theirs = fresh.feasible_low ^ (int(np.sum(ft < x)) % 2 == 1)
         scipy_ok = scipy_feasible(math.exp(x), a, b)
         for key, other in (("fresh", theirs), ("scipy", scipy_ok)):
             if other != mine:
@@ -475,8 +475,9 @@ def _check_point(a, b, low, eta, terr, noise, lo, hi, tol, where, t0):
                              f" is {'feasible' if mine else 'infeasible'} in the atlas, not in "
                              f"the {key} (atlas {np.exp(at)}, errors {terr[keep]}; fresh trace "
                              f"{fresh.transitions})")
-    ok_below = bool(f_low)
+    ok_below = not fresh.feasible_low  # flipped at each transition: its side below it
     for f in ft:
+        ok_below = not ok_below
         j = int(np.argmin(np.abs(at - f))) if at.size else -1
         if j >= 0 and band[j] > COARSE:
             # The atlas states this transition no closer than COARSE: the fresh trace (~1e-9)
@@ -494,9 +495,7 @@ def _check_point(a, b, low, eta, terr, noise, lo, hi, tol, where, t0):
                                  f"scipy's edge {ref:.12g} moves by {spread:.1e} with a tighter "
                                  f"tolerance on D" if math.isfinite(ref) else
                                  "no bracket within 1e-2"))
-                ok_below = not ok_below
                 continue
-        ok_below = not ok_below
         if j < 0:
             continue  # the gaps above say whether the atlas may lack it
         j = int(np.argmin(np.abs(at - math.log(ref))))

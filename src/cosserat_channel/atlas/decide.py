@@ -8,7 +8,7 @@ import numpy as np
 from .. import status as st
 from ..parameters import ETA_MAX, ETA_MIN, ParameterError, check_values
 from .interpolant import Atlas, classify_analytic
-from .settings import SAFETY, UNDECIDED
+from .settings import UNDECIDED
 from .store import default_atlas, load_atlas
 
 
@@ -71,9 +71,7 @@ def classify(eps, L, K, A, N, atlas=None):
     leaf, low, t, err = atlas.transitions(a, n)
     lo, hi = atlas.eta_range
     known = (low >= 0) & (e >= lo) & (e <= hi)
-    noise = np.where(leaf >= 0, atlas.leaf_band[np.maximum(leaf, 0)], 0.0)
-    terr = np.where((leaf >= 0)[:, None], atlas.leaf_transition_error[np.maximum(leaf, 0)], np.nan)
-    band = SAFETY * np.fmax(atlas.tol, np.fmax(terr, noise[:, None]))
+    band = atlas.undecided_band(leaf)
     with np.errstate(invalid="ignore"):
         dist = np.abs(np.log(e)[:, None] - np.log(t))
         near = np.any(dist <= band, axis=-1)

@@ -11,6 +11,7 @@ from .. import regime_codes as rc
 from ..physics import analytic
 from .. import status as st
 from .chebyshev import _vandermonde
+from .settings import SAFETY
 
 
 def classify_analytic(eta, A, N):
@@ -131,6 +132,16 @@ class Atlas:
         return np.where(inside, self._raster()[ia, jn], -1)
 
     # -- interpolation ---------------------------------------------------------------------
+    def undecided_band(self, leaf):
+        """Per point and transition of :meth:`transitions` (``leaf`` is its first output), the
+        relative distance from the transition within which :func:`classify` decides nothing:
+        ``SAFETY * max(tol, the transition's error, the leaf's noise band)``."""
+        known = leaf >= 0
+        k = np.maximum(leaf, 0)
+        noise = np.where(known, self.leaf_band[k], 0.0)
+        terr = np.where(known[..., None], self.leaf_transition_error[k], np.nan)
+        return SAFETY * np.fmax(self.tol, np.fmax(terr, noise[..., None]))
+
     def transitions(self, A, N):
         """Interpolated transitions at ``(A, N)``.
 

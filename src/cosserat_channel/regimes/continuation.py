@@ -405,8 +405,7 @@ def continue_edge(A, N, low, guesses, *, eta_range=(ETA_SEARCH_MIN, ETA_SEARCH_M
 def guesses_from(edge, spread=1e-2):
     """:class:`Guess` es for :func:`continue_edge` at a neighbour of a traced ``edge``: its
     transitions, sides, slopes, kinds and bands, each with relative uncertainty ``spread``."""
-    low = edge.kind != EDGE_NONE and not (edge.transitions.size
-                                          and edge.eta_min == edge.transitions[0])
+    low = edge.feasible_low
     out = []
     side = 1 if not low else -1
     for k, t in enumerate(edge.transitions):

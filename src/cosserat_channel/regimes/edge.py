@@ -1,5 +1,5 @@
 """The record of a traced edge (:class:`Edge`) and the one bisection of a solvability edge
-(:func:`bisect_edge`). Imports numpy only."""
+(:func:`bisect_edge`). Imports numpy only (and the regime codes)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..regime_codes import EDGE_NONE
 
 
 @dataclass
@@ -69,6 +71,13 @@ class Edge:
             self.smooth = np.zeros(self.transitions.size, dtype=bool)
         if self.slopes is None:
             self.slopes = np.full(self.transitions.size, math.nan)
+
+    @property
+    def feasible_low(self) -> bool:
+        """Feasibility at the low end of the searched range: solutions below the first
+        transition, if any (the sides alternate from there)."""
+        return self.kind != EDGE_NONE and not (self.transitions.size
+                                               and self.eta_min == self.transitions[0])
 
     @property
     def monotone(self) -> bool:

@@ -45,7 +45,10 @@ nb_merge_streams = True
 
 autosummary_generate = True
 autosummary_imported_members = False
-autodoc_default_options = {"members": True, "show-inheritance": False}
+# A package's page documents what the package itself defines, not what it re-exports (its
+# ``__all__``): each class is described once, at its home module (twice, Sphinx reports the
+# duplicate object description).
+autodoc_default_options = {"members": True, "show-inheritance": False, "ignore-module-all": True}
 autodoc_typehints = "none"
 autodoc_mock_imports = []
 numpydoc_show_class_members = False

@@ -42,18 +42,25 @@ def start_cli(*argv):
     """``cosserat-channel ARGV`` in a subprocess of this package's sources, with the SIGINT
     disposition a terminal gives it (a shell starts background jobs with SIGINT ignored, and
     Python then installs no KeyboardInterrupt handler: a Ctrl-C test would test nothing)."""
-    import os
+    return _start(["-m", "cosserat_channel.cli", *map(str, argv)])
+
+
+def start_python(code: str, *argv):
+    """``python -c CODE ARGV`` in a subprocess as :func:`start_cli` starts one (a command
+    under a harness that marks the moment to interrupt it)."""
+    return _start(["-c", code, *map(str, argv)])
+
+
+def _start(args):
     import signal
-    import subprocess
-    import sys
 
     import cosserat_channel
 
     src = os.path.dirname(os.path.dirname(os.path.abspath(cosserat_channel.__file__)))
     path = [p for p in (src, os.environ.get("PYTHONPATH")) if p]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(path))
-    return subprocess.Popen([sys.executable, "-m", "cosserat_channel.cli", *map(str, argv)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    return subprocess.Popen([sys.executable, *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
@@ -71,3 +78,11 @@ def wait_until(proc, condition, timeout=600):
             proc.kill()
             pytest.fail("the moment to interrupt the command never came")
         time.sleep(0.05)
+
+
+def one_error_line(stderr: str) -> str:
+    """The one ``error:`` line of a command's stderr; fails on a traceback or any other error."""
+    assert "Traceback" not in stderr, stderr
+    errors = [line for line in stderr.splitlines() if "error:" in line]
+    assert len(errors) == 1, stderr
+    return errors[0]

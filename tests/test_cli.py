@@ -4,6 +4,7 @@ import json
 import math
 import os
 import shutil
+import signal
 import subprocess
 import sys
 
@@ -11,7 +12,7 @@ import pytest
 
 from cosserat_channel import cli
 from cosserat_channel.solver.point import solve_point
-from support import SMALL_SWEEP
+from support import SMALL_SWEEP, one_error_line, start_python, wait_until
 
 # Paper figure 2: eps = 1/30, L = 10, K = 0.5, A = 1/3, N = 1. str() of a float round-trips, so
 # the command line sees exactly the floats the API call below gets.
@@ -312,7 +313,7 @@ def test_boundary_reuses_its_own_file_and_keeps_another(capsys, tmp_path, monkey
 
 def test_boundary_draws_from_the_shipped_atlas_and_says_so(capsys, tmp_path, monkeypatch):
     """Without --atlas or --trace, boundary answers from the shipped whole-plane atlas without
-    tracing, names it on stderr and in the file, and agrees with a trace to the atlas's
+    tracing, names it on stderr and in the file (by its name alone), and agrees with a trace to the atlas's
     tolerance; --trace traces; --atlas with --trace is refused in one line."""
     import numpy as np
     import xarray as xr
@@ -328,7 +329,8 @@ def test_boundary_draws_from_the_shipped_atlas_and_says_so(capsys, tmp_path, mon
     assert cli.main([*argv, "--trace", "-o", str(tmp_path / "t.nc")]) == 0
     assert "atlas" not in capsys.readouterr().err
     with xr.open_dataset(tmp_path / "a.nc") as a, xr.open_dataset(tmp_path / "t.nc") as t:
-        assert "shipped atlas" in a.attrs["atlas"]
+        # The atlas's file name, not where it is on this machine.
+        assert a.attrs["atlas"].startswith("shipped atlas whole_plane.nc (tol 1e-08")
         assert np.array_equal(a["edge_kind"].values, t["edge_kind"].values)
         np.testing.assert_allclose(a["eta_max"].values, t["eta_max"].values, rtol=2e-8)
     assert cli.main([*argv, "--trace", "--atlas", str(tmp_path / "a.nc"), "-o",
@@ -371,6 +373,60 @@ def test_atlas_stopped_while_tracing_ends_in_one_line_and_writes_nothing(
     assert len(err) == 1 and err[0].startswith(f"cosserat-channel: error: {word}; nothing written")
     assert out.read_bytes() == b"an earlier atlas"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["atlas.nc"]
+
+
+# ``cosserat-channel ARGV`` that touches the file MARKER when the first edge starts tracing.
+TRACE_HARNESS = """
+import pathlib, sys
+from cosserat_channel import cli
+from cosserat_channel.regimes import trace
+
+marker, real = pathlib.Path(sys.argv[1]), trace.trace_edge
+
+def marked(*args, **kwargs):
+    marker.touch()
+    return real(*args, **kwargs)
+
+trace.trace_edge = marked
+sys.exit(cli.main(sys.argv[2:]))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                              (signal.SIGTERM, 143, "terminated")])
+def test_boundary_trace_stopped_ends_in_one_line_and_keeps_the_file(tmp_path, sig, code, word):
+    """Ctrl-C (SIGTERM) while ``boundary --trace`` traces: exit 130 (143), one line saying that
+    nothing was written, and the file at -o as it was."""
+    out, marker = tmp_path / "edge.nc", tmp_path / "marker"
+    out.write_bytes(b"an earlier edge")
+    proc = start_python(TRACE_HARNESS, marker, "boundary", "--trace", "--A=-0.9:0.9:30",
+                        "--N", "0.5:2:30", "-o", out, "--overwrite", "--plot", tmp_path / "e.png")
+    wait_until(proc, marker.exists)
+    proc.send_signal(sig)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == code, stderr
+    line = one_error_line(stderr)
+    assert line.startswith(f"cosserat-channel: error: {word}; no file written ({out} untouched)")
+    assert out.read_bytes() == b"an earlier edge"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["edge.nc", "marker"]
+
+
+@pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
+                                               (cli.Terminated, 143, "terminated")])
+def test_a_command_stopped_outside_its_own_handling_ends_in_one_line(capsys, monkeypatch, stop,
+                                                                     code, word):
+    """Ctrl-C where a command keeps nothing of its own (here: point, while it solves): one line
+    and exit 130 (143), no traceback."""
+    import cosserat_channel.solver.point as point
+
+    def stopped(*args, **kwargs):
+        raise stop
+
+    monkeypatch.setattr(point, "solve_point", stopped)
+    assert cli.main(_point_args()) == code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"cosserat-channel: error: {word}; stopped before")
 
 
 ATLAS_SMALL = ["atlas", "--A", "0.25:0.5", "--N", "0.8:0.9", "--tol", "1e-3", "--degree", "2",
@@ -759,26 +815,68 @@ def test_stability_takes_o_output_and_the_older_output_dir():
 
 
 def test_example_lists_prints_and_copies_the_shipped_sweeps(capsys, tmp_path):
-    """example: the list, one printed, one copied (kept unless --overwrite), an unknown name."""
-    from cosserat_channel.sweep.spec import examples, load_sweep
+    """example: the list (sweeps, then fit measurements), one printed, one copied (kept unless
+    --overwrite), an unknown name."""
+    from cosserat_channel.sweep.spec import example_copy, example_measurements, examples, load_sweep
 
-    shipped = examples()
+    shipped, measurements = examples(), example_measurements()
     assert cli.main(["example"]) == 0
     listed = capsys.readouterr().out.splitlines()
-    assert [line.split()[0] for line in listed] == list(shipped) and "quickstart" in shipped
+    assert [line.split()[0] for line in listed] == [*shipped, *measurements]
+    assert "quickstart" in shipped and "fit_profile.csv" in measurements
     assert cli.main(["example", "quickstart"]) == 0
     assert capsys.readouterr().out == shipped["quickstart"]
     target = tmp_path / "q.toml"
     assert cli.main(["example", "quickstart", "-o", str(target)]) == 0
-    assert target.read_text() == shipped["quickstart"] and load_sweep(target).size == 576
+    assert load_sweep(target).size == 576
     target.write_text("# mine\n")
     assert cli.main(["example", "large_5d", "-o", str(target)]) == 2
     assert "--overwrite" in capsys.readouterr().err and target.read_text() == "# mine\n"
     assert cli.main(["example", "large_5d.toml", "-o", str(target), "--overwrite"]) == 0
-    assert target.read_text() == shipped["large_5d"]
+    assert target.read_text() == example_copy("large_5d", shipped["large_5d"], str(target))
     capsys.readouterr()
     assert cli.main(["example", "nope"]) == 2
-    assert "quickstart" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "quickstart" in err and "fit_profile.csv" in err
+
+
+def test_example_copy_runs_as_printed_outside_a_clone(capsys, tmp_path, monkeypatch):
+    """``example quickstart -o quickstart.toml`` in an empty directory (no demo/, no sweeps/), then
+    the command its note prints: the result is written beside it, and the copy's header names
+    the copy and its result; only the output path and the header's commands differ from the
+    shipped file."""
+    from cosserat_channel.sweep.spec import examples
+
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["example", "quickstart", "-o", "mine.toml"]) == 0
+    note = capsys.readouterr().err.strip()
+    assert note.endswith("run it with: cosserat-channel run mine.toml")
+    command = note.rsplit("run it with: ", 1)[1].split()
+    assert cli.main(command[1:]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["mine.nc", "mine.toml"]
+    text = (tmp_path / "mine.toml").read_text()
+    assert "demo/" not in text and "sweeps/" not in text
+    assert 'path = "mine.nc"' in text and "#   cosserat-channel info mine.nc" in text
+    changed = [(a, b) for a, b in zip(examples()["quickstart"].splitlines(), text.splitlines())
+               if a != b]
+    assert len(changed) == 4 and all("quickstart" in a and "mine" in b for a, b in changed)
+
+
+def test_example_copies_the_fit_measurements_and_says_how_to_fit_them(capsys, tmp_path,
+                                                                       monkeypatch):
+    """``example fit_profile -o data.csv`` copies the shipped CSV as it is, the command its note
+    prints fits the copy, and ``example fit_table1.csv`` prints the other."""
+    from cosserat_channel.sweep.spec import example_measurements
+
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["example", "fit_profile", "-o", "data.csv"]) == 0
+    assert (tmp_path / "data.csv").read_text() == example_measurements()["fit_profile.csv"]
+    note = capsys.readouterr().err.strip()
+    assert note.endswith("fit it with: cosserat-channel fit data.csv --free L,K --fixed A=1/3,N=1")
+    assert cli.main(note.rsplit("fit it with: ", 1)[1].split()[1:]) == 0
+    assert "L" in capsys.readouterr().out
+    assert cli.main(["example", "fit_table1.csv"]) == 0
+    assert capsys.readouterr().out == example_measurements()["fit_table1.csv"]
 
 
 # ---------------------------------------------------------------------------------------------

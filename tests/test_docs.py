@@ -1,11 +1,18 @@
 """The documentation site's sources: the API reference lists every name the package exports,
 the command-line reference covers every command, and CITATION.cff cites the paper as its
-manuscript names it. (The site itself is built, warnings as errors, by ``make docs``.)"""
+manuscript names it, and the site builds from scratch with warnings as errors (as ``make docs``
+does, with the notebooks' execution left to ``test_notebooks.py``)."""
 
 import importlib
 import importlib.util
+import os
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
+
+import pytest
 
 import cosserat_channel
 from cosserat_channel import cli
@@ -81,3 +88,36 @@ def test_every_module_imports_without_running_anything(monkeypatch):
             importlib.import_module(name)
         except SystemExit as exc:
             raise AssertionError(f"importing {name} ran a command (exit {exc.code})") from None
+
+
+@pytest.mark.slow
+def test_site_builds_from_scratch_with_warnings_as_errors(tmp_path):
+    """``make docs``'s Sphinx build, warnings as errors, from nothing: a copy of ``docs/`` without
+    ``_build`` or ``_generated`` and a fresh environment (``-E``), so that no page a previous
+    build read is skipped (an incremental build hides the warnings of pages it does not read
+    again). Two of ``make docs``'s steps are replaced by cheaper ones of the same shape: the
+    notebooks are rendered as committed, without outputs (``tests/test_notebooks.py`` runs
+    them), and the paper's page holds table 1 alone (the figures are ``test_paper.py``'s)."""
+    pytest.importorskip("sphinx")
+    docs = tmp_path / "docs"
+    shutil.copytree(DOCS, docs, ignore=shutil.ignore_patterns("_build", "_generated"))
+    notebooks = docs / "_generated" / "notebooks"
+    notebooks.mkdir(parents=True)
+    for nb in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        shutil.copy(nb, notebooks / nb.name)
+    from cosserat_channel import paper
+
+    paper.write_paper_figures(docs / "_generated" / "paper", keys=("table1",))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(Path(cosserat_channel.__file__).resolve().parents[1]),
+         *filter(None, [os.environ.get("PYTHONPATH")])]))
+    proc = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-E", "-q", "-b", "html",
+         "-d", str(tmp_path / "doctrees"), str(docs), str(tmp_path / "html")],
+        capture_output=True, text=True, env=env, timeout=1200)
+    assert proc.returncode == 0, proc.stderr[-5000:]
+    html = tmp_path / "html"
+    for page in ("index", "getting-started", "api", "_generated/cli", "_generated/paper",
+                 "_generated/notebooks/01_quickstart"):
+        assert (html / f"{page}.html").is_file(), page
+    assert "Not generated in this build" not in (html / "_generated" / "paper.html").read_text()

@@ -3,6 +3,7 @@ grids), each figure draws the data it was given, and the Appendix A demonstratio
 the paper's verdict at a loose tolerance and exact arithmetic's at a tight one."""
 
 import os
+import signal
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from matplotlib.lines import Line2D
 from cosserat_channel import paper
 from cosserat_channel.cli import main
 from cosserat_channel.plot.paper import draw
+from support import one_error_line, start_cli, wait_until
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 FIGURES = tuple(f"figure{n}" for n in range(2, 13))
@@ -153,3 +155,35 @@ def test_appendix_a_rows_state_the_solution_and_the_edge(coarse):
     assert rows["solution at eps = 0.33"].ours.startswith("ok")
     assert 0.3305 < a.data["eps_max"] < 0.3312
     assert a.data["reached"].shape == (a.data["rtol"].size, a.data["eps"].size)
+
+
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                              (signal.SIGTERM, 143, "terminated")])
+def test_paper_stopped_keeps_the_figures_it_finished(tmp_path, sig, code, word):
+    """Ctrl-C (SIGTERM) once figure 2 is written: one line naming the figures kept, exit 130
+    (143), those figures whole on disk, no comparison.md and no temporary file."""
+    out = tmp_path / "paper"
+    proc = start_cli("paper", "--coarse", "-o", out)
+    wait_until(proc, (out / "figure2.png").exists)
+    proc.send_signal(sig)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == code, stderr
+    line = one_error_line(stderr)
+    assert line.startswith(f"cosserat-channel: error: {word}; figure2.png") and str(out) in line
+    kept = sorted(os.listdir(out))
+    assert kept and "comparison.md" not in kept and all(k.endswith(".png") for k in kept)
+    for name in kept:
+        assert name in line
+        assert (out / name).read_bytes()[:8] == PNG_SIGNATURE
+
+
+def test_paper_stopped_before_a_figure_says_none_is_kept(tmp_path, capsys, monkeypatch):
+    """Stopped while the first figure is computed: one line saying so, exit 130, an empty DIR."""
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(paper, "figure2", stopped)
+    assert main(["paper", "--coarse", "-o", str(tmp_path / "p")]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["cosserat-channel: error: interrupted; no figure was finished"]
+    assert os.listdir(tmp_path / "p") == []

@@ -214,6 +214,9 @@ def main(argv=None) -> int:
         _stdout_to_devnull()
         _error("standard output was closed before everything was printed (broken pipe)")
         return EXIT_FAILURE
+    except KeyboardInterrupt as exc:  # a command that keeps no partial work says so itself
+        return interrupted(exc, "stopped before the command finished (its files are written "
+                           "whole or not at all)")
 
 
 def _stdout_to_devnull() -> None:

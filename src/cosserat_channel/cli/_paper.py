@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
 
-from . import EXIT_FAILURE, EXIT_OK, CliError, Progress, _FIRST_RUN, register
+from . import EXIT_FAILURE, EXIT_OK, CliError, Progress, _FIRST_RUN, interruptible, interrupted, register
 
 
 def _paper_arguments(p: argparse.ArgumentParser) -> None:
@@ -22,11 +23,17 @@ def _paper_arguments(p: argparse.ArgumentParser) -> None:
 def _paper(args: argparse.Namespace) -> int:
     from .. import paper
 
+    written = []
     try:
-        with Progress("paper", "solving " + _FIRST_RUN, delay=1.0) as bar:
+        with interruptible(), Progress("paper", "solving " + _FIRST_RUN, delay=1.0) as bar:
             paths = paper.write_paper_figures(args.output, coarse=args.coarse,
                                               overwrite=args.overwrite,
-                                              progress=bar.report)
+                                              progress=bar.report, written=written)
+    except KeyboardInterrupt as exc:
+        names = ", ".join(os.path.basename(p) for p in written)
+        return interrupted(exc, f"{names} finished and kept in {args.output} (comparison.md "
+                           "is written after the last figure)" if written else
+                           "no figure was finished")
     except ValueError as exc:  # the output directory or its files: checked before any work
         raise CliError(f"-o: {exc}") from None
     except OSError as exc:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 
 from . import (  # noqa: F401 (the shared pieces of the command line)
     open_results,
@@ -21,6 +22,8 @@ from . import (  # noqa: F401 (the shared pieces of the command line)
     add_overwrite_argument,
     check_not_input,
     check_output_path,
+    interruptible,
+    interrupted,
     register,
 )
 from ..regime_codes import ETA_COARSE
@@ -146,14 +149,19 @@ def _boundary(args: argparse.Namespace) -> int:
             _note(f"edges drawn from the {atlas_mod.describe(atlas, path, which)} "
                   "(--trace to trace them)")
             ds = drawn
-            ds.attrs["atlas"] = atlas_mod.describe(atlas, path, which)
+            # The file's name, not its path: a path of this machine means nothing elsewhere.
+            ds.attrs["atlas"] = atlas_mod.describe(atlas, os.path.basename(path), which)
     else:
         ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
     traced = ds is None or args.atlas is not None or atlas is not None
     if ds is None:
-        with Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
-            ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
-                                        progress=bar.report)
+        try:
+            with interruptible(), Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+                ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
+                                            progress=bar.report)
+        except KeyboardInterrupt as exc:
+            return interrupted(exc, f"no file written ({args.output} untouched): a trace keeps "
+                               "nothing before its end")
     from ..files import netcdf_output
 
     try:
@@ -209,7 +217,7 @@ def _boundary_from_atlas(path, A, N, lo, hi):
         _note(f"--atlas: {path} covers A in [{atlas.box[0]:g}, {atlas.box[1]:g}], N in "
               f"[{atlas.box[2]:g}, {atlas.box[3]:g}]; outside it eta_max is NaN")
     ds = atlas.boundary(A, N)
-    ds.attrs["atlas"] = atlas_mod.describe(atlas, path)
+    ds.attrs["atlas"] = atlas_mod.describe(atlas, os.path.basename(path))
     return ds
 
 

@@ -7,6 +7,7 @@ import contextlib
 import math
 import os
 import logging
+import shlex
 import sys
 
 from . import (  # noqa: F401 (the shared pieces of the command line)
@@ -211,20 +212,22 @@ def _finished_result_kept(output: str, spec) -> bool:
 def _example_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", nargs="?", metavar="NAME",
                    help="an example's name (without NAME: list them)")
-    p.add_argument("-o", "--output", metavar="SWEEP.toml",
-                   help="copy it to this file (default: print it)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing SWEEP.toml")
+    p.add_argument("-o", "--output", metavar="FILE",
+                   help="copy it to this file (default: print it); a sweep's copy writes "
+                   "FILE's stem .nc where it is run")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
 
 
-@register("example", "list the example sweep files that come with the package, print or copy one",
-          _example_arguments)
+@register("example", "list the example sweep files and fit measurements that come with the "
+          "package, print or copy one", _example_arguments)
 def _example(args: argparse.Namespace) -> int:
-    from ..sweep.spec import examples
+    from ..sweep.spec import example_copy, example_measurements, examples
 
-    shipped = examples()
+    sweeps, measurements = examples(), example_measurements()
     if args.name is None:
         if args.output is not None:
             raise CliError("-o needs an example's NAME")
+        shipped = {**sweeps, **measurements}
         width = max(map(len, shipped))
         for name, text in shipped.items():
             first = next((line.lstrip("# ").strip() for line in text.splitlines()
@@ -232,24 +235,35 @@ def _example(args: argparse.Namespace) -> int:
             print(f"{name:<{width}}  {first}")
         return EXIT_OK
     name = args.name[:-5] if args.name.endswith(".toml") else args.name
-    if name not in shipped:
-        raise CliError(f"no example {args.name!r}; the examples are {', '.join(shipped)}")
+    if name not in sweeps and name + ".csv" in measurements:
+        name += ".csv"
+    if name not in sweeps and name not in measurements:
+        raise CliError(f"no example {args.name!r}; the examples are "
+                       f"{', '.join([*sweeps, *measurements])}")
+    text = sweeps.get(name) or measurements[name]
     if args.output is None:
-        sys.stdout.write(shipped[name])
+        sys.stdout.write(text)
         return EXIT_OK
     check_output_path(args.output, "-o", overwrite=args.overwrite)
+    if name in sweeps:
+        text = example_copy(name, text, args.output)
+        then = f"run it with: {PROG} run {shlex.quote(args.output)}"
+    else:
+        fit = next((line.split(":", 1)[1].strip() for line in text.splitlines()
+                    if line.startswith("# Fit:")), f"{PROG} fit {name}")
+        then = "fit it with: " + fit.replace(f" {name} ", f" {shlex.quote(args.output)} ", 1)
     from ..files import atomic_output
 
     def write(tmp):
         with open(tmp, "w", encoding="utf-8") as f:
-            f.write(shipped[name])
+            f.write(text)
 
     try:
         atomic_output(args.output, write)
     except OSError as exc:
         raise CliError(f"-o: cannot write {args.output!r}: {exc.strerror or exc}",
                        EXIT_FAILURE) from None
-    _note(f"wrote {args.output}; run it with: {PROG} run {args.output}")
+    _note(f"wrote {args.output}; {then}")
     return EXIT_OK
 
 

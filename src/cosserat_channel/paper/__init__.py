@@ -42,40 +42,52 @@ def paper_figures(coarse: bool = False, keys=KEYS, progress=None) -> dict[str, P
     """Every figure of :data:`KEYS` (``coarse``: small grids, the same code paths);
     ``progress(done, total, text)`` (the package's progress protocol), if given, is called
     before each, ``text`` naming it."""
+    return dict(_each_figure(coarse, keys, progress))
+
+
+def _each_figure(coarse, keys, progress):
+    """``(key, PaperFigure)`` for each of ``keys``, computed one by one (see :func:`paper_figures`)."""
     n_xi = 101 if coarse else 401
-    out = {}
+    done = {}
     for i, key in enumerate(keys):
         if progress is not None:
             progress(i, len(keys), key)
         if key == "figure2":
-            out[key] = figure2(n_xi)
+            pf = figure2(n_xi)
         elif key == "figure3":
-            out[key] = figure3(n_xi, out.get("figure2"))
+            pf = figure3(n_xi, done.get("figure2"))
         elif key in ("figure4", "figure5", "figure6", "figure10", "figure11"):
-            out[key] = globals()[key](n_xi)
+            pf = globals()[key](n_xi)
         elif key == "figure7":
-            out[key] = figure7(15 if coarse else 120)
+            pf = figure7(15 if coarse else 120)
         elif key == "figure8":
-            out[key] = figure8(12 if coarse else 117)
+            pf = figure8(12 if coarse else 117)
         elif key == "figure9":
-            out[key] = figure9(301 if coarse else 3001)
+            pf = figure9(301 if coarse else 3001)
         elif key == "figure12":
-            out[key] = figure12(*((61, 81) if coarse else (301, 401)))
+            pf = figure12(*((61, 81) if coarse else (301, 401)))
         elif key == "table1":
-            out[key] = table1()
+            pf = table1()
         elif key == "appendix_a":
-            out[key] = (appendix_a(np.r_[1 / 30, 0.2, 0.31, 0.32, 0.33, 0.332],
-                                   np.array([1e-8, 1e-11, 1e-13])) if coarse else appendix_a())
+            pf = (appendix_a(np.r_[1 / 30, 0.2, 0.31, 0.32, 0.33, 0.332],
+                             np.array([1e-8, 1e-11, 1e-13])) if coarse else appendix_a())
         else:
             raise ValueError(f"unknown paper figure {key!r}; have {', '.join(KEYS)}")
-    return out
+        if key == "figure2":
+            done[key] = pf
+        yield key, pf
 
 
 def write_paper_figures(directory, *, coarse=False, overwrite=False, keys=KEYS,
-                        progress=None) -> list[str]:
+                        progress=None, written=None) -> list[str]:
     """Compute and draw every figure into ``directory`` (created if missing): ``<key>.png`` and
     ``comparison.md``. Existing files are kept (ValueError before any work) unless
-    ``overwrite``. Returns the paths written."""
+    ``overwrite``. Returns the paths written.
+
+    Each figure is saved as soon as it is computed, and its path appended to ``written`` (a
+    list, if given): what a run stopped early (Ctrl-C) has finished stays on disk, and the
+    caller can say which files those are.
+    """
     from ..files import output_problem, write_text
     from ..plot import paper as plot_paper
     from ..plot import save_figure
@@ -98,9 +110,10 @@ def write_paper_figures(directory, *, coarse=False, overwrite=False, keys=KEYS,
         problem = output_problem(t, overwrite=overwrite)
         if problem:
             raise ValueError(problem)
-    figures = paper_figures(coarse, keys, progress)
-    written = []
-    for key, pf in figures.items():
+    written = [] if written is None else written
+    figures = {}
+    for key, pf in _each_figure(coarse, keys, progress):
+        figures[key] = pf
         path = os.path.join(directory, f"{key}.png")
         save_figure(plot_paper.draw(pf), path)
         written.append(path)

@@ -1,8 +1,9 @@
 """Partial derivatives of the model's equations, for the sensitivities of the outputs.
 
-The equations are those of :mod:`.model` (stage 1 ``eta delta' = (A+1) xi - sqrt(D)``, the rates
-``B`` and ``h`` of e-60 / e-59, ``D`` of eq:a3), differentiated by hand with respect to the state
-``delta`` and the parameters ``(eta, A, N)`` of the exact similarity (docs/model.md, section 7):
+The equations are those of :mod:`~cosserat_channel.physics.model` (stage 1
+``eta delta' = (A+1) xi - sqrt(D)``, the rates ``B`` and ``h`` of e-60 / e-59, ``D`` of eq:a3),
+differentiated by hand with respect to the state ``delta`` and the parameters ``(eta, A, N)`` of
+the exact similarity (docs/model.md, section 7):
 
     D_delta = 4 (A+1) (N - delta),   D_A = 2 A xi^2 + 2 delta (2N - delta),   D_N = 4 (A+1) delta,
     f = ((A+1) xi - sqrt(D)) / eta,  B = 2 (A+1) (N - delta) / (eta sqrt(D)),

@@ -94,11 +94,34 @@ def examples() -> dict[str, str]:
     They are package data (``cosserat_channel/examples/*.toml``, also ``sweeps/`` in a clone),
     so an installed package without a clone has them too (``cosserat-channel example``).
     """
+    return {name[:-5]: text for name, text in _shipped(".toml").items()}
+
+
+def example_measurements() -> dict[str, str]:
+    """The example measurements of ``cosserat-channel fit`` that come with the package:
+    ``{file name: text}`` (``fit_profile.csv`` ...), package data beside the sweep files."""
+    return _shipped(".csv")
+
+
+def _shipped(suffix: str) -> dict[str, str]:
     from importlib import resources
 
     here = resources.files("cosserat_channel") / "examples"
-    return {f.name[:-5]: f.read_text(encoding="utf-8")
-            for f in sorted(here.iterdir(), key=lambda f: f.name) if f.name.endswith(".toml")}
+    return {f.name: f.read_text(encoding="utf-8")
+            for f in sorted(here.iterdir(), key=lambda f: f.name) if f.name.endswith(suffix)}
+
+
+def example_copy(name: str, text: str, target: str) -> str:
+    """The text of the shipped sweep ``name`` for a copy at ``target``, runnable where it is.
+
+    A shipped sweep writes into ``demo/`` (``make demo``'s directory in a clone) and its header
+    names ``sweeps/<name>.toml``; outside a clone neither exists. The copy writes
+    ``<target's stem>.nc`` (beside where it is run, as ``run`` does for a sweep without an
+    output path) and its header's commands name the copy and that file.
+    """
+    stem = os.path.splitext(os.path.basename(target))[0]
+    return (text.replace(f"demo/{name}.nc", f"{stem}.nc")
+            .replace(f"sweeps/{name}.toml", target))
 
 
 

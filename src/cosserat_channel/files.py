@@ -274,3 +274,28 @@ def netcdf_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool
         if not isinstance(exc, OSError) and type(exc) is not RuntimeError:
             raise  # RecursionError, NotImplementedError: bugs, not write failures
         raise write_failure(path, exc) from None
+
+
+def save_npz(path, arrays) -> None:
+    """``np.savez`` of ``arrays`` (name -> array) at exactly ``path``: through a file object,
+    since given a name without ``.npz`` numpy would append it (a temporary name has none)."""
+    import numpy as np
+
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+
+
+def write_npz(path, arrays, **options) -> None:
+    """Write ``arrays`` as an uncompressed ``.npz`` file atomically (:func:`atomic_output`, which
+    takes ``options``)."""
+    atomic_output(path, lambda tmp: save_npz(tmp, arrays), **options)
+
+
+def write_dataset(path, ds, **options) -> None:
+    """Write an xarray Dataset as NetCDF with the package's encoding
+    (:func:`cosserat_channel.netcdf_policy.encoding`: compressed, checksummed) through
+    :func:`netcdf_output` (which takes ``options``)."""
+    from . import netcdf_policy
+
+    netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=netcdf_policy.encoding(ds)),
+                  **options)

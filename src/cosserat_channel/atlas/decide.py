@@ -1,13 +1,15 @@
 """Deciding points from an atlas (:func:`classify`), Appendix A's regimes exactly
-(:func:`classify_analytic`). Imports numpy (xarray to read a file), never numba."""
+(:func:`~cosserat_channel.physics.analytic.classify_points`). Imports numpy (xarray to read a
+file), never numba."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from .. import status as st
+from ..physics import analytic
 from ..parameters import ETA_MAX, ETA_MIN, ParameterError, check_values
-from .interpolant import Atlas, classify_analytic
+from .interpolant import Atlas
 from .settings import UNDECIDED
 from .store import default_atlas, load_atlas
 
@@ -42,8 +44,8 @@ def classify(eps, L, K, A, N, atlas=None):
     Notes
     -----
     The transitions are the solver's at ``regimes.EDGE_RTOL``. A solve at a looser tolerance moves
-    the edge by up to ~2e-6 relative (regimes.py): such a solve may disagree with a decided
-    point that close to an edge.
+    the edge by up to ~2e-6 relative (:data:`cosserat_channel.regimes.wall.EDGE_RTOL`): such a
+    solve may disagree with a decided point that close to an edge.
     """
     eps, L, K, A, N = np.broadcast_arrays(
         *(check_values(d, v) for d, v in zip(("eps", "L", "K", "A", "N"), (eps, L, K, A, N))))
@@ -63,7 +65,7 @@ def classify(eps, L, K, A, N, atlas=None):
 
         k = np.flatnonzero(bad.ravel())[0]
         check_eta(float(eps.ravel()[k]), float(L.ravel()[k]))
-    out = classify_analytic(eta, A, N)
+    out = analytic.classify_points(eta, A, N)
     need = (out == st.OK) & (A != -1.0)
     if not need.any():
         return out

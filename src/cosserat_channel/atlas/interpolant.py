@@ -14,14 +14,6 @@ from .chebyshev import _vandermonde
 from .settings import SAFETY
 
 
-def classify_analytic(eta, A, N):
-    """:func:`analytic.classify_margin` on arrays: the status Appendix A decides, else ``OK``."""
-    eta, A, N = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (eta, A, N)))
-    if eta.size == 0:
-        return np.zeros(eta.shape, dtype=np.int8)
-    return analytic.classify_margins(analytic.axis_margin(eta, A, N), A, N)
-
-
 @dataclass
 class Atlas:
     """An atlas: the quadtree's leaves with their interpolants, and the samples behind them.
@@ -232,7 +224,7 @@ class Atlas:
         eta_min = np.where(ok_lo, lo, np.where(kind == rc.EDGE_NONE, np.nan, first))
         known = low >= 0
         # The regimes of Appendix A with no solution at any eta are known everywhere, atlas or not.
-        code = classify_analytic(np.full(AA.shape, lo), AA, NN)
+        code = analytic.classify_points(np.full(AA.shape, lo), AA, NN)
         none = np.isin(code, (st.WALL_INADMISSIBLE, st.AXIS_SPIN_UNBOUNDED))
         kind[none] = rc.EDGE_NONE
         n_in = np.where(none, 0, n_in)

@@ -154,11 +154,9 @@ def from_dataset(ds):
 
 def save_atlas(atlas, path):
     """Write ``atlas`` to ``path`` (NetCDF, checksummed) through :func:`files.netcdf_output`."""
-    from .. import netcdf_policy
-    from ..files import netcdf_output
+    from ..files import write_dataset
 
-    ds = to_dataset(atlas)
-    netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=netcdf_policy.encoding(ds)))
+    write_dataset(path, to_dataset(atlas))
 
 
 def load_atlas(path):
@@ -205,8 +203,8 @@ def traces_key(A_range, N_range, tol, degree, max_depth, eta_range, max_degree, 
 
 def save_traces(path, traces, key):
     """Write ``traces`` (:func:`build_atlas`'s, by ``(A, N)``) with ``key``
-    (:func:`traces_key`) to ``path``, a regular file, through :func:`files.atomic_output`."""
-    from ..files import atomic_output
+    (:func:`traces_key`) to ``path``, a regular file, through :func:`files.write_npz`."""
+    from ..files import write_npz
 
     trs = list(traces.values())
     edges = [tr.edge for tr in trs]
@@ -222,11 +220,7 @@ def save_traces(path, traces, key):
         arrays[name] = np.concatenate([np.asarray(getattr(e, name)) for e in edges]
                                       + [np.empty(0)])
 
-    def write(tmp):
-        with open(tmp, "wb") as f:  # a file object: np.savez appends .npz to a bare path
-            np.savez(f, **arrays)
-
-    atomic_output(path, write, stream=False)
+    write_npz(path, arrays, stream=False)
 
 
 def load_traces(path, key):
@@ -239,7 +233,7 @@ def load_traces(path, key):
     """
     from ..files import describe
     from ..regimes.edge import Edge
-    from .build import _Trace
+    from .tracer import _Trace
 
     path = os.fspath(path)
     move = "move it away, or choose another output"

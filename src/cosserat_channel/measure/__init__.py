@@ -10,9 +10,12 @@
 - :mod:`.harness`: what the reports and the scripts in ``benchmarks/`` share: best-of timing,
   the header, PASS/FAIL verdicts and the JSON record of ``--json``;
 
-Layer: above the solver, the regimes and the figures, which these modules use; nothing else
-in the package imports them, except the command line (lazily, inside its ``stability`` and
-``bench`` commands). The figures of the reports live
+Layer: above the solver, the regimes and the figures, which these modules use (and the
+physics, for the peers' formulation and the scipy reference, and the vocabulary modules
+parameters, status and files); never an integrator directly (the batch kernels count the
+steps: :func:`cosserat_channel.solver.batch.new_statistics`). Nothing else in the package
+imports them, except the command line (lazily, inside its ``stability`` and ``bench``
+commands). The figures of the reports live
 in :mod:`cosserat_channel.plot.stability` and :mod:`cosserat_channel.plot.workprecision` and take
 the reports' data.
 """

@@ -28,7 +28,6 @@ import time
 import numpy as np
 
 from ..physics import model
-from ..integrate import stepping
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
 from .harness import best_of
@@ -50,7 +49,7 @@ def ours_both(eps, L, K, A, N, rtol, atol=ATOL, repeat=5):
     eps_K = np.ascontiguousarray(eps * K)
     offsets = np.arange(n + 1)
     res = np.empty((n, layout.N_R))
-    stats = np.zeros((n, 2, stepping.N_STATS), np.int64)
+    stats = batch.new_statistics(n, 2)
     one_minus = np.empty(n)
     no_xi = np.empty(0)
     no_prof = np.empty((n, layout.N_PROF, 0))
@@ -77,7 +76,7 @@ def ours_stage1(eps, L, A, N, rtol, atol=ATOL, repeat=5):
     A = np.ascontiguousarray(A, dtype=float)
     N = np.ascontiguousarray(N, dtype=float)
     mu = np.empty(n)
-    stats = np.zeros((n, stepping.N_STATS), np.int64)
+    stats = batch.new_statistics(n)
 
     def call():
         batch.stage1_batch(eta, A, N, rtol, atol, layout.METHOD_AUTO, stage1.MAX_STEPS_STAGE1, mu,

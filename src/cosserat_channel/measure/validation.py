@@ -44,7 +44,7 @@ import numpy as np
 
 from ..physics import reference as ref_mod
 from .. import regimes
-from ..files import atomic_output
+from ..files import write_npz
 
 SEED = 20261121
 # Bump when the sampling below changes, the edge bisection (regimes.bisect_edge) included: the
@@ -143,12 +143,11 @@ def _L_for_eta(rng, eta, spec):
 
 def _stage1_reaches_wall(eta, A, N):
     """Our stage 1 (rtol 1e-11) reaches the wall at each ``eta`` (used only to find the edge)."""
-    from ..integrate import stepping
     from ..solver import batch, layout, stage1
 
     n = eta.size
     mu = np.empty(n)
-    stats = np.zeros((n, stepping.N_STATS), np.int64)
+    stats = batch.new_statistics(n)
     batch.stage1_batch(np.ascontiguousarray(eta), np.full(n, A), np.full(n, N), 1e-11, 1e-14,
                        layout.METHOD_AUTO, stage1.MAX_STEPS_STAGE1, mu, stats)
     return np.isfinite(mu)
@@ -270,11 +269,7 @@ class _Partial:
             "disagreement": np.array([r[2] for _, r in rows], float),
         }
 
-        def write(tmp):
-            with open(tmp, "wb") as fh:
-                np.savez(fh, **arrays)
-
-        atomic_output(self.path, write)
+        write_npz(self.path, arrays)
 
 
 def partial_count(spec: SetSpec, directory) -> int:
@@ -354,13 +349,8 @@ def save(vs: ValidationSet, path) -> None:
                                            "disagreement")}
     arrays.update({f"ref_{q}": vs.ref[q] for q in QUANTITIES})
 
-    def write(tmp):
-        # Through a file object: given a name, np.savez would append ".npz" to the temporary one.
-        with open(tmp, "wb") as fh:
-            np.savez(fh, key=np.array(vs.spec.key()), counts=np.array(json.dumps(vs.counts)),
-                     spec=np.array(json.dumps(asdict(vs.spec))), **arrays)
-
-    atomic_output(path, write)
+    write_npz(path, dict(key=np.array(vs.spec.key()), counts=np.array(json.dumps(vs.counts)),
+                         spec=np.array(json.dumps(asdict(vs.spec))), **arrays))
 
 
 def load(spec: SetSpec, path) -> ValidationSet | None:

@@ -13,8 +13,8 @@ The paper's figure numbers are used (its ``\\label``s differ: ``fig:new`` is fig
 by ``nu`` (the package's scaled variables; the paper's bars are ``nu`` times them).
 
 Layer: above the solver, the regimes and the sweeps, whose public functions it calls; below the
-command line. May import every computing package and :mod:`cosserat_channel.plot` (to save the
-figures); never the command line.
+command line. May import those, the physics, :mod:`cosserat_channel.plot` (to save the
+figures) and the vocabulary modules; never an integrator, the atlas or the command line.
 """
 from __future__ import annotations
 

@@ -4,7 +4,8 @@
 solvability atlas (:mod:`cosserat_channel.atlas`) calls them as they are, so that reading an atlas
 and classifying points never imports numba. They are the one home of the analytic regime logic.
 Both take scalars; :func:`axis_margin` also takes arrays, :func:`classify_margins` is
-:func:`classify_margin` on arrays, and :func:`axis_edge_eta` and :func:`node_focus_switch_N`
+:func:`classify_margin` on arrays, :func:`classify_points` classifies arrays of points (the
+atlas, the regime maps and a sweep's cost model call it), and :func:`axis_edge_eta` and :func:`node_focus_switch_N`
 (the atlas and the figures need them without the solver) and :func:`wall_bound_eta` take
 arrays.
 """
@@ -58,6 +59,16 @@ def classify_margins(margin, A, N):
         [A < 1.0 - 2.0 * N * N, A < -1.0, A == -1.0, margin <= 0.0],
         [st.WALL_INADMISSIBLE, st.AXIS_SPIN_UNBOUNDED, st.OK, st.EPS_TOO_LARGE_AXIS],
         st.OK).astype(np.int8)
+
+
+def classify_points(eta, A, N):
+    """The status Appendix A decides at each ``(eta, A, N)``, else ``OK``: :func:`classify_margin`
+    of :func:`axis_margin` on arrays (broadcast), int8 codes. ``model.classify`` is the same for
+    one point, compiled for the kernels."""
+    eta, A, N = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (eta, A, N)))
+    if eta.size == 0:
+        return np.zeros(eta.shape, dtype=np.int8)
+    return classify_margins(axis_margin(eta, A, N), A, N)
 
 
 def axis_edge_eta(A, N):

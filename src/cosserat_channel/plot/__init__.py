@@ -9,7 +9,7 @@ although pyplot, which registers that display for its own figures, is never impo
 
 Layer: beside the results reader, below the paper's figures, the measurements and the command
 line. May import matplotlib, numpy, xarray and the vocabulary modules (outputs, parameters,
-status, regime_codes, and the closed forms of physics.analytic and physics.asymptotics); it
+status, regime_codes, files, and the closed forms of physics.analytic and physics.asymptotics); it
 takes data and never solves: never the solver, the sweeps, the regimes or the atlas.
 """
 

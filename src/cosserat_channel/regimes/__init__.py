@@ -10,12 +10,13 @@ the transition is the node's closed form (:func:`node_edge_eta`).
 
 Layer: above the solver (:mod:`cosserat_channel.solver`) and the physics
 (:mod:`~cosserat_channel.physics.model`, :mod:`~cosserat_channel.physics.analytic`); below the
-atlas, the figures and the command line. May import numpy, scipy, xarray and numba, and from the
-package ``physics``, ``solver``, integrators (``dense``, ``rk45``, ``stepping``),
-``status``, ``parameters`` and ``regime_codes``; never the atlas, plotting, sweeps or the CLI.
+atlas, the figures and the command line. May import numpy, scipy and xarray, and from the
+package ``solver``, ``physics``, ``status``, ``parameters`` and ``regime_codes``; never an
+integrator (stage 1 is marched by the solver, :mod:`cosserat_channel.solver.wall`), numba, the
+atlas, plotting, sweeps or the CLI.
 
-Modules: :mod:`.phase` (figure 12's data; scipy, no numba), :mod:`.wall` (scalars at the wall:
-the stage-1 kernels), :mod:`.edge` (the :class:`Edge` record, :func:`bisect_edge`),
+Modules: :mod:`.phase` (figure 12's data; scipy, no numba), :mod:`.wall` (scalars at the wall,
+from the solver's stage-1 kernels), :mod:`.edge` (the :class:`Edge` record, :func:`bisect_edge`),
 :mod:`.continuation` (predict and correct), :mod:`.trace` (an edge at a point, on a grid) and
 :mod:`.boundary` (the boundary Dataset, one layout for traced and atlas data; xarray, no numba).
 The names below load their module on first use, so that the phase plane and the boundary
@@ -46,8 +47,7 @@ _HOMES = {
               "Trajectory", "PhasePlane", "phase_trajectory", "phase_plane",
               "_series_coefficient"),
     "wall": ("EDGE_RTOL", "EDGE_ATOL", "EDGE_MAX_STEPS", "PROBE_XTOL", "PROBE_OFFSETS",
-             "D_NOISE", "SMOOTH_XI_SWITCH", "SMOOTH_RTOL", "SMOOTH_ATOL", "SMOOTH_ATOL_D",
-             "SMOOTH_MAX_STEPS", "SMOOTH_BAND", "SMOOTH_XTOL", "SMOOTH_WIDEN", "wall_D",
+             "D_NOISE", "SMOOTH_RTOL", "SMOOTH_MAX_STEPS", "SMOOTH_BAND", "SMOOTH_XTOL", "SMOOTH_WIDEN", "wall_D",
              "smooth_wall_D", "smooth_edge", "node_edge_eta", "Probe", "probe_edge",
              "wall_scalar"),
     "edge": ("Edge", "bisect_edge"),

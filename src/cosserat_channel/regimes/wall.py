@@ -4,7 +4,8 @@ its own so that it is smooth in ``eta`` (:func:`smooth_wall_D`), the node's clos
 tangential edges (:func:`node_edge_eta`) and the probes of ``D(1)`` next to a bracket
 (:func:`probe_edge`).
 
-The kernels here march stage 1 (:mod:`cosserat_channel.solver.stage1`) with the package's integrators.
+The kernels behind them are :mod:`cosserat_channel.solver.wall`'s; here is what the scalars
+mean and how an edge is read from them.
 """
 
 from __future__ import annotations
@@ -14,16 +15,12 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from ..physics import analytic
-from ..integrate import dense
-from ..physics import model
-from ..integrate import rk45
-from ..solver import layout, stage1, stress_path
-from ..integrate import stepping
+from ..physics import analytic, model
+from ..solver import stage1
+from ..solver.wall import (smooth_arrays, smooth_wall_D_kernel, wall_D_kernel,
+                           wall_scalar_kernel)
 from .. import status as st
-from .._jit import JIT as _JIT
 
 # Tolerances of the solves inside the bisection. Near the edge the path meets D = 0 just before
 # the wall, so where feasibility flips moves with the integration error: at the solver's default
@@ -49,33 +46,13 @@ PROBE_OFFSETS = np.geomspace(3e-5, 3e-4, 6)
 D_NOISE = 40.0
 
 
-@njit(**_JIT)
-def _wall_D_kernel(etas, A, N, rtol, atol, ax, T1, Q1, stats1, res, status, D1, delta1):
-    # Stage 1 exactly as the status solve runs it (stage1.solve_stage1: same start, re-marches
-    # and floor tolerance), then D(1) from the dense output's wall value, also where stage 1
-    # reached the wall but called D(1) zero within its resolution (status eps_too_large_path with
-    # xi_stop = 1). NaN where the path met D = 0 before the wall or stage 1 failed.
-    buf = np.empty(1)
-    for i in range(etas.size):
-        code, _ = stage1.solve_stage1(etas[i], A, N, rtol, atol, ax, T1, Q1, stats1, res,
-                                      layout.METHOD_AUTO)
-        status[i] = code
-        n1 = int(res[layout.R_N1])
-        if n1 > 0 and (code == st.OK or res[layout.R_XI_STOP] == 1.0):
-            delta1[i] = stress_path._delta_wall(T1, Q1, n1, buf)
-            D1[i] = model.yield_D(1.0, delta1[i], A, N, ax)
-        else:
-            delta1[i] = math.nan
-            D1[i] = math.nan
-
-
 def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
     """Stage 1's status, ``D(1)`` (the yield function at the wall) and ``delta(1)`` at each ``eta``.
 
     Parameters
     ----------
     workspace : cosserat_channel.solver.point.Workspace
-        Its stage-1 arrays are used; a stand-in that counts solves (``atlas._Counting``) passes
+        Its stage-1 arrays are used; a stand-in that counts solves (``atlas.tracer._Counting``) passes
         its ``ws`` and counts the solves itself.
     etas : array_like
         Values of ``eta = eps L``.
@@ -93,8 +70,8 @@ def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
         ``D(1)`` and ``delta(1) = (m(1)/nu + N L)/L`` where stage 1 reached the wall, else NaN.
     """
     ws, etas, status, D1, delta1 = _counted_slots(workspace, etas)
-    _wall_D_kernel(etas, float(A), float(N), float(rtol), float(atol), ws.ax, ws.T1, ws.Q1,
-                   ws.stats1, ws.res, status, D1, delta1)
+    wall_D_kernel(etas, float(A), float(N), float(rtol), float(atol), ws.ax, ws.T1, ws.Q1,
+                  ws.stats1, ws.res, status, D1, delta1)
     return status, D1, delta1
 
 
@@ -102,71 +79,13 @@ def wall_D(workspace, etas, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
 # A smooth D(1): D marched as a state of its own next to the wall (transversal edges near the
 # node/focus switch; see trace_edge's Notes)
 # ---------------------------------------------------------------------------------------------
-# Where the march switches from w = delta/xi^2 (as in stage 1) to the state (delta, D).
-SMOOTH_XI_SWITCH = 0.5
 SMOOTH_RTOL = 1e-13
-SMOOTH_ATOL = 1e-16  # on w and delta
-SMOOTH_ATOL_D = 1e-24  # on D: D(1) is wanted to ~1e-18 where the edge is a near-double zero
 SMOOTH_MAX_STEPS = 20_000
 # The smooth root replaces the status bisection where the probe's noise band exceeds this
 # (relative in eta): there the status is decided by the noise of stage 1's D(1).
 SMOOTH_BAND = 3e-9
 SMOOTH_XTOL = 1e-12  # relative width of the root's final bracket
 SMOOTH_WIDEN = (1.0, 4.0, 16.0, 64.0)  # brackets tried, in noise bands either side
-
-
-@njit(**_JIT)
-def _w_rhs(xi, y, args, out):
-    eta, A, N, ax = args
-    out[0] = model.dw_dxi(xi, y[0], eta, A, N, ax)
-
-
-@njit(**_JIT)
-def _delta_D_rhs(xi, y, args, out):
-    # (delta, D) along a stage-1 path: eta delta' = (A+1) xi - sqrt(D) and
-    # D' = F - (D_delta / eta) sqrt(D), F = 2(A+1) xi [(A-1) + 2(A+1)(N - delta)/eta]
-    # (node_edge_eta). D is carried, not recomputed from delta: next to the wall it is a tiny
-    # difference of O(1) terms, and carried it keeps a relative error. sqrt(max(D, 0)) continues
-    # the path past D = 0 (D' = F < 0 there), so D(1) changes sign at the edge, continuously.
-    eta, A, N, ax = args
-    a1 = A + 1.0
-    s = math.sqrt(max(y[1], 0.0))
-    out[0] = (a1 * xi - s) / eta
-    out[1] = 2.0 * a1 * xi * ((A - 1.0) + 2.0 * a1 * (N - y[0]) / eta) - 4.0 * a1 * (N - y[0]) * s / eta
-
-
-@njit(**_JIT)
-def _smooth_wall_D_kernel(eta, A, N, rtol, ax, T, Qw, Q, stats, out):
-    # out: (D(1), delta(1)); returns D(1) (NaN where a march failed)
-    out[0] = math.nan
-    out[1] = math.nan
-    args = (eta, A, N, ax)
-    xi1, w1 = stage1.stage1_start(ax, rtol)
-    if xi1 < SMOOTH_XI_SWITCH:
-        y1 = np.empty(1)
-        y1[0] = w1
-        atol1 = np.empty(1)
-        atol1[0] = SMOOTH_ATOL
-        code, n, _ = rk45.dopri5(_w_rhs, stepping.no_event, xi1, y1, SMOOTH_XI_SWITCH, args, rtol,
-                                 atol1, 0.0, 0.0, T, Qw, stats)
-        if code != stepping.SUCCESS:
-            return math.nan
-        dense.dense_eval_step(T, Qw, n - 1, SMOOTH_XI_SWITCH, y1)
-        xi1, w1 = SMOOTH_XI_SWITCH, y1[0]
-    y = np.empty(2)
-    y[0] = xi1 * xi1 * w1
-    y[1] = model.yield_D(xi1, y[0], A, N, ax)
-    atol = np.empty(2)
-    atol[0] = SMOOTH_ATOL
-    atol[1] = SMOOTH_ATOL_D
-    code, n, _ = rk45.dopri5(_delta_D_rhs, stepping.no_event, xi1, y, 1.0, args, rtol, atol, 0.0, 0.0,
-                             T, Q, stats)
-    if code != stepping.SUCCESS:
-        return math.nan
-    dense.dense_eval_step(T, Q, n - 1, 1.0, y)
-    out[0] = y[1]
-    out[1] = y[0]
-    return y[1]
 
 
 _SMOOTH_WORK = threading.local()  # work arrays per thread (the atlas traces in threads)
@@ -176,8 +95,8 @@ def smooth_wall_D(eta, A, N, rtol=SMOOTH_RTOL, out=None):
     """``D(1)`` of the stage-1 path, marched so that it is a smooth function of ``eta``.
 
     From the axis series (``stage1.stage1_start``) the path is marched in ``w = delta/xi^2`` to
-    ``xi = SMOOTH_XI_SWITCH``, then in ``(delta, D)`` with ``D`` a state of its own
-    (:func:`_delta_D_rhs`), to the wall, both by ``rk45.dopri5`` at ``rtol``. Stage 1 reads
+    ``xi = solver.wall.SMOOTH_XI_SWITCH``, then in ``(delta, D)`` with ``D`` a state of its own
+    (``solver.wall._delta_D_rhs``), to the wall, both by ``rk45.dopri5`` at ``rtol``. Stage 1 reads
     ``D(1)`` off ``delta(1)``, a difference of O(1) terms with a noise of ~1e-13 (its step
     sequence changes with ``eta``); here ``D`` keeps a relative error, and the error committed
     before the switch is damped by the time the path reaches the wall (the singular point there
@@ -197,15 +116,12 @@ def smooth_wall_D(eta, A, N, rtol=SMOOTH_RTOL, out=None):
         return math.nan
     w = _SMOOTH_WORK
     if not hasattr(w, "T"):
-        w.T = np.empty(SMOOTH_MAX_STEPS + 1)
-        w.Qw = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 1))
-        w.Q = np.empty((SMOOTH_MAX_STEPS, dense.N_DENSE, 2))
-        w.stats = np.zeros(stepping.N_STATS, dtype=np.int64)
+        w.T, w.Qw, w.Q, w.stats = smooth_arrays(SMOOTH_MAX_STEPS)
     ax = np.empty(model.N_AX)
     model.axis_constants(eta, A, N, ax)
     if out is None:
         out = np.empty(2)
-    return float(_smooth_wall_D_kernel(eta, A, N, float(rtol), ax, w.T, w.Qw, w.Q, w.stats, out))
+    return float(smooth_wall_D_kernel(eta, A, N, float(rtol), ax, w.T, w.Qw, w.Q, w.stats, out))
 
 
 def smooth_edge(A, N, lo, hi, band, *, count=None, xtol=SMOOTH_XTOL):
@@ -358,38 +274,6 @@ def probe_edge(workspace, t_ok, side, A, N, rtol=EDGE_RTOL, atol=EDGE_ATOL):
     return Probe(to_eta(u2), to_eta(u3), exponent, min(band, dist0))
 
 
-@njit(**_JIT)
-def _wall_scalar_kernel(etas, A, N, ax, T1, Q1, stats1, res, status, G, sens):
-    # Stage 1 at its floor tolerance (one march: it never re-marches there), then a signed
-    # distance from the edge in D: D(1) where the path reached the wall; F(xi_s) (1 - xi_s) where
-    # it met D = 0 at xi_s < 1 (there D' = F, so this continues D(1) through zero to first order);
-    # NaN where stage 1 says neither. sens: |dD/d delta| delta, what stage 1's error does to D.
-    buf = np.empty(1)
-    work = np.zeros(stress_path.N_W)
-    rtol = stage1.STAGE1_RTOL_FLOOR
-    atol = EDGE_ATOL * rtol / EDGE_RTOL
-    for i in range(etas.size):
-        eta = etas[i]
-        code, _ = stage1.solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res,
-                                      layout.METHOD_AUTO)
-        status[i] = code
-        n1 = int(res[layout.R_N1])
-        xs = res[layout.R_XI_STOP]
-        G[i] = math.nan
-        sens[i] = math.nan
-        if n1 > 0 and (code == st.OK or xs == 1.0):
-            d = stress_path._delta_wall(T1, Q1, n1, buf)
-            G[i] = model.yield_D(1.0, d, A, N, ax)
-            sens[i] = stage1._wall_D_sensitivity(A, N, d)
-        elif code == st.EPS_TOO_LARGE_PATH and n1 > 0 and xs < 1.0:
-            work[0] = 0.0
-            d = stress_path._delta_at(xs, res[layout.R_XI1], ax, T1, Q1, n1, buf, work)
-            a1 = A + 1.0
-            F = 2.0 * a1 * xs * ((A - 1.0) + 2.0 * a1 * (N - d) / eta)
-            G[i] = min(F, 0.0) * (1.0 - xs)
-            sens[i] = stage1._wall_D_sensitivity(A, N, d)
-
-
 def wall_scalar(workspace, etas, A, N):
     """Stage 1's status and a signed, smooth distance from the edge at each ``eta``.
 
@@ -416,8 +300,9 @@ def wall_scalar(workspace, etas, A, N):
         times it.
     """
     ws, etas, status, G, sens = _counted_slots(workspace, etas)
-    _wall_scalar_kernel(etas, float(A), float(N), ws.ax, ws.T1, ws.Q1, ws.stats1, ws.res, status,
-                        G, sens)
+    atol = EDGE_ATOL * stage1.STAGE1_RTOL_FLOOR / EDGE_RTOL  # EDGE_ATOL scaled to the floor rtol
+    wall_scalar_kernel(etas, float(A), float(N), atol, ws.ax, ws.T1, ws.Q1, ws.stats1, ws.res,
+                       status, G, sens)
     return status, G, sens
 
 

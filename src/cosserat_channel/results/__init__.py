@@ -7,5 +7,6 @@ reads; :mod:`.selection` parses the clauses of a query and selects the points;
 ``info`` says of a file; :mod:`.light` reads a small query through netCDF4 alone.
 
 May import: numpy, xarray, netCDF4, dask, :mod:`cosserat_channel.files` and the vocabulary
-modules (parameters, status, outputs). Never the solver or the integrators.
+modules (parameters, status, outputs, netcdf_policy), and :mod:`cosserat_channel.plot` inside
+the accessor's plotting methods. Never the solver, the physics or the integrators.
 """

@@ -15,8 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .. import netcdf_policy
-from ..files import netcdf_output
+from ..files import write_dataset
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr
@@ -184,7 +183,7 @@ def write_netcdf(selection: Selection, path: str) -> None:
     # other threads still write, and xarray's file manager reopens the temporary file after
     # atomic_output has removed it, leaving it behind.
     with dask.config.set(scheduler="synchronous"):
-        netcdf_output(path, lambda tmp: ds.to_netcdf(tmp, encoding=netcdf_policy.encoding(ds)))
+        write_dataset(path, ds)
 
 
 def render(selection: Selection, fmt: str) -> str:

@@ -15,7 +15,7 @@ from numba import njit
 
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from .. import status as st
-from ..integrate import dense, panels
+from ..integrate import dense, panels, stepping
 from ..physics import model
 from ..physics.model import AX_BETA, N_AX
 from .layout import (METHOD_AUTO, N_R, P_DELTA, P_J, P_OMEGA_HAT, P_SIGMA_YX, R_J_AXIS, R_LOGW2,
@@ -207,3 +207,14 @@ def profile_kernel(xis, eta, A, N, ax, res, T1, Q1, T2, Q2, out):
             D = model.yield_D(xi, delta, A, N, ax)
             out[P_DELTA, i] = delta
             out[P_SIGMA_YX, i] = model.sigma_yx(xi, D, A)
+
+
+def new_statistics(*shape):
+    """Zeroed counters for the batch kernels: ``shape + (N_STATS,)`` int64 (``(n, 2)`` for
+    :func:`solve_batch`'s two stages, ``(n,)`` for :func:`stage1_batch`)."""
+    return np.zeros((*shape, stepping.N_STATS), dtype=np.int64)
+
+
+def accepted_steps(stats):
+    """The accepted steps in counters the batch kernels filled (their last axis read out)."""
+    return stats[..., stepping.STAT_ACCEPTED].copy()

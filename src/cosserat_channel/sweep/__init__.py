@@ -10,8 +10,11 @@ arrays of points in memory the same way, without a file.
 the kernels.
 
 Layer: above :mod:`cosserat_channel.solver` (its batch kernel and slot layout) and the
-vocabulary modules (parameters, outputs, status, files, netcdf_policy); below the paper's figures,
-the measurements and the command line. Never imports plotting, the regimes or the atlas.
+vocabulary modules (parameters, outputs, status, files, netcdf_policy); beside the results
+reader (:mod:`cosserat_channel.results`, whose flags the Dataset writes);
+:mod:`~cosserat_channel.physics.analytic` tells the plan which triples cost nothing. Below the
+paper's figures, the measurements and the command line. Never imports plotting, the regimes,
+the atlas, an integrator or numba (the kernels are the solver's).
 """
 
 __all__ = ["run_sweep"]

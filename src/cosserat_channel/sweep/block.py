@@ -10,7 +10,6 @@ import logging
 
 import numpy as np
 
-from ..integrate import stepping
 from ..solver import batch, layout, stage1, stage2
 from .. import status as st
 from .plan import BlockInputs, Plan
@@ -28,7 +27,7 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None, stage2=True
     need = (stage2, plug_edge)
     n = inp.eta.size
     res = np.empty((n, layout.N_R))
-    stats = np.zeros((n, 2, stepping.N_STATS), dtype=np.int64)
+    stats = batch.new_statistics(n, 2)
     one_minus = np.empty(inp.eps_K.size)
     xi_k = np.empty(0) if xi is None else xi
     prof = np.empty((n, layout.N_PROF, xi_k.size))
@@ -52,7 +51,7 @@ def solve_block(inp: BlockInputs, rtol: float, atol: float, xi=None, stage2=True
                 prof[i] = np.nan
     out = {
         "res": res,
-        "steps": stats[:, :, stepping.STAT_ACCEPTED].copy(),
+        "steps": batch.accepted_steps(stats),
         "one_minus": one_minus,
     }
     if xi is not None:

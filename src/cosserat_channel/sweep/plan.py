@@ -36,11 +36,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from .._jit import JIT as _JIT
-
-from ..physics import model
+from ..physics import analytic
 from .. import status as st
 
 # Default plan: at least this many blocks, BLOCKS_PER_WORKER per worker on more than 8 workers
@@ -92,18 +89,10 @@ def plan_memory(shape, n_triples: int, reduce: bool = True) -> int:
     return PLAN_BYTES_PER_TRIPLE * n_triples + PLAN_BYTES_PER_PAIR * pairs
 
 
-@njit(**_JIT)
-def _classify_many(eta, A, N, out):
-    # model.classify on arrays: the cost model needs to know which triples are rejected up front.
-    for i in range(eta.size):
-        out[i] = model.classify(eta[i], A[i], N[i])
-
-
 def triple_costs(eta, A, N, entries) -> np.ndarray:
     """Expected cost of triples ``(eta, A, N)`` serving ``entries`` ``eps K`` values each
     (arbitrary units; see the ``COST_*`` constants)."""
-    code = np.empty(eta.size, dtype=np.int64)
-    _classify_many(eta, A, N, code)
+    code = analytic.classify_points(eta, A, N)  # rejected triples cost next to nothing
     with np.errstate(over="ignore", divide="ignore"):  # only the order matters (inf is fine)
         cost = np.where(code == st.OK, COST_FIXED + COST_PER_INV_ETA / eta, COST_REJECTED)
     return cost + COST_PER_ENTRY * entries

@@ -59,6 +59,7 @@ from ..files import (
     name_problem,
     netcdf_output,
     output_problem,
+    write_npz,
 )
 from .spec import SweepError
 
@@ -145,12 +146,6 @@ def _is_marker(path: str) -> bool:
 def _write_bytes(tmp: str, data: bytes) -> None:
     with open(tmp, "wb") as f:
         f.write(data)
-
-
-def _save_block(tmp: str, result: dict) -> None:
-    # Through a file object: np.savez would append ".npz" to a path without it.
-    with open(tmp, "wb") as f:
-        np.savez(f, **result)
 
 
 def block_digest(identity: dict, k: int, arrays: dict) -> str:
@@ -341,7 +336,7 @@ class WorkStore:
             return
         arrays = {f: v for f, v in result.items() if f != DIGEST}
         arrays[DIGEST] = np.array(block_digest(self.manifest, k, arrays))
-        atomic_output(self._block_path(k), lambda tmp: _save_block(tmp, arrays), stream=False)
+        write_npz(self._block_path(k), arrays, stream=False)
 
     def get(self, k: int, triples: np.ndarray | None = None) -> dict:
         """Block ``k``'s result; :class:`BlockDamaged` unless it is complete, its digest matches

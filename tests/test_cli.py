@@ -354,7 +354,7 @@ def test_boundary_draws_from_the_shipped_atlas_and_says_so(capsys, tmp_path, mon
 
 
 @pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
-                                               (cli.Terminated, 143, "terminated")])
+                                               (cli.common.Terminated, 143, "terminated")])
 def test_atlas_stopped_while_tracing_ends_in_one_line_and_writes_nothing(
         capsys, tmp_path, monkeypatch, stop, code, word):
     """Ctrl-C (SIGTERM) while the atlas traces: exit 130 (143) with one line saying that nothing
@@ -451,7 +451,7 @@ def _stop_after(monkeypatch, n, stop=KeyboardInterrupt):
 
 
 @pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
-                                               (cli.Terminated, 143, "terminated")])
+                                               (cli.common.Terminated, 143, "terminated")])
 def test_atlas_stopped_keeps_its_traces_and_the_same_command_resumes(
         capsys, tmp_path, monkeypatch, stop, code, word):
     """Ctrl-C (SIGTERM) after some traces: one line, exit 130 (143), the traces kept in
@@ -478,7 +478,7 @@ def test_atlas_stopped_keeps_its_traces_and_the_same_command_resumes(
 
 
 @pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
-                                               (cli.Terminated, 143, "terminated")])
+                                               (cli.common.Terminated, 143, "terminated")])
 def test_atlas_stopped_while_writing_keeps_its_traces(capsys, tmp_path, monkeypatch, stop, code,
                                                       word):
     """Ctrl-C (SIGTERM) while the finished atlas is written: one line, no traceback, no atlas file
@@ -706,7 +706,7 @@ class _Terminal:
 def test_progress_draws_on_a_terminal_and_clears_its_line():
     """update() redraws one line in place with the elapsed time; exit clears it; line() prints."""
     term = _Terminal()
-    with cli.Progress("boundary", "tracing", stream=term) as bar:
+    with cli.common.Progress("boundary", "tracing", stream=term) as bar:
         bar.update("3/8 edges traced")
         bar.line("a permanent line")
     assert "\r\x1b[Kcosserat-channel: boundary: 3/8 edges traced (0:00)" in term.text
@@ -717,7 +717,7 @@ def test_progress_draws_on_a_terminal_and_clears_its_line():
 def test_progress_report_is_the_one_progress_protocol():
     """report(done, total, text): the line every long command shows, from any library callback."""
     term = _Terminal()
-    with cli.Progress("paper", "solving", stream=term) as bar:
+    with cli.common.Progress("paper", "solving", stream=term) as bar:
         bar.report(3, 13, "figure5")
         assert bar.text == "3/13 figure5"
         bar.report(7, None, "cells traced")
@@ -728,12 +728,12 @@ def test_progress_report_is_the_one_progress_protocol():
 def test_progress_is_silent_when_not_a_terminal_or_before_its_delay():
     """Redirected stderr: only line() output; within the delay: nothing."""
     pipe = _Terminal(tty=False)
-    with cli.Progress("bench", "x", stream=pipe) as bar:
+    with cli.common.Progress("bench", "x", stream=pipe) as bar:
         bar.update("running")
         bar.line("kept")
     assert pipe.text == "kept\n"
     term = _Terminal()
-    with cli.Progress("point", "solving", delay=60.0, stream=term) as bar:
+    with cli.common.Progress("point", "solving", delay=60.0, stream=term) as bar:
         bar.update("still solving")
     assert term.text == ""
 
@@ -744,7 +744,7 @@ def test_progress_prints_a_heartbeat_line_when_not_a_terminal():
     import time
 
     pipe = _Terminal(tty=False)
-    with cli.Progress("atlas", "tracing", stream=pipe, heartbeat=0.05) as bar:
+    with cli.common.Progress("atlas", "tracing", stream=pipe, heartbeat=0.05) as bar:
         bar.update("3 cells done")
         time.sleep(0.3)
     lines = pipe.text.splitlines()
@@ -756,8 +756,8 @@ def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
     """boundary passes its edges to the progress line; with stderr not a terminal the command
     prints nothing on stderr."""
     seen = []
-    real = cli.Progress.update
-    monkeypatch.setattr(cli.Progress, "update", lambda self, text: (seen.append(text),
+    real = cli.common.Progress.update
+    monkeypatch.setattr(cli.common.Progress, "update", lambda self, text: (seen.append(text),
                                                                      real(self, text)))
     code = cli.main(["boundary", "--A", "0,0.5", "--N", "1", "--coarse", "8", "--trace",
                      "-o", str(tmp_path / "b.nc")])

@@ -8,20 +8,20 @@ import math
 import os
 import stat
 
-from . import (
+from ..parameters import ParameterError
+from .common import (
+    ETA_RANGE,
     EXIT_FAILURE,
     EXIT_OK,
-    ETA_RANGE,
+    FIRST_RUN,
     CliError,
-    ParameterError,
     Progress,
-    _FIRST_RUN,
-    _figure_output,
-    _note,
     check_not_input,
     check_output_path,
-    interruptible,
+    figure_output,
     interrupted,
+    interruptible,
+    note,
     register,
 )
 from ..files import STREAM, output_kind
@@ -106,7 +106,7 @@ def _atlas(args: argparse.Namespace) -> int:
     check_output_path(output, "-o", overwrite=args.overwrite)
     if args.plot is not None:
         check_not_input(args.plot, [output], "--plot")
-        _figure_output(args.plot, "--plot", overwrite=args.overwrite)
+        figure_output(args.plot, "--plot", overwrite=args.overwrite)
     # The traces are kept beside a file output when the build is stopped, and resumed from there:
     # not beside a stream (a FIFO, /dev/stdout), whose directory is not the user's to write in.
     partial = None if output_kind(output) == STREAM else atlas_mod.partial_path(output)
@@ -117,12 +117,12 @@ def _atlas(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     kept = traces is not None
     if kept:
-        _note(f"resuming from the {len(traces)} edges traced before, kept in {partial}")
+        note(f"resuming from the {len(traces)} edges traced before, kept in {partial}")
     else:
         traces = {}
     resumed = len(traces)
     try:
-        with interruptible(), Progress("atlas", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+        with interruptible(), Progress("atlas", "tracing " + FIRST_RUN, delay=1.0) as bar:
             atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
                                           max_depth=args.max_depth, max_degree=args.max_degree,
                                           eta_range=eta_range, progress=bar.report,
@@ -159,7 +159,7 @@ def _atlas(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise CliError(str(exc), EXIT_FAILURE) from None
     if args.cache:
-        _note(f"cached as {output}: 'plot --regime' draws its edges from it")
+        note(f"cached as {output}: 'plot --regime' draws its edges from it")
     return EXIT_OK
 
 

@@ -6,22 +6,20 @@ import argparse
 import json
 import sys
 
-from . import (  # noqa: F401 (the shared pieces of the command line)
-    PROG,
-    CliError,
+from ..parameters import ParameterError, TOLERANCES, parse_number
+from .common import (
     EXIT_FAILURE,
     EXIT_OK,
-    ParameterError,
+    PROG,
+    SOLVING,
+    CliError,
     Progress,
-    TOLERANCES,
-    _SOLVING,
-    _figure_output,
-    _one_line,
     add_overwrite_argument,
     check_not_input,
     check_output_path,
+    figure_output,
     number,
-    parse_number,
+    one_line,
     register,
 )
 
@@ -114,7 +112,7 @@ def _fit(args: argparse.Namespace) -> int:
     if args.output is not None:
         check_output_path(args.output, "-o", overwrite=args.overwrite)
     if args.plot is not None:
-        _figure_output(args.plot, "--plot", overwrite=args.overwrite)
+        figure_output(args.plot, "--plot", overwrite=args.overwrite)
     if args.output is not None and args.output == args.plot:
         raise CliError("-o and --plot name the same file: give two")
     import warnings
@@ -125,14 +123,14 @@ def _fit(args: argparse.Namespace) -> int:
     tolerances = {k: getattr(args, k) for k in ("rtol", "atol") if getattr(args, k) is not None}
     try:
         data = read_data(args.data)
-        with Progress("fit", _SOLVING, delay=2.0), warnings.catch_warnings(record=True) as seen:
+        with Progress("fit", SOLVING, delay=2.0), warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always", fit_.FitWarning)
             result = fit_.fit(data, args.free, fixed, bounds, start, **tolerances)
     except ParameterError as exc:
         raise CliError(str(exc)) from None
     for w in seen:
         if issubclass(w.category, fit_.FitWarning):
-            print(f"{PROG}: warning: {_one_line(str(w.message))}", file=sys.stderr)
+            print(f"{PROG}: warning: {one_line(str(w.message))}", file=sys.stderr)
     if args.plot is not None:
         try:
             result.plot(args.plot)

@@ -5,7 +5,16 @@ from __future__ import annotations
 import argparse
 import os
 
-from . import EXIT_FAILURE, EXIT_OK, CliError, Progress, _FIRST_RUN, interruptible, interrupted, register
+from .common import (
+    EXIT_FAILURE,
+    EXIT_OK,
+    FIRST_RUN,
+    CliError,
+    Progress,
+    interrupted,
+    interruptible,
+    register,
+)
 
 
 def _paper_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,7 +34,7 @@ def _paper(args: argparse.Namespace) -> int:
 
     written = []
     try:
-        with interruptible(), Progress("paper", "solving " + _FIRST_RUN, delay=1.0) as bar:
+        with interruptible(), Progress("paper", "solving " + FIRST_RUN, delay=1.0) as bar:
             paths = paper.write_paper_figures(args.output, coarse=args.coarse,
                                               overwrite=args.overwrite,
                                               progress=bar.report, written=written)

@@ -6,24 +6,21 @@ import argparse
 import json
 import math
 
-from . import (  # noqa: F401 (the shared pieces of the command line)
-    CliError,
+from ..parameters import MATERIAL, ParameterError, TOLERANCES
+from .common import (
     EXIT_FAILURE,
     EXIT_OK,
-    MATERIAL,
-    ParameterError,
+    MATERIAL_ARGS,
+    POINT_ARGS,
+    SOLVING,
+    CliError,
     Progress,
-    TOLERANCES,
-    _MATERIAL_ARGS,
-    _POINT_ARGS,
-    _SOLVING,
-    _figure_output,
-    _note,
     add_material_arguments,
     add_overwrite_argument,
     add_point_arguments,
-    check_output_path,
+    figure_output,
     material_from_args,
+    note,
     number,
     point_from_args,
     register,
@@ -51,17 +48,17 @@ def _point(args: argparse.Namespace) -> int:
     material = material_from_args(args)
     tolerances = tolerances_from_args(args)
     if args.plot is not None:
-        _figure_output(args.plot, "--plot", overwrite=args.overwrite)
+        figure_output(args.plot, "--plot", overwrite=args.overwrite)
         from .. import plot
 
     import numpy as np
 
-    from ..solver import point as solve
+    from ..solver.point import solve_point
 
     profile = np.linspace(0.0, 1.0, 401) if args.plot is not None else None
     try:
-        with Progress("point", _SOLVING, delay=2.0):
-            result = solve.solve_point(
+        with Progress("point", SOLVING, delay=2.0):
+            result = solve_point(
                 args.eps, args.L, args.K, args.A, args.N,
                 material=material, profile=profile, **tolerances,
             )
@@ -71,7 +68,7 @@ def _point(args: argparse.Namespace) -> int:
     # The figure first: a reader that leaves early (| head) loses no file.
     if args.plot is not None:
         if not result.ok:
-            _note(f"no profile to plot (status {result.status.name}); {args.plot} not written")
+            note(f"no profile to plot (status {result.status.name}); {args.plot} not written")
         else:
             try:
                 plot.point_profiles(result, args.plot)
@@ -113,7 +110,7 @@ def format_point_table(result, tolerances: dict, material: dict | None,
         lines.append(_row(name, float(value), param.units, param.long_name.split(" in ")[0]))
     derived = {"eps": "(from W and d_p)" if "W" in inputs else "",
                "N": "(from delta_w and phi)" if "delta_w" in inputs else ""}
-    for _, dest, text in _POINT_ARGS:
+    for _, dest, text in POINT_ARGS:
         how = derived.get(dest, "")
         lines.append(_row(dest, getattr(result, dest), "-",
                           text.split(",")[0] + (f" {how}" if how else "")))
@@ -121,7 +118,7 @@ def format_point_table(result, tolerances: dict, material: dict | None,
         text = "relative tolerance" if k == "rtol" else "absolute tolerance"
         lines.append(_row(k, float(v), "-", text))
     if material is not None:
-        for _, dest, text in _MATERIAL_ARGS:
+        for _, dest, text in MATERIAL_ARGS:
             lines.append(_row(dest, float(material[dest]), MATERIAL[dest].units,
                               text.rsplit(" in ", 1)[0]))
     lines.append(f"status  {result.status.name}: {result.status.message}")
@@ -139,7 +136,7 @@ def format_point_table(result, tolerances: dict, material: dict | None,
 
 
 def _phase_plane_arguments(p: argparse.ArgumentParser) -> None:
-    for flag, dest, text in _POINT_ARGS:
+    for flag, dest, text in POINT_ARGS:
         if dest != "K":
             p.add_argument(flag, dest=dest, type=number, required=True, metavar=dest.upper(),
                            help=text)
@@ -154,11 +151,11 @@ def _phase_plane_arguments(p: argparse.ArgumentParser) -> None:
 def _phase_plane(args: argparse.Namespace) -> int:
     if args.nu is not None and not (0.0 < args.nu < 1.0):
         raise CliError(f"--nu must be in (0, 1); got {args.nu:g}")
-    _figure_output(args.output, overwrite=args.overwrite)
+    figure_output(args.output, overwrite=args.overwrite)
     from .. import regimes
     from ..plot import regimes as plot_regimes
     try:
-        with Progress("phase-plane", _SOLVING, delay=2.0):
+        with Progress("phase-plane", SOLVING, delay=2.0):
             pp = regimes.phase_plane(args.eps, args.L, args.A, args.N)
     except ParameterError as exc:
         raise CliError(str(exc)) from None

@@ -4,26 +4,24 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 
-from . import (  # noqa: F401 (the shared pieces of the command line)
-    open_results,
-    CliError,
-    DIMS,
+from ..parameters import ParameterError
+from .common import (
+    ETA_RANGE,
     EXIT_FAILURE,
     EXIT_OK,
-    ETA_RANGE,
-    ParameterError,
+    FIRST_RUN,
+    CliError,
     Progress,
-    _FIRST_RUN,
-    _figure_output,
-    _note,
-    _read_or_write_failure,
     add_overwrite_argument,
     check_not_input,
     check_output_path,
-    interruptible,
+    figure_output,
     interrupted,
+    interruptible,
+    note,
+    open_results,
+    read_or_write_failure,
     register,
 )
 from ..regime_codes import ETA_COARSE
@@ -117,59 +115,34 @@ def _boundary(args: argparse.Namespace) -> int:
     check_output_path(args.output, "-o", overwrite=True)
     if args.plot is not None:
         check_not_input(args.plot, [args.output], "--plot")
-        _figure_output(args.plot, "--plot", overwrite=args.overwrite)
+        figure_output(args.plot, "--plot", overwrite=args.overwrite)
     from .. import regimes
     from ..status import Status
 
-    if args.atlas is not None and args.trace:
-        raise CliError("--atlas and --trace are two sources of the same edge: give one")
-    atlas = None
-    if args.atlas is None and not args.trace:
-        from .. import atlas as atlas_mod
-
-        atlas, path, which = atlas_mod.default_atlas((min(A), max(A)), (min(N), max(N)),
-                                                     note=_note)
-        if atlas is not None and atlas.eta_range != (lo, hi):
-            atlas = None
-        drawn = None if atlas is None else atlas.boundary(A, N)
-        rough = 0 if drawn is None else _above_tolerance(drawn, atlas.tol)
-        if rough:
-            # The default atlas answers only where it holds its tolerance; a cell that could
-            # not reach it (an envelope next to a singular curve) is traced instead.
-            _note(f"the {which} atlas states an error above its tolerance ({atlas.tol:g}) at "
-                  f"{rough} of the (A, N) pairs; tracing instead")
-            atlas = None
-    if args.atlas is not None or atlas is not None:
-        if args.atlas is not None:
-            check_not_input(args.output, [args.atlas], "-o")
+    if args.atlas is not None:
+        check_not_input(args.output, [args.atlas], "-o")
+    source = _edge_source(A, N, atlas=args.atlas, trace=args.trace, eta_range=(lo, hi))
+    if not source.traced:
         check_output_path(args.output, "-o", overwrite=args.overwrite)
-        if atlas is None:
-            ds = _boundary_from_atlas(args.atlas, A, N, lo, hi)
-        else:
-            _note(f"edges drawn from the {atlas_mod.describe(atlas, path, which)} "
-                  "(--trace to trace them)")
-            ds = drawn
-            # The file's name, not its path: a path of this machine means nothing elsewhere.
-            ds.attrs["atlas"] = atlas_mod.describe(atlas, os.path.basename(path), which)
+        if args.atlas is None:
+            note(f"edges drawn from the {source.describe()} (--trace to trace them)")
+        ds = source.boundary
     else:
         ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
-    traced = ds is None or args.atlas is not None or atlas is not None
+    write = ds is None or not source.traced  # a file reused as it is is not written again
     if ds is None:
         try:
-            with interruptible(), Progress("boundary", "tracing " + _FIRST_RUN, delay=1.0) as bar:
+            with interruptible(), Progress("boundary", "tracing " + FIRST_RUN, delay=1.0) as bar:
                 ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
                                             progress=bar.report)
         except KeyboardInterrupt as exc:
             return interrupted(exc, f"no file written ({args.output} untouched): a trace keeps "
                                "nothing before its end")
-    from ..files import netcdf_output
+    from ..files import write_dataset
 
     try:
-        if traced:
-            from .. import netcdf_policy
-
-            enc = netcdf_policy.encoding(ds)
-            netcdf_output(args.output, lambda tmp: ds.to_netcdf(tmp, encoding=enc))
+        if write:
+            write_dataset(args.output, ds)
         if args.plot is not None:
             from ..plot import regimes as plot_regimes
 
@@ -191,34 +164,21 @@ def _boundary(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _above_tolerance(ds, tol) -> int:
-    """How many (A, N) pairs of an atlas's boundary Dataset it leaves undecided or answers with
-    a stated error above ``tol``."""
-    import numpy as np
-
-    with np.errstate(invalid="ignore"):
-        rough = ds["eta_error"].values > tol * (1.0 + 1e-9)
-    return int(np.sum(rough | ~ds["resolved"].values))
+_OPTIONS = {"atlas": "--atlas", "eta_range": "--eta-range", "trace": "--trace"}
 
 
-def _boundary_from_atlas(path, A, N, lo, hi):
-    """The boundary Dataset of ``A x N`` drawn from the atlas in ``path``; CliError if it cannot
-    answer for the whole ``--eta-range``."""
-    from .. import atlas as atlas_mod
+def _edge_source(A, N, **kw):
+    """:func:`cosserat_channel.atlas.source.edge_source` with its notes on stderr and its
+    errors as one line naming the option at fault."""
+    from ..atlas.source import SourceError, edge_source
 
     try:
-        atlas = atlas_mod.load_atlas(path)
-    except ParameterError as exc:
-        raise CliError(f"--atlas: {exc}") from None
-    if (lo, hi) != atlas.eta_range:
-        raise CliError(f"--eta-range: {lo:g}:{hi:g} differs from the atlas's "
-                       f"{atlas.eta_range[0]:g}:{atlas.eta_range[1]:g}; give that or none")
-    if not atlas.covers((min(A), max(A)), (min(N), max(N))):
-        _note(f"--atlas: {path} covers A in [{atlas.box[0]:g}, {atlas.box[1]:g}], N in "
-              f"[{atlas.box[2]:g}, {atlas.box[3]:g}]; outside it eta_max is NaN")
-    ds = atlas.boundary(A, N)
-    ds.attrs["atlas"] = atlas_mod.describe(atlas, os.path.basename(path))
-    return ds
+        return edge_source(A, N, note=note, **kw)
+    except SourceError as exc:
+        if exc.parameter == "trace":
+            raise CliError("--atlas and --trace are two sources of the same edge: give one") \
+                from None
+        raise CliError(f"{_OPTIONS[exc.parameter]}: {exc}") from None
 
 
 def _same_boundary(path, A, N, lo, hi, coarse):
@@ -243,8 +203,8 @@ def _same_boundary(path, A, N, lo, hi, coarse):
                 and np.array_equal(ds["A"].values, A) and np.array_equal(ds["N"].values, N)
                 and (a.get("eta_search_min"), a.get("eta_search_max"), a.get("n_coarse"))
                 == (lo, hi, coarse)):
-            _note(f"{path} was traced with these arguments; reused (add --overwrite to trace "
-                  "again)")
+            note(f"{path} was traced with these arguments; reused (add --overwrite to trace "
+                 "again)")
             return ds
     what = "traced with other arguments" if ds is not None and "eta_max" in ds else \
         "not a 'boundary' result"
@@ -316,8 +276,8 @@ def _resolve_at(ds, args, at: dict) -> dict:
         except QueryError as exc:
             raise CliError(str(exc)) from None
         if not exact:
-            _note(f"--nearest: --at {name}={value:.10g} is not a grid value; took the nearest, "
-                  f"{name}={float(c[i]):.10g}")
+            note(f"--nearest: --at {name}={value:.10g} is not a grid value; took the nearest, "
+                 f"{name}={float(c[i]):.10g}")
         out[name] = float(c[i])
     keep = {args.x, args.y} if args.regime else {args.x, args.hue, "eps" if args.x ==
                                                   "W_over_d_p" else args.x}
@@ -376,7 +336,7 @@ def _plot(args: argparse.Namespace) -> int:
     if args.regime and args.hue is not None:
         raise CliError("--hue does not go with --regime")
     check_not_input(args.output, [args.results, args.boundary, args.atlas], "-o")
-    _figure_output(args.output, overwrite=args.overwrite)
+    figure_output(args.output, overwrite=args.overwrite)
     from ..plot import regimes as plot_regimes
     ds = _open_whole(args.results)
     try:
@@ -384,7 +344,7 @@ def _plot(args: argparse.Namespace) -> int:
         try:
             ds = ds.load()
         except (OSError, RuntimeError) as exc:
-            raise _read_or_write_failure(exc, args.results, ds, None) from None
+            raise read_or_write_failure(exc, args.results, ds, None) from None
         at = _resolve_at(ds, args, at)
         boundary = None
         if args.boundary is not None:
@@ -399,7 +359,7 @@ def _plot(args: argparse.Namespace) -> int:
             if "eta_max" not in boundary:
                 raise CliError(f"--boundary: {args.boundary!r} is not a 'boundary' result")
         try:
-            with Progress("plot", "drawing " + _FIRST_RUN * args.regime, delay=1.0) as bar:
+            with Progress("plot", "drawing " + FIRST_RUN * args.regime, delay=1.0) as bar:
                 if args.regime:
                     if boundary is None:
                         boundary = _atlas_boundary(ds, args, at)
@@ -432,33 +392,21 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _atlas_boundary(ds, args, at):
-    """The edge of a regime map from ``--atlas`` or the default atlas, as a boundary Dataset.
+    """The edge of a regime map from ``--atlas`` or the default atlas (:func:`_edge_source`,
+    any stated error: the figure marks where it is above the atlas's tolerance), as a boundary
+    Dataset; None when the map has no (A, N) direction or no atlas answers (the caller then
+    traces). Which atlas drew the edge is said on stderr."""
+    import math
 
-    None when the map has no (A, N) direction, or no atlas is given and neither the cached nor
-    the shipped atlas covers the map (the caller then traces). An ``--atlas`` that does not cover
-    the map is drawn where it does, with a note. Which atlas drew the edge is said on stderr.
-    """
-    from .. import atlas as atlas_mod
     from ..plot import regimes as plot_regimes
 
     # On the map's own contouring grid: the figure then takes the edge as it is, uninterpolated.
     grid = plot_regimes.regime_trace_grid(ds, args.x, args.y, at, n=plot_regimes.MAP_GRID)
     if grid is None:
         return None
-    A, N = grid
-    span = ((float(A.min()), float(A.max())), (float(N.min()), float(N.max())))
+    source = _edge_source(*grid, atlas=args.atlas, tol=math.inf)
+    if source.traced:
+        return None
     if args.atlas is None:
-        atlas, path, which = atlas_mod.default_atlas(*span, note=_note)
-        if atlas is None:
-            return None
-        _note(f"edges drawn from the {atlas_mod.describe(atlas, path, which)}")
-        return atlas.boundary(A, N)
-    path = args.atlas
-    try:
-        atlas = atlas_mod.load_atlas(path)
-    except ParameterError as exc:
-        raise CliError(f"--atlas: {exc}") from None
-    if not atlas.covers(*span):
-        _note(f"--atlas: {path} covers A in [{atlas.box[0]:g}, {atlas.box[1]:g}], N in "
-              f"[{atlas.box[2]:g}, {atlas.box[3]:g}]; the edge is drawn only there")
-    return atlas.boundary(A, N)
+        note(f"edges drawn from the {source.describe()}")
+    return source.boundary

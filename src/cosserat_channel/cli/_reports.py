@@ -5,15 +5,15 @@ from __future__ import annotations
 import argparse
 import os
 
-from . import (  # noqa: F401 (the shared pieces of the command line)
-    CliError,
+from .common import (
     EXIT_FAILURE,
     EXIT_OK,
     PROG,
+    CliError,
     Progress,
-    _error,
-    interruptible,
+    error,
     interrupted,
+    interruptible,
     register,
 )
 # ---------------------------------------------------------------------------------------------
@@ -102,12 +102,12 @@ def _bench(args: argparse.Namespace) -> int:
 
     try:
         with interruptible(), Progress("bench", "starting") as bar:
-            def log(message):
-                bar.line(f"{PROG}: bench: {message}")
-                bar.update(f"running; last: {message}")
+            def progress(done, total, text):
+                bar.line(f"{PROG}: bench: {text}")
+                bar.report(done, total, f"stages done; last: {text}")
 
             rep = workprecision.run(output, quick=args.quick, scipy_points=args.scipy_points,
-                                    command=command, log=log)
+                                    command=command, progress=progress)
     except KeyboardInterrupt as exc:
         return interrupted(exc, workprecision.kept(output, quick=args.quick))
     except OSError as exc:
@@ -117,8 +117,8 @@ def _bench(args: argparse.Namespace) -> int:
         print(("quick set, not a verdict: " if args.quick else "") + target.line())
     print("wrote " + ", ".join(str(p) for p in rep.paths.values()))
     if missed and not args.quick:
-        _error(f"{len(missed)} required target(s) of the report missed (the FAIL lines above); "
-               "the report is written")
+        error(f"{len(missed)} required target(s) of the report missed (the FAIL lines above); "
+              "the report is written")
         return EXIT_FAILURE
     return EXIT_OK
 

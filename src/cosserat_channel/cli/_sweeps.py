@@ -10,21 +10,21 @@ import logging
 import shlex
 import sys
 
-from . import (  # noqa: F401 (the shared pieces of the command line)
-    open_results,
-    CliError,
+from ..parameters import ParameterError
+from .common import (
     EXIT_FAILURE,
     EXIT_OK,
+    FIRST_RUN,
     PROG,
-    ParameterError,
+    CliError,
     Progress,
-    _FIRST_RUN,
-    _error,
-    _note,
-    _read_or_write_failure,
     add_overwrite_argument,
     check_not_input,
     check_output_path,
+    error,
+    note,
+    open_results,
+    read_or_write_failure,
     register,
 )
 # ---------------------------------------------------------------------------------------------
@@ -127,7 +127,7 @@ def _run_command(args: argparse.Namespace) -> int:
 
             # Here, not inside the run: on a terminal the minute a new version spends compiling
             # shows as such, before the run's own progress bar starts.
-            with Progress("run", "loading the solver " + _FIRST_RUN, delay=2.0):
+            with Progress("run", "loading the solver " + FIRST_RUN, delay=2.0):
                 warm_up()
         logger.addHandler(handler)
         logger.setLevel(logging.INFO)
@@ -156,8 +156,8 @@ def _run_command(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as exc:
         what, code = ("terminated (SIGTERM)", 143) if isinstance(exc, _Terminated) else \
             ("interrupted", 130)
-        _error(f"{what}; finished blocks are kept in {output}.partial/, run the same "
-               "command again to resume")
+        error(f"{what}; finished blocks are kept in {output}.partial/, run the same "
+              "command again to resume")
         return code
     finally:
         logger.removeHandler(handler)
@@ -202,7 +202,7 @@ def _finished_result_kept(output: str, spec) -> bool:
     except SweepError as exc:
         raise CliError(str(exc)) from None
     if kept:
-        _note(KEPT.format(output=output))
+        note(KEPT.format(output=output))
     return kept
 
 
@@ -263,7 +263,7 @@ def _example(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise CliError(f"-o: cannot write {args.output!r}: {exc.strerror or exc}",
                        EXIT_FAILURE) from None
-    _note(f"wrote {args.output}; {then}")
+    note(f"wrote {args.output}; {then}")
     return EXIT_OK
 
 
@@ -330,11 +330,11 @@ def _query(args: argparse.Namespace) -> int:
         picked = select(ds)
     try:
         for name, asked, taken in picked.snapped:
-            _note(f"--nearest: --sel {name}={asked:.10g} is not a grid value; took the nearest, "
-                  f"{name}={taken:.10g}")
+            note(f"--nearest: --sel {name}={asked:.10g} is not a grid value; took the nearest, "
+                 f"{name}={taken:.10g}")
         try:
             if picked.count() == 0:  # reads the file: inside the read-failure handling
-                _note("the selection is empty: no point matches")
+                note("the selection is empty: no point matches")
             if args.format == "netcdf":
                 render.write_netcdf(picked, args.output)
             elif args.output is not None:
@@ -349,7 +349,7 @@ def _query(args: argparse.Namespace) -> int:
         except BrokenPipeError:
             raise  # the reader left (| head): nothing to tell from the file (see main)
         except (OSError, RuntimeError) as exc:
-            raise _read_or_write_failure(exc, args.results, ds, args.output) from None
+            raise read_or_write_failure(exc, args.results, ds, args.output) from None
     finally:
         ds.close()
     return EXIT_OK
@@ -380,7 +380,7 @@ def _info(args: argparse.Namespace) -> int:
         try:
             text = describe.describe(ds, args.results, skipped)
         except (OSError, RuntimeError) as exc:
-            raise _read_or_write_failure(exc, args.results, ds, None) from None
+            raise read_or_write_failure(exc, args.results, ds, None) from None
         sys.stdout.write(text)
     finally:
         ds.close()

@@ -85,7 +85,7 @@ def subsample(eta: np.ndarray, k: int) -> np.ndarray:
 
 
 def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | None = None,
-        numbalsoda: bool = True, command: str | None = None, log=None) -> Report:
+        numbalsoda: bool = True, command: str | None = None, progress=None) -> Report:
     """Measure everything, write the files into ``output_dir`` and return the :class:`Report`.
 
     Parameters
@@ -100,24 +100,33 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
         Measure numbalsoda when it is importable (it is skipped, with a note, when it is not).
     command : str, optional
         The command line to print in the report.
-    log : callable, optional
-        Called with one-line progress messages.
+    progress : callable, optional
+        ``progress(done, total, text)`` (the package's progress protocol): the stages done (the
+        reference set, ours, each peer) and a one-line message, at each step of a stage too.
     """
     import numba
 
     settings = QUICK if quick else FULL
     if scipy_points is not None:
         settings = replace(settings, scipy_points=scipy_points)
-    say = log or (lambda message: None)
     out = Path(output_dir)
     out.mkdir(parents=True, exist_ok=True)
     started = datetime.datetime.now().astimezone()
+    nbs, nbs_note = runners.numbalsoda_status() if numbalsoda else (None, "not requested")
+    total = 2 + len(settings.scipy_methods) + (nbs is not None)
+    done = 0
+
+    def say(text, finished=False):
+        nonlocal done
+        done += finished
+        if progress is not None:
+            progress(done, total, text)
 
     vs = validation.get(settings.spec, out, say)
     n = vs.size
+    say(f"reference: {n} points ready", True)
     eps, L, A, N = vs.eps, vs.L, vs.A, vs.N
     ref = vs.ref
-    nbs, nbs_note = runners.numbalsoda_status() if numbalsoda else (None, "not requested")
 
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
@@ -126,7 +135,7 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
         everything = np.arange(n)
         ours_both, both_values = _ours_both_curve(vs, everything, settings, "full set")
         ours_s1 = _ours_stage1_curve(vs, everything, settings, "full set")
-        say(f"ours: {n} points x {len(settings.rtols)} rtols done")
+        say(f"ours: {n} points x {len(settings.rtols)} rtols done", True)
 
         sub = subsample(vs.eta, settings.scipy_points)
         ours_sub = _ours_stage1_curve(vs, sub, settings, "subsample")
@@ -145,11 +154,11 @@ def run(output_dir=DEFAULT_OUTPUT, *, quick: bool = False, scipy_points: int | N
                 c_solved = _peer_curve(c.method, "solved", sub[solved], settings.rtols, runs_s, ref)
                 ours_solved = _ours_stage1_curve(vs, sub[solved], settings, "solved")
                 comparisons.append(report.Comparison(c, ours_sub, c_solved, ours_solved))
-            say(f"scipy {method}: {sub.size} points x {len(settings.rtols)} rtols done")
+            say(f"scipy {method}: {sub.size} points x {len(settings.rtols)} rtols done", True)
         if nbs is not None:
             try:
                 comparisons += _numbalsoda(nbs, vs, settings, ours_s1, ours_both, peers)
-                say("numbalsoda: done")
+                say("numbalsoda: done", True)
             except Exception as exc:  # an installed but broken numbalsoda must not sink the report
                 nbs_note = f"{nbs_note}, but measuring it failed ({type(exc).__name__}: {exc})"
                 peers = [p for p in peers if not p.method.startswith("numbalsoda")]
@@ -347,7 +356,7 @@ def _notes(settings: Settings, vs, sub, nbs_note: str) -> list[str]:
         "The both-stages curve in the figure and in target 3 is the worst of the three medians. "
         "Where ours answers `eps_too_large_path` for a point the reference solves (`failed`, "
         "`unanswered`: edge points at loose rtol), it is because D(1) is below what stage 1 "
-        "resolves at that rtol (solve.py reports such a point as meeting D = 0 at the wall); "
+        "resolves at that rtol (the solver reports such a point as meeting D = 0 at the wall); "
         "next to the path edge the outputs' condition number is ~1/D(1) (docs/performance.md), "
         "which is also why the edge stratum dominates the max errors.",
         f"scipy solve_ivp ({', '.join(settings.scipy_methods)}): stage 1 alone in a Python loop "

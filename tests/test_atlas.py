@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from cosserat_channel import atlas as at
+from cosserat_channel.atlas import chebyshev
 from cosserat_channel import regimes
 from cosserat_channel import status as st
 from cosserat_channel.cli import main
@@ -397,10 +398,10 @@ def test_estimate_bounds_the_error_and_is_tighter_than_the_tail_sum():
     for f, geometric in cases:
         for p, q in ((8, 8), (16, 8), (8, 16), (16, 16), (32, 32)):
             xa, xn = at.lobatto(p), at.lobatto(q)
-            coef = at._coefficients(f(xa[:, None], xn[None, :])[None], p, q)
-            err, _, _, _ = at._estimate(coef)
-            old = at._tail(coef)[0]
-            got = at._vandermonde(x, p) @ coef[0] @ at._vandermonde(x, q).T
+            coef = chebyshev._coefficients(f(xa[:, None], xn[None, :])[None], p, q)
+            err, _, _, _ = chebyshev._estimate(coef)
+            old = chebyshev._tail(coef)[0]
+            got = chebyshev._vandermonde(x, p) @ coef[0] @ chebyshev._vandermonde(x, q).T
             actual = np.abs(got - f(x[:, None], x[None, :])).max()
             assert actual <= err, (p, q, actual, err)
             # (the corner degrees count in both directions: 1.01)
@@ -431,7 +432,7 @@ def test_a_cell_the_node_focus_switch_crosses_is_split_not_raised(monkeypatch):
     a = at.build_atlas((0.0, 1.0), (1.0, 2.0), tol=1e-8, degree=4, max_depth=1, max_degree=32)
     assert (a.leaf_level == 1).all() and len(a.leaf_level) == 4
     lo = a.leaf_of(np.array([0.25]), np.array([1.25]))[0]  # below the switch: not crossed
-    assert not at._crosses_switch(0.0, 0.5, 1.0, 1.5) and a.leaf_degree[lo].max() > 4
+    assert not at.build._crosses_switch(0.0, 0.5, 1.0, 1.5) and a.leaf_degree[lo].max() > 4
     rng = np.random.default_rng(4)
     A, N = rng.uniform(0, 1, 500), rng.uniform(1, 2, 500)
     _, _, eta, err = a.transitions(A, N)
@@ -451,7 +452,7 @@ def test_crosses_switch_against_the_sampled_curve():
         sampled = bool(np.any((curve > n0) & (curve < n1)))
         near = curve.size and min(abs(curve[0] - n1), abs(curve[-1] - n0)) < 1e-3
         if not near:
-            assert at._crosses_switch(a0, a1, n0, n1) == sampled, (a0, a1, n0, n1)
+            assert at.build._crosses_switch(a0, a1, n0, n1) == sampled, (a0, a1, n0, n1)
 
 
 def test_refinement_stops_where_the_traces_are_noisier_than_tol(monkeypatch):
@@ -613,7 +614,7 @@ def test_continued_atlas_against_an_independent_solver():
 def test_index_finds_the_nearest_node_of_each_signature():
     """The build's bucketed index against a brute-force search over the nine buckets around a
     point: one node per signature, the nearest, nearest first."""
-    from cosserat_channel.atlas.build import _Index, _Trace
+    from cosserat_channel.atlas.tracer import _Index, _Trace
 
     rng = np.random.default_rng(9)
     size = (0.125, 0.1)

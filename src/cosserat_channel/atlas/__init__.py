@@ -12,9 +12,9 @@ and interpolated in ``log eta`` by the tensor Chebyshev polynomial through them.
 into four when its nodes do not all have the same signature (an ``eta_min`` appears, a window
 of solutions closes, the wall line crosses it). Nodes that differ only by a transition that left
 the searched range (``eta_min`` below it, ``eta_max`` above it) are aligned first
-(:func:`_unify`: the nodes beyond the crossing get it clamped at the range's end); such a cell
+(:func:`.signatures._unify`: the nodes beyond the crossing get it clamped at the range's end); such a cell
 is split only where the clamped transition reaches into the answered range. Where they agree, the error
-estimate of the interpolant (:func:`_estimate`: the Chebyshev tail of each direction, extrapolated
+estimate of the interpolant (:func:`.chebyshev._estimate`: the Chebyshev tail of each direction, extrapolated
 where the coefficients decay geometrically) decides: below ``tol`` the cell is a leaf; above it the
 degree is doubled along a direction whose coefficients still decay (the nodes are nested: every
 trace is kept), else the cell is split. A cell that the node/focus switch crosses
@@ -25,7 +25,7 @@ two-degree sum) by :data:`REFINE_GAIN` ends it (the traces are then noisier than
 smooth at that level). Splits go down to ``max_depth``. There a cell whose nodes align keeps
 the interpolants of its transitions, each with its own estimate, except a clamped one that reaches
 into the answered range, which is kept as the envelope of its nodes' values
-(:func:`_cluster_columns`); a cell still mixed becomes an *envelope* leaf: it decides wherever
+(:func:`.signatures._cluster_columns`); a cell still mixed becomes an *envelope* leaf: it decides wherever
 its nodes agree and states, per cluster of transitions between, the width it leaves undecided
 (``leaf_transition_error``); a leaf whose estimate is still
 above ``tol`` keeps its own estimate, which :func:`classify` uses in place of ``tol``. No leaf is
@@ -67,29 +67,27 @@ claimed range of ``eta`` each way, so that a transition just outside the claimed
 signature of the cells next to it and is interpolated, not lost.
 
 Reading an atlas (:func:`load_atlas`, :func:`classify`, :meth:`Atlas.boundary`) imports numpy
-and xarray only: building one (:func:`build_atlas`) imports the solver.
+and xarray only: building one (:func:`build_atlas`) imports the solver. Which source gives the
+edge on a grid, an atlas (the cached, the shipped or a given one) or a trace, is decided once,
+by :func:`edge_source`, for every caller.
 
 Layer: above :mod:`cosserat_channel.regimes` (which the build calls for its traces); below the
 figures and the command line. Reading and deciding (:mod:`.interpolant`, :mod:`.decide`,
-:mod:`.store`, :mod:`.chebyshev`, :mod:`.settings`, :mod:`.signatures`) import numpy and xarray
-only; the build (:mod:`.build`, :mod:`.assemble`) imports the solver through ``regimes`` when it runs. Never
-imports plotting, sweeps or the CLI.
+:mod:`.store`, :mod:`.source`, :mod:`.chebyshev`, :mod:`.settings`, :mod:`.signatures`) import
+numpy and xarray only; the build (:mod:`.build`, :mod:`.tracer`, :mod:`.assemble`) imports
+``regimes`` and the solver's ``Workspace`` when it runs. May import besides:
+:mod:`~cosserat_channel.physics.analytic` and the vocabulary modules (parameters, status,
+regime_codes, files, netcdf_policy). Never imports plotting, sweeps or the CLI.
 """
 
 from __future__ import annotations
 
-from .build import (  # noqa: F401
-    _Counting,
-    _crosses_switch,
-    _levels,
-    build_atlas,
-    check_build_arguments,
-)
-from .chebyshev import _coefficients, _direction_tail, _estimate, _tail, _vandermonde, lobatto  # noqa: F401
+from .build import build_atlas, check_build_arguments  # noqa: F401
+from .chebyshev import lobatto  # noqa: F401
 from .decide import classify  # noqa: F401
-from .interpolant import Atlas, classify_analytic  # noqa: F401
+from .interpolant import Atlas  # noqa: F401
+from .source import EdgeSource, SourceError, edge_source  # noqa: F401
 from .settings import *  # noqa: F401,F403 (the atlas's constants, under the names callers use)
-from .signatures import _cluster_columns, _envelope, _unify, _variants  # noqa: F401
 from .store import (  # noqa: F401
     cache_path,
     default_atlas,

@@ -1,12 +1,12 @@
-"""Building an atlas: the tracer (predictions and continued traces), the refinement of cells
-(degree, splits, envelopes at the deepest level) over records, then :func:`.assemble._assemble`.
+"""Building an atlas: a loop over a queue of cells that traces each (:func:`_trace_cell`, with
+the :class:`~.tracer._Tracer` that holds the traces), fits its last grid (:class:`_Fit`) and
+applies the refinement decision (:func:`_refine`, a pure function of the cell and its fit: a
+leaf, an envelope leaf, a higher degree or four children), then :func:`.assemble._assemble`.
 Imports the solver through :mod:`cosserat_channel.regimes`, when :func:`build_atlas` runs."""
 
 from __future__ import annotations
 
-import concurrent.futures
 import math
-import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +16,8 @@ from .. import regime_codes as rc
 from ..parameters import ETA_MAX, ETA_MIN, PARAMETERS, ParameterError
 from .assemble import _assemble
 from .chebyshev import _coefficients, _estimate, _vandermonde, lobatto
-from .signatures import _cluster_columns, _envelope, _unify, _variants
+from .signatures import _cluster_columns, _envelope, _unify
+from .tracer import _Tracer
 from .settings import (
     ANSWERED_GRID,
     DEFAULT_A,
@@ -27,7 +28,6 @@ from .settings import (
     MAX_DEPTH,
     MAX_DEPTH_LIMIT,
     NEAR_NODE,
-    NEAR_SPREAD,
     RATE_GEOMETRIC,
     REFINE_GAIN,
     ROOT_CELL,
@@ -47,22 +47,6 @@ def _crosses_switch(a_lo, a_hi, n_lo, n_hi):
     lo, hi = max(a_lo, -1.0), min(a_hi, 1.0)
     return bool(lo < hi and analytic.node_focus_switch_N(lo) < n_hi
                 and analytic.node_focus_switch_N(hi) > n_lo)
-
-
-class _Counting:
-    """A :class:`solve.Workspace` stand-in for ``trace_edge`` that counts the solves: status
-    solves and the stage-1 solves of ``regimes.wall_D`` (which calls :meth:`count`)."""
-
-    def __init__(self, ws):
-        self.ws = ws
-        self.solves = 0
-
-    def status(self, eta, A, N, rtol, atol):
-        self.solves += 1
-        return self.ws.status(eta, A, N, rtol, atol)
-
-    def count(self, n):
-        self.solves += n
 
 
 def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
@@ -90,23 +74,6 @@ def check_build_arguments(A_range, N_range, tol, degree, max_depth, eta_range,
         raise ParameterError(f"eta range must be lo < hi inside [{ETA_MIN * TRACE_WIDEN:g}, "
                              f"{ETA_MAX / TRACE_WIDEN:g}]; got {lo:g}:{hi:g}")
     return (a0, a1), (n0, n1), float(tol), int(degree), int(max_depth), (lo, hi)
-
-
-@dataclass
-class _Trace:
-    """One traced ``(A, N)``: feasibility at the lowest traced ``eta``, the transitions, their
-    noise bands, the :class:`regimes.Edge` behind them (its kinds and slopes seed the
-    neighbours' predictions) and the solves it took."""
-
-    low: bool
-    transitions: np.ndarray
-    bands: np.ndarray
-    edge: object = None
-    solves: int = 0  # the solves it took (the atlas's n_solves sums them)
-
-    @property
-    def signature(self):
-        return (self.low, self.transitions.size)
 
 
 @dataclass
@@ -186,53 +153,195 @@ def _answered(coef, log_range):
     return keep
 
 
-class _Index:
-    """Traced nodes by bucket of ``cell_size``: the nearest of each signature to a point.
+@dataclass
+class _Fit:
+    """A grid's interpolant where :func:`_unify` aligns its nodes with transitions.
 
-    A bucket keeps its nodes' coordinates and signatures in arrays, so a query costs a few
-    vectorised passes over the nine buckets around the point, however many nodes they hold (a
-    deep cell traces hundreds).
+    ``predictor`` interpolates every transition; ``err``, ``tails``, ``rates`` and ``raw`` are
+    :func:`_estimate`'s over the answered transitions but the clamped ones (``hard``, which only a
+    cell that may not be split keeps, :func:`_cluster_columns`); ``logt`` the nodes' transitions
+    ``(p + 1, q + 1, k)`` in ``log eta``; ``answered`` those :func:`_answered` holds to ``tol``.
     """
 
-    def __init__(self, cell_size):
-        self.cell_size = cell_size
-        self.buckets = {}  # (ia, jn) -> [coordinates (capacity, 2), codes (capacity,), traces]
+    predictor: _Predictor
+    err: float
+    tails: np.ndarray
+    rates: np.ndarray
+    raw: float
+    hard: list
+    logt: np.ndarray
+    answered: list
 
-    def _bucket(self, a, n):
-        return int(math.floor(a / self.cell_size[0])), int(math.floor(n / self.cell_size[1]))
 
-    def add(self, key, tr):
-        b = self.buckets.setdefault(self._bucket(*key), [np.empty((16, 2)), np.empty(16, int), []])
-        m = len(b[2])
-        if m == b[1].size:
-            b[0] = np.concatenate([b[0], np.empty_like(b[0])])
-            b[1] = np.concatenate([b[1], np.empty_like(b[1])])
-        b[0][m] = key
-        b[1][m] = 2 * tr.transitions.size + int(tr.low)  # one code per signature
-        b[2].append(tr)
+def _grid_fit(traces, pa, pn, bounds, trace_range, log_range):
+    """The signature set of a grid's ``traces`` (``(low, transitions)`` per node, A-major), one
+    where :func:`_unify` aligns them and no transition it clamped reaches into the answered range;
+    and wherever it aligns them with transitions, their :class:`_Fit` (else None)."""
+    unified = _unify(traces, trace_range)
+    if unified is None:
+        return {(bool(low), t.size) for low, t in traces}, None
+    low, logt, clamped = unified
+    if not logt.shape[1]:
+        return {(low, 0)}, None
+    logt = logt.reshape(pa + 1, pn + 1, -1)  # (p, q, k)
+    coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
+    answered = _answered(coef, log_range)
+    hard = [k for k in answered if clamped[k]]
+    err, tails, rates, raw = _estimate(coef[[k for k in answered if not clamped[k]]])
+    errs = np.array([_estimate(c[None])[0] for c in coef])
+    sig = {(bool(low), t.size) for low, t in traces} if hard else {(low, logt.shape[-1])}
+    return sig, _Fit(_Predictor(bounds, coef, low, err, errs, clamped), err, tails, rates, raw,
+                     hard, logt, answered)
 
-    def nearest(self, key):
-        """The traced nodes nearest ``key`` within the neighbouring buckets, one per signature,
-        nearest first (the first met of equally near ones)."""
-        a, n = key
-        ia, jn = self._bucket(a, n)
-        best = {}
-        for da in (-1, 0, 1):
-            for dn in (-1, 0, 1):
-                b = self.buckets.get((ia + da, jn + dn))
-                if b is None:
-                    continue
-                m = len(b[2])
-                xy, codes = b[0][:m], b[1][:m]
-                d = ((xy[:, 0] - a) / self.cell_size[0]) ** 2 + \
-                    ((xy[:, 1] - n) / self.cell_size[1]) ** 2
-                found, first = np.unique(codes, return_index=True)
-                for c in found[np.argsort(first)]:
-                    sel = np.flatnonzero(codes == c)
-                    k = sel[np.argmin(d[sel])]
-                    if c not in best or d[k] < best[c][0]:
-                        best[c] = (d[k], b[2][k])
-        return [tr for _, tr in sorted(best.values(), key=lambda v: v[0])]
+
+def _nodes(lo, hi, p):
+    """The ``p + 1`` Chebyshev-Lobatto nodes of ``[lo, hi]``; the ends are the bounds themselves,
+    so neighbours share the traces on their common side."""
+    x = lo + (hi - lo) * (lobatto(p) + 1.0) / 2.0
+    x[0], x[-1] = lo, hi
+    return x
+
+
+def _envelope_leaf(tracer, cell, na, nn):
+    """A cell whose nodes ``na x nn`` mix signatures at the deepest level, as a leaf
+    (:func:`_envelope`)."""
+    cache = tracer.cache
+    traces = [(cache[(a, b)].low, cache[(a, b)].transitions) for a in na for b in nn]
+    low, logt, errs = _envelope(traces, *tracer.trace_range)
+    band = max([float(np.nanmax(cache[(a, b)].bands, initial=0.0)) for a in na for b in nn])
+    return _Leaf(cell.level, cell.i, cell.j, int(low), logt.size, float(np.max(errs, initial=0.0)),
+                 logt.reshape(-1, 1, 1), (0, 0), band, errs)
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """What the tracing of a cell ended on: the signature set and fit of its last grid, that
+    grid's degrees and nodes."""
+
+    sig: set
+    fit: _Fit | None
+    degree: tuple
+    na: np.ndarray
+    nn: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Rules:
+    """The build's arguments that the refinement decision reads."""
+
+    tol: float
+    max_depth: int
+    max_degree: int
+    degree: int
+    uniform: bool
+
+
+def _mixed(sig, fit, can_split):
+    """Whether a grid's nodes must be split apart: they mix signatures, and the cell may be split
+    or they do not align (a deepest cell goes on where only transitions clamped at the traced
+    range's ends differ: the others still reach ``tol``)."""
+    return len(sig) > 1 and (can_split or fit is None)
+
+
+def _trace_cell(tracer, cell, bounds, rules):
+    """Trace a cell's grids (:func:`_levels` for a fresh cell, its own degree for a refined one),
+    each predicted by the best interpolant so far, until one mixes signatures or the last is
+    traced; returns the :class:`_Grid` it ended on."""
+    a_lo, a_hi, n_lo, n_hi = bounds
+    can_split = cell.level < rules.max_depth
+    log_range = tracer.log_range
+    predictor = cell.predictor
+    refined = math.isfinite(cell.before)
+    for p, q in ([(cell.pa, cell.pn)] if refined else _levels(cell.pa, cell.pn)):
+        na, nn = _nodes(a_lo, a_hi, p), _nodes(n_lo, n_hi, q)
+        traces = tracer.trace_grid(na, nn, predictor)
+        sig, fit = _grid_fit(traces, p, q, bounds, tracer.trace_range, log_range)
+        if _mixed(sig, fit, can_split) or (rules.uniform and can_split):
+            break  # mixed (or the uniform baseline): split before tracing finer grids
+        if len(sig) > 1 and set(fit.answered) <= set(fit.hard):
+            break  # only clamped transitions are answered: finer grids would not help
+        if fit is not None and (predictor is None or fit.predictor.err < predictor.err):
+            predictor = fit.predictor
+    return _Grid(sig, fit, (p, q), na, nn)
+
+
+@dataclass(frozen=True)
+class _Refinement:
+    """What becomes of a cell (:func:`_refine`): a leaf (its noise band still to be filled in),
+    an envelope leaf, or cells to trace next (its own at a higher degree, first in the queue, or
+    its four children, last)."""
+
+    leaf: _Leaf | None = None
+    envelope: bool = False
+    grown: _Cell | None = None
+    children: tuple = ()
+
+
+def _refine(cell, grid, crosses, rules):
+    """The refinement decision for a traced ``cell``, a pure function of the cell, the
+    :class:`_Grid` its tracing ended on and whether the node/focus switch crosses it.
+
+    Mixed nodes split the cell (an envelope leaf at ``max_depth``). Otherwise the cell's estimate
+    decides: within ``tol``, stalled (a refinement that did not cut the raw tail by
+    :data:`REFINE_GAIN`) or with nothing left to try, a leaf; else grown in degree along each
+    direction whose coefficients still decay geometrically, else split.
+    """
+    sig, fit = grid.sig, grid.fit
+    p, q = grid.degree
+    pa, pn = cell.pa, cell.pn
+    can_split = cell.level < rules.max_depth
+    children = [_Cell(cell.level + 1, 2 * cell.i + di, 2 * cell.j + dj, rules.degree, rules.degree)
+                for di in (0, 1) for dj in (0, 1)]
+    if _mixed(sig, fit, can_split) or (rules.uniform and can_split):
+        if not can_split:
+            return _Refinement(envelope=True)
+        own = fit.predictor if fit is not None else (cell.predictor if len(sig) == 1 else None)
+        for c in children:
+            c.predictor = own
+        return _Refinement(children=tuple(children))
+    low, n_tr = (fit.predictor.low, fit.predictor.coef.shape[0]) if fit else next(iter(sig))
+    coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
+    tails, rates = np.zeros(2), np.zeros(2)
+    errs, hard = None, []
+    if n_tr:
+        coef, errs = fit.predictor.coef, fit.predictor.errs
+        err, tails, rates, raw, hard = fit.err, fit.tails, fit.rates, fit.raw, fit.hard
+    # Across the node/focus switch the edge is not analytic: a higher degree buys little there
+    # (the tail of a degree-8 cell fell 2-4x at degree 16, against 130-1000x beside it), so such
+    # a cell is split while it can be.
+    grow = [not rules.uniform and t > rules.tol / 2 and r < RATE_GEOMETRIC
+            and 2 * d <= rules.max_degree and not (can_split and crosses)
+            for t, r, d in zip(tails, rates, (pa, pn))]
+    # Stalled: a higher degree did not pay, or a child that will not raise its degree (its
+    # coefficients do not decay) is no better than its parent was. Compared on the raw two-degree
+    # sums: the estimates' factors change with the degree and the decay. A split cuts a degree-p
+    # tail by about 2^(p+1) where the edge is smooth: at low degrees ask for less than
+    # REFINE_GAIN.
+    gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
+    stalled = raw > cell.before / gain or (raw > cell.parent / gain and not any(grow))
+    own = fit.predictor if fit is not None else None
+    done = err <= rules.tol or stalled
+    if not can_split and n_tr and (done or not any(grow)):
+        # The deepest cells: a transition clamped by _unify that reaches into the answered range,
+        # or one whose nodes' envelope states less than its estimate, is kept as that envelope
+        # (_cluster_columns).
+        clustered = _cluster_columns(coef, errs, fit.logt, hard)
+        if clustered is None and hard:
+            return _Refinement(envelope=True)
+        if clustered is not None:
+            coef, errs = clustered
+            err = float(np.max(errs[fit.answered], initial=0.0)) or err
+        return _Refinement(leaf=_Leaf(cell.level, cell.i, cell.j, int(low), n_tr, err, coef,
+                                      (p, q), 0.0, errs))
+    if done or not (any(grow) or can_split):
+        return _Refinement(leaf=_Leaf(cell.level, cell.i, cell.j, int(low), n_tr, err, coef,
+                                      (pa, pn), 0.0, errs))
+    if any(grow):
+        return _Refinement(grown=_Cell(cell.level, cell.i, cell.j, pa * (1 + grow[0]),
+                                       pn * (1 + grow[1]), raw, cell.parent, own))
+    for c in children:
+        c.parent, c.predictor = raw, own
+    return _Refinement(children=tuple(children))
 
 
 def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree=DEGREE,
@@ -305,8 +414,7 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
     -------
     Atlas
     """
-    from .. import __version__, regimes
-    from ..solver.point import Workspace
+    from .. import __version__
 
     A_range, N_range, tol, degree, max_depth, eta_range = check_build_arguments(
         A_range, N_range, tol, degree, max_depth, eta_range, max_degree)
@@ -316,213 +424,45 @@ def build_atlas(A_range=DEFAULT_A, N_range=DEFAULT_N, *, tol=DEFAULT_TOL, degree
     roots = (int(roots[0]), int(roots[1]))
     if not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise ParameterError(f"workers must be a positive integer; got {workers!r}")
-    trace_range = (eta_range[0] / TRACE_WIDEN, eta_range[1] * TRACE_WIDEN)
     tau = TAU_OF_TOL * tol
-    local = threading.local()
-    cache = {}  # this build's traces, in the order they are met
-    known = {} if traces is None else traces
-    # Traced nodes by bucket (a root cell's eighth, at least NEAR_NODE): the nearest neighbours
-    # of a node, for the kinds and slopes of its transitions and where no interpolant covers it.
+    # Traced nodes are indexed by bucket of a root cell's eighth, at least NEAR_NODE.
     bucket = (max((A_range[1] - A_range[0]) / (8 * roots[0]), NEAR_NODE),
               max((N_range[1] - N_range[0]) / (8 * roots[1]), NEAR_NODE))
-    index = _Index(bucket)
-    tally = {"predicted": 0, "fallback": 0}
-
-    def traced(job):
-        key, prediction = job
-        if not hasattr(local, "ws"):  # a Workspace per thread: its arrays are the solver's
-            local.ws = _Counting(Workspace(max_steps_stage1=regimes.EDGE_MAX_STEPS))
-        before = local.ws.solves
-        e = regimes.trace_edge(key[0], key[1], eta_range=trace_range, workspace=local.ws,
-                               prediction=prediction, tau=tau)
-        low = e.kind != rc.EDGE_NONE and e.eta_min == trace_range[0]
-        return _Trace(bool(low), np.asarray(e.transitions, dtype=float),
-                      np.asarray(e.bands, dtype=float), e, local.ws.solves - before)
-
-    def prediction_for(key, predictor):
-        # The interpolant's transitions (with the kinds and slopes of the nearest node of its
-        # signature), then each other signature traced nearby: tried in that order; the node
-        # whose kinds and slopes were taken too where the interpolant is no better than it (its
-        # spread at NEAR_SPREAD: the interpolant of a coarse grid or across a crossing).
-        out = []
-        found = [tr for tr in index.nearest(key) if tr.edge is not None]
-        near = [tr for tr in found if max(abs(tr.edge.A - key[0]),
-                                          abs(tr.edge.N - key[1])) <= NEAR_NODE]
-        if predictor is not None:
-            lt = predictor(*key)
-            spread = np.minimum(np.maximum(10.0 * predictor.errs, 1e3 * tau), NEAR_SPREAD)
-            for keep, flip in _variants(lt, spread, predictor.clamped, log_trace):
-                sig = (predictor.low ^ flip, int(keep.sum()))
-                src = next((tr for tr in found if tr.signature == sig), None)
-                if src is not None:
-                    low, guesses = regimes.guesses_from(src.edge)
-                    for g, x, sp in zip(guesses, lt[keep], spread[keep]):
-                        g.eta, g.spread = float(np.exp(x)), float(sp)
-                    out.append((low, guesses))
-                    if (spread[keep] < NEAR_SPREAD).all():
-                        near = [tr for tr in near if tr is not src]
-        out += [regimes.guesses_from(tr.edge, NEAR_SPREAD) for tr in near]
-        return out or None
-
-    pool = concurrent.futures.ThreadPoolExecutor(workers) if workers > 1 else None
-
-    def prefetch(na, nn, predictor):
-        # The nodes not traced yet, in the order one thread would trace them, with predictions
-        # made before any of them is traced; a node the caller's traces hold is taken from them.
-        missing = list(dict.fromkeys(k for k in ((a, n) for a in na for n in nn)
-                                     if k not in cache))
-        jobs = [(k, prediction_for(k, predictor)) for k in missing]
-        todo = [job for job in jobs if job[0] not in known]
-        results = iter(map(traced, todo) if pool is None else pool.map(traced, todo))
-        for k, pred in jobs:
-            if k in known:
-                tr = known[k]
-            else:
-                tr = known[k] = next(results)
-            cache[k] = tr
-            index.add(k, tr)
-            if pred is not None:
-                tally["predicted"] += 1
-                tally["fallback"] += not tr.edge.continued
+    tracer = _Tracer(eta_range, tau, bucket, traces, workers)
+    rules = _Rules(tol, max_depth, max_degree, degree, uniform)
     ma, mn = roots[0] << max_depth, roots[1] << max_depth
-    box = (A_range[0], A_range[1], N_range[0], N_range[1])
 
     def coord(lo, hi, k, m):
         return lo + (hi - lo) * k / m
-
-    def nodes(lo, hi, p):
-        # The ends are the bounds themselves, so neighbours share the traces on their common side.
-        x = lo + (hi - lo) * (lobatto(p) + 1.0) / 2.0
-        x[0], x[-1] = lo, hi
-        return x
-
-    def grid_fit(na, nn, pa, pn, bounds):
-        """The signature set of a grid, one where :func:`_unify` aligns its nodes and no
-        transition it clamped reaches into the answered range; and wherever it aligns them with
-        transitions, their interpolant ``(predictor, estimate, hard, log_transitions,
-        answered)``: the estimate over the answered transitions but the clamped ones (``hard``),
-        which only a cell that may not be split keeps (:func:`_cluster_columns`)."""
-        traces = [(cache[(a, b)].low, cache[(a, b)].transitions) for a in na for b in nn]
-        unified = _unify(traces, trace_range)
-        if unified is None:
-            return {(bool(low), t.size) for low, t in traces}, None, None
-        low, logt, clamped = unified
-        if not logt.shape[1]:
-            return {(low, 0)}, None, None
-        logt = logt.reshape(pa + 1, pn + 1, -1)  # (p, q, k)
-        coef = _coefficients(np.moveaxis(logt, -1, 0), pa, pn)  # (k, p, q)
-        answered = _answered(coef, log_range)
-        hard = [k for k in answered if clamped[k]]
-        est = _estimate(coef[[k for k in answered if not clamped[k]]])
-        errs = np.array([_estimate(c[None])[0] for c in coef])
-        sig = {(bool(low), t.size) for low, t in traces} if hard else {(low, logt.shape[-1])}
-        return sig, coef, (_Predictor(bounds, coef, low, est[0], errs, clamped), est, hard, logt,
-                           answered)
-
-    log_range = (math.log(eta_range[0]), math.log(eta_range[1]))
-    log_trace = (math.log(trace_range[0]), math.log(trace_range[1]))
-
-    def envelope_leaf(level, i, j, na, nn):
-        traces = [(cache[(a, b)].low, cache[(a, b)].transitions) for a in na for b in nn]
-        low, logt, errs = _envelope(traces, *trace_range)
-        band = max([float(np.nanmax(cache[(a, b)].bands, initial=0.0)) for a in na for b in nn])
-        return _Leaf(level, i, j, int(low), logt.size, float(np.max(errs, initial=0.0)),
-                     logt.reshape(-1, 1, 1), (0, 0), band, errs)
 
     leaves = []
     queue = [_Cell(0, i, j, degree, degree) for i in range(roots[0]) for j in range(roots[1])]
     try:
         while queue:
             cell = queue.pop(0)
-            level, i, j, pa, pn = cell.level, cell.i, cell.j, cell.pa, cell.pn
-            s = 1 << (max_depth - level)
-            a_lo, a_hi = coord(*A_range, i * s, ma), coord(*A_range, (i + 1) * s, ma)
-            n_lo, n_hi = coord(*N_range, j * s, mn), coord(*N_range, (j + 1) * s, mn)
-            bounds = (a_lo, a_hi, n_lo, n_hi)
-            can_split = level < max_depth
-            refined = math.isfinite(cell.before)
-            predictor = cell.predictor
-            sig, fit = set(), None
-            for p, q in ([(pa, pn)] if refined else _levels(pa, pn)):
-                na, nn = nodes(a_lo, a_hi, p), nodes(n_lo, n_hi, q)
-                prefetch(na, nn, predictor)
-                sig, coef, fit = grid_fit(na, nn, p, q, bounds)
-                # A cell that may not be split goes on where only transitions clamped at the
-                # traced range's ends differ: the others still reach tol.
-                mixed = len(sig) > 1 and (can_split or fit is None)
-                if mixed or (uniform and can_split):
-                    break  # mixed (or the uniform baseline): split before tracing finer grids
-                if len(sig) > 1 and set(fit[4]) <= set(fit[2]):
-                    break  # only clamped transitions are answered: finer grids would not help
-                if fit is not None and (predictor is None or fit[0].err < predictor.err):
-                    predictor = fit[0]
-            children = [_Cell(level + 1, 2 * i + di, 2 * j + dj, degree, degree)
-                        for di in (0, 1) for dj in (0, 1)]
-            if mixed or (uniform and can_split):
-                if can_split:
-                    own = fit[0] if fit is not None else (
-                        cell.predictor if len(sig) == 1 else None)
-                    for c in children:
-                        c.predictor = own
-                    queue.extend(children)
-                else:
-                    leaves.append(envelope_leaf(level, i, j, na, nn))
+            s = 1 << (max_depth - cell.level)
+            a_lo, a_hi = coord(*A_range, cell.i * s, ma), coord(*A_range, (cell.i + 1) * s, ma)
+            n_lo, n_hi = coord(*N_range, cell.j * s, mn), coord(*N_range, (cell.j + 1) * s, mn)
+            grid = _trace_cell(tracer, cell, (a_lo, a_hi, n_lo, n_hi), rules)
+            step = _refine(cell, grid, _crosses_switch(a_lo, a_hi, n_lo, n_hi), rules)
+            if step.envelope:
+                leaves.append(_envelope_leaf(tracer, cell, grid.na, grid.nn))
+            elif step.leaf is not None:
+                if step.leaf.n:
+                    step.leaf.band = tracer.band(grid.na, grid.nn)
+                leaves.append(step.leaf)
+            elif step.grown is not None:
+                queue.insert(0, step.grown)
             else:
-                low, n_tr = (fit[0].low, fit[0].coef.shape[0]) if fit else next(iter(sig))
-                coef, err, raw = np.empty((0, pa + 1, pn + 1)), 0.0, 0.0
-                tails, rates = np.zeros(2), np.zeros(2)
-                band, errs, hard = 0.0, None, []
-                if n_tr:
-                    _, err_tails_rates_raw, hard, logt, answered = fit
-                    coef, errs = fit[0].coef, fit[0].errs
-                    err, tails, rates, raw = err_tails_rates_raw
-                    band = max(float(np.max(cache[(a, b)].bands, initial=0.0))
-                               for a in na for b in nn)
-                # Across the node/focus switch the edge is not analytic: a higher degree buys little
-                # there (the tail of a degree-8 cell fell 2-4x at degree 16, against 130-1000x beside
-                # it), so such a cell is split while it can be.
-                grow = [not uniform and t > tol / 2 and r < RATE_GEOMETRIC and 2 * p <= max_degree
-                        and not (can_split and _crosses_switch(a_lo, a_hi, n_lo, n_hi))
-                        for t, r, p in zip(tails, rates, (pa, pn))]
-                # Stalled: a higher degree did not pay, or a child that will not raise its degree
-                # (its coefficients do not decay) is no better than its parent was. Compared on the
-                # raw two-degree sums: the estimates' factors change with the degree and the decay.
-                # A split cuts a degree-p tail by about 2^(p+1) where the edge is smooth: at low
-                # degrees ask for less than REFINE_GAIN.
-                gain = min(REFINE_GAIN, 2.0 ** (min(pa, pn) - 1))
-                stalled = raw > cell.before / gain or (raw > cell.parent / gain and not any(grow))
-                own = fit[0] if fit is not None else None
-                if not can_split and n_tr and (err <= tol or stalled or not any(grow)):
-                    # The deepest cells: a transition clamped by _unify that reaches into the
-                    # answered range, or one whose nodes' envelope states less than its
-                    # estimate, is kept as that envelope (_cluster_columns).
-                    clustered = _cluster_columns(coef, errs, logt, hard)
-                    if clustered is None and hard:
-                        leaves.append(envelope_leaf(level, i, j, na, nn))
-                    else:
-                        if clustered is not None:
-                            coef, errs = clustered
-                            err = float(np.max(errs[answered], initial=0.0)) or err
-                        leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (p, q),
-                                            band, errs))
-                elif err <= tol or stalled or not (any(grow) or can_split):
-                    leaves.append(_Leaf(level, i, j, int(low), n_tr, err, coef, (pa, pn), band,
-                                        errs))
-                elif any(grow):
-                    queue.insert(0, _Cell(level, i, j, pa * (1 + grow[0]), pn * (1 + grow[1]),
-                                          raw, cell.parent, own))
-                else:
-                    for c in children:
-                        c.parent, c.predictor = raw, own
-                    queue.extend(children)
+                queue.extend(step.children)
             if progress is not None:
                 progress(len(leaves), len(leaves) + len(queue),
-                         f"cells done, {len(cache)} edges traced")
+                         f"cells done, {len(tracer.cache)} edges traced")
     finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
-    return _assemble(leaves, cache, box=box, roots=roots, degree=degree, max_depth=max_depth,
-                     tol=tol, eta_range=eta_range, trace_range=trace_range, uniform=uniform,
-                     max_degree=max_degree, solves=sum(tr.solves for tr in cache.values()),
-                     tally=tally,
+        tracer.close()
+    box = (A_range[0], A_range[1], N_range[0], N_range[1])
+    return _assemble(leaves, tracer.cache, box=box, roots=roots, degree=degree,
+                     max_depth=max_depth, tol=tol, eta_range=eta_range, trace_range=tracer.trace_range,
+                     uniform=uniform, max_degree=max_degree,
+                     solves=sum(tr.solves for tr in tracer.cache.values()), tally=tracer.tally,
                      tau=tau, version=__version__)

@@ -11,7 +11,8 @@ Run:  .venv/bin/python benchmarks/bench_paths.py [--json PATH]
 
 from cosserat_channel.measure import harness
 from cosserat_channel.physics.reference import reference
-from cosserat_channel.solver import layout, plug_edge, point as solve
+from cosserat_channel.solver import layout, plug_edge
+from cosserat_channel.solver.point import Workspace
 
 ETAS = (3.0, 1.0, 0.3, 0.1, 0.03, 0.01, 1e-3, 1e-4)
 NAMES = {layout.METHOD_EXPLICIT: "explicit", layout.METHOD_STIFF: "RODAS4P2"}
@@ -26,7 +27,7 @@ def timed(ws, eta, method, reps=20):
 def main():
     args = harness.parser(__doc__).parse_args()
     rec = harness.Record("bench_paths", args.json)
-    ws = solve.Workspace()
+    ws = Workspace()
     print("| eta | explicit steps | explicit us | explicit err(Delta) | RODAS4P2 steps | RODAS4P2 us "
           "| RODAS4P2 err(Delta) | auto picks |")
     print("|---|---|---|---|---|---|---|---|")

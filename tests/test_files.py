@@ -210,7 +210,7 @@ def test_long_output_names_are_written_or_refused_before_any_work(result, tmp_pa
     """A name the file system holds is written, however long (the temporary name is not much
     longer than a short one's); a longer one, or one whose working store's name would be, is
     refused in one line before any work."""
-    from cosserat_channel.solver import point as solve
+    from cosserat_channel.solver import point
     from cosserat_channel.sweep import block, engine
 
     fits = tmp_path / ("q" * 251 + ".csv")  # 255 bytes, NAME_MAX on common file systems
@@ -222,7 +222,7 @@ def test_long_output_names_are_written_or_refused_before_any_work(result, tmp_pa
     assert sorted(os.listdir(tmp_path)) == sorted([fits.name, png.name])
     capsys.readouterr()
 
-    monkeypatch.setattr(solve, "solve_point", lambda *a, **k: pytest.fail("solved anyway"))
+    monkeypatch.setattr(point, "solve_point", lambda *a, **k: pytest.fail("solved anyway"))
     for module in (engine, block):
         monkeypatch.setattr(module, "warm_up", lambda *a, **k: pytest.fail("loaded the solver"))
     too_long = str(tmp_path / ("x" * 252 + ".csv"))

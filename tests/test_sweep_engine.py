@@ -11,7 +11,8 @@ import pytest
 
 from cosserat_channel import outputs
 from cosserat_channel.parameters import PARAMETERS
-from cosserat_channel.solver import batch, point as solve
+from cosserat_channel.solver import batch
+from cosserat_channel.solver.point import solve_point
 from cosserat_channel import status as st
 from cosserat_channel.sweep import run_sweep
 from cosserat_channel.sweep.plan import Plan, block_plan
@@ -74,7 +75,7 @@ def test_matches_solve_point_at_every_status(status_ds):
             st.AXIS_SPIN_UNBOUNDED} <= codes
     for idx in np.ndindex(ds.status.shape):
         point = {d: float(ds[d].values[i]) for d, i in zip(("eps", "L", "K", "A", "N"), idx)}
-        ref = solve.solve_point(**point, material=MATERIAL)
+        ref = solve_point(**point, material=MATERIAL)
         assert int(ds.status.values[idx]) == int(ref.status), point
         for name in POINT_FIELDS + MATERIAL_FIELDS:
             got = float(ds[name].values[idx])
@@ -90,7 +91,7 @@ def test_profiles_match_solve_point(status_ds):
     assert ds.u_over_u0.dims == ("eps", "L", "K", "A", "N", "xi")
     sel = dict(eps=1 / 30, L=10.0, K=0.5, N=1.0)
     for A in (-1.0, 1 / 3):
-        ref = solve.solve_point(**sel, A=A, profile=xi)
+        ref = solve_point(**sel, A=A, profile=xi)
         for name in ("u_over_u0", "omega_hat", "m", "sigma_yx"):
             assert same(ds[name].sel(**sel, A=A).values, ref.profile[name]), (A, name)
     assert np.isnan(ds.u_over_u0.sel(eps=0.5, L=10.0, K=0.5, A=1 / 3, N=1.0).values).all()

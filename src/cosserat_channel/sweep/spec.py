@@ -189,7 +189,8 @@ def load_sweep(path_or_mapping) -> SweepSpec:
     ------
     SweepError
         (a :class:`parameters.ParameterError`, so a ``ValueError``) with a one-line message naming the
-        offending key, for anything :func:`solve.solve_point` would reject and for malformed files.
+        offending key, for anything :func:`~cosserat_channel.solver.point.solve_point` would
+        reject and for malformed files.
     """
     if isinstance(path_or_mapping, Mapping):
         data = path_or_mapping

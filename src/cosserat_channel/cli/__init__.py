@@ -31,6 +31,7 @@ from .common import COMMANDS, EXIT_FAILURE, EXIT_USAGE, PROG, CliError, error, i
 
 # The commands register themselves on import (common.register); --help lists them in this order.
 COMMAND_MODULES = (_point, _sweeps, _regimes, _atlas, _reports, _paper, _fit)
+
 DESCRIPTION = ("Solve the frictional Cosserat model of dense granular flow in a vertical channel "
                "(Mohan, Nott & Rao)\nfor one point or a sweep over (eps, L, K, A, N), and query "
                "and plot the results.")
@@ -42,6 +43,7 @@ EPILOG = f"""examples:
   {PROG} plot demo/quickstart.nc --x eps --y Delta --hue L --at K=0.5,A=0.3333333333,N=1 -o demo/delta.png
 
 '{PROG} COMMAND --help' describes a command; README.md has the rest."""
+
 
 class _ParserExit(Exception):
     """argparse finished on its own (``--help``, ``--version``) with this exit code."""
@@ -112,7 +114,6 @@ def _negative_value_hint(message: str, argv) -> str:
                 continue
             return f" (a negative value goes after '=': {flag}={value})"
     return ""
-
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:

@@ -24,6 +24,7 @@ from .common import (
     note,
     register,
 )
+
 from ..files import STREAM, output_kind
 
 

@@ -24,6 +24,7 @@ from .common import (
     read_or_write_failure,
     register,
 )
+
 from ..regime_codes import ETA_COARSE
 
 # ---------------------------------------------------------------------------------------------

@@ -18,15 +18,18 @@ from .common import (
     PROG,
     CliError,
     Progress,
+    Terminated,
     add_overwrite_argument,
     check_not_input,
     check_output_path,
     error,
+    interruptible,
     note,
     open_results,
     read_or_write_failure,
     register,
 )
+
 # ---------------------------------------------------------------------------------------------
 # run (the engine lives in sweep/engine.py)
 # ---------------------------------------------------------------------------------------------
@@ -58,33 +61,10 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
 
 @register("run", "solve every point of a sweep file and write a NetCDF result", _run_arguments)
 def _run(args: argparse.Namespace) -> int:
-    with _terminate_as_interrupt():
+    # SIGTERM (what batch schedulers and ``kill`` send) stops the run as SIGINT does: the blocks
+    # in flight are stored and one line says what is kept.
+    with interruptible():
         return _run_command(args)
-
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM (what batch schedulers and ``kill`` send), raised where SIGINT would be."""
-
-
-@contextlib.contextmanager
-def _terminate_as_interrupt():
-    """Within: SIGTERM stops ``run`` as SIGINT does (the blocks in flight are stored and one
-    line says what is kept) instead of killing it silently. Only the main thread sets handlers."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def terminate(signum, frame):
-        raise _Terminated
-
-    previous = signal.signal(signal.SIGTERM, terminate)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _run_command(args: argparse.Namespace) -> int:
@@ -154,7 +134,7 @@ def _run_command(args: argparse.Namespace) -> int:
                         "command again to resume")
         raise CliError(message, EXIT_FAILURE) from None
     except KeyboardInterrupt as exc:
-        what, code = ("terminated (SIGTERM)", 143) if isinstance(exc, _Terminated) else \
+        what, code = ("terminated (SIGTERM)", 143) if isinstance(exc, Terminated) else \
             ("interrupted", 130)
         error(f"{what}; finished blocks are kept in {output}.partial/, run the same "
               "command again to resume")

@@ -413,7 +413,7 @@ def test_boundary_trace_stopped_ends_in_one_line_and_keeps_the_file(tmp_path, si
 
 
 @pytest.mark.parametrize("stop, code, word", [(KeyboardInterrupt, 130, "interrupted"),
-                                               (cli.Terminated, 143, "terminated")])
+                                               (cli.common.Terminated, 143, "terminated")])
 def test_a_command_stopped_outside_its_own_handling_ends_in_one_line(capsys, monkeypatch, stop,
                                                                      code, word):
     """Ctrl-C where a command keeps nothing of its own (here: point, while it solves): one line

@@ -86,3 +86,30 @@ def one_error_line(stderr: str) -> str:
     errors = [line for line in stderr.splitlines() if "error:" in line]
     assert len(errors) == 1, stderr
     return errors[0]
+
+
+def assert_legend_lines_show_their_curves(fig):
+    """Every line entry of every legend of ``fig`` is drawn as its curve is: a dashed or dash-dot
+    handle at least one period of its pattern long (shorter, it shows a solid dash), and an
+    entry labelling a curve of its axes in that curve's colour and line style."""
+    from matplotlib.colors import to_rgba
+    from matplotlib.lines import Line2D
+
+    legends = [(ax, ax.get_legend()) for ax in fig.axes] + [(None, leg) for leg in fig.legends]
+    checked = 0
+    for ax, leg in legends:
+        if leg is None:
+            continue
+        length = leg.handlelength * leg.prop.get_size_in_points()
+        for handle, text in zip(leg.legend_handles, leg.get_texts()):
+            if not isinstance(handle, Line2D) or handle.get_linestyle() in ("-", "None", ""):
+                continue
+            period = sum(handle._dash_pattern[1] or ())
+            assert 0 < period <= length, (text.get_text(), period, length)
+            checked += 1
+            curves = [] if ax is None else [ln for ln in ax.get_lines()
+                                            if ln.get_label() == text.get_text()]
+            for ln in curves:
+                assert to_rgba(ln.get_color()) == to_rgba(handle.get_color()), text.get_text()
+                assert ln.get_linestyle() == handle.get_linestyle(), text.get_text()
+    return checked

@@ -144,6 +144,8 @@ def test_read_data_forms_agree(tmp_path):
 BAD = [
     ("quantity,value,std_error\nDelta,nan,0.1\n", "row 1 (line 2), column 'value'"),
     ("quantity,value,std_error\nDelta,1,0.1\nDelta,1,0\n", "row 2 (line 3), column 'std_error'"),
+    ("quantity,value,std_error\nDelta,1,0\n", "positive finite number; got 0.0"),
+    ("quantity;value;std_error\nDelta;1;0.1\n", "separated by ';'; the file must be comma-separated"),
     ("quantity,value,std_error\nDelta,1,-0.1\n", "column 'std_error'"),
     ("quantity,value,std_error\nDeltaa,1,0.1\n", "column 'quantity': unknown quantity 'Deltaa'"),
     ("quantity,value,std_error\nxi_stop,1,0.1\n", "unknown quantity 'xi_stop'"),
@@ -258,10 +260,15 @@ def test_paper_table1():
     at its reference point, fitting delta_w, the closure's Lambda and L (three data, three
     parameters): the estimates reproduce the data, delta_w is the closed form
     atan(1.12/7.97) = 8.00 deg (the stresses' ratio is tan delta_w), and Lambda moves from the
-    closure's 817 Pa to where nu is the paper's 0.625 (what its numbers were computed with)."""
+    closure's 817 Pa to where nu is the paper's 0.625 (what its numbers were computed with).
+    Its summary has no chi2/dof to state."""
     r = fit(EXAMPLES / "fit_table1.csv", "delta_w,Lambda,L", {"K": 0.5, "A": 1 / 3},
             start={"delta_w": 8.0})
     assert r.dof == 0 and r.chi2 < 1e-12
+    # No degrees of freedom: no chi2/dof printed as nan; scipy's message without its backticks.
+    text = r.summary()
+    assert "no chi2/dof (as many free parameters as measurements)" in text
+    assert "nan" not in text.split("\n")[-2] and "`" not in text
     assert r.params["delta_w"] == pytest.approx(math.degrees(math.atan(1120 / 7970)), rel=1e-6)
     nu = 1120 / (1180 * 9.81 * 0.155)  # sigma_xy = -rho_p g W nu
     N = math.sin(math.radians(30)) / math.tan(math.radians(r.params["delta_w"]))

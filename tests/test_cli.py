@@ -774,6 +774,8 @@ def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
      "unrecognized option --esp; did you mean --eps?"),
     (_point_args() + ["--jsn"], "unrecognized option --jsn; did you mean --json?"),
     (["--verison"], "did you mean --version?"),
+    (["point", "--eps", "0.1", "--l", "10", "--K", "0.5", "--A", "0.3", "--N", "1"],
+     "unrecognized option --l; did you mean --L?"),
     (_point_args() + ["--zzzz", "3"], "unrecognized option --zzzz; see 'cosserat-channel point"),
 ])
 def test_unknown_option_is_named_with_the_closest_spelling(capsys, args, named):
@@ -781,6 +783,34 @@ def test_unknown_option_is_named_with_the_closest_spelling(capsys, args, named):
     assert cli.main(args) == 2
     out, err = capsys.readouterr()
     assert out == "" and len(err.splitlines()) == 1 and named in err, err
+
+
+def test_point_takes_gravity_and_the_closure_constants(capsys):
+    """``point`` with a material takes --g, --Lambda, --nu-min ... (the library's material keys):
+    the same answer as solve_point with that material, listed in the report; without a material
+    they are refused in one line naming them."""
+    material = ["--d-p", "0.002", "--rho-p", "2940", "--phi", "25"]
+    assert cli.main(_point_args() + material + ["--Lambda", "900", "--g", "9.7", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    ref = solve_point(1 / 30, 10, 0.5, 1 / 3, 1, material={"d_p": 0.002, "rho_p": 2940,
+                                                            "phi": 25, "Lambda": 900, "g": 9.7})
+    assert data["nu"] == ref.nu and data["sigma_xx_wall_Pa"] == ref.sigma_xx_wall_Pa
+    assert cli.main(_point_args() + material + ["--Lambda", "900"]) == 0
+    report = capsys.readouterr().out
+    assert any(line.split()[:2] == ["Lambda", "900"] for line in report.splitlines()), report
+    assert cli.main(_point_args() + ["--g", "9.7", "--nu-max", "0.6"]) == 2
+    err = capsys.readouterr().err
+    assert "--g, --nu-max: only with a material" in err and len(err.splitlines()) == 1
+
+
+def test_boundary_without_output_prints_its_table_alone(capsys, tmp_path, monkeypatch):
+    """``boundary`` without -o prints the table (here from the shipped atlas) and writes nothing."""
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["boundary", "--A", "0.3333333333333333", "--N", "1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split() == ["A", "N", "eta_max", "kind", "status", "above"]
+    assert abs(float(out[1].split()[2]) / 3.30886055554 - 1) < 2e-8
+    assert os.listdir(tmp_path) == []
 
 
 def test_run_of_a_result_file_says_it_is_one(capsys, small_result):

@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 from cosserat_channel import outputs, plot, run_sweep
 from cosserat_channel.parameters import PARAMETERS
 from cosserat_channel.solver.point import solve_point
-from support import run_python
+from support import assert_legend_lines_show_their_curves, run_python
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -65,7 +65,9 @@ def test_panel_plots_profile_arrays(fig, result, symbol, keys):
 
 
 def test_shear_stress_panel_has_legend_for_both(fig):
-    """The two-line stress panel has a legend naming sigma_xy and sigma_yx."""
+    """The two-line stress panel has a legend naming sigma_xy and sigma_yx, each entry drawn as
+    its curve (sigma_yx's dash-dot, the plug edge's dashes)."""
+    assert assert_legend_lines_show_their_curves(fig) == 2
     ax = _axes_with_ylabel(fig, r"\bar\sigma_{xy}")
     texts = [t.get_text() for t in ax.get_legend().get_texts()]
     assert any(r"\sigma_{xy}" in t for t in texts)

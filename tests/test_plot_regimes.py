@@ -10,6 +10,7 @@ from cosserat_channel.plot import lines as pl
 from cosserat_channel.plot import regimes as pr
 from cosserat_channel.solver.point import solve_point
 from cosserat_channel.sweep import run_sweep
+from support import assert_legend_lines_show_their_curves
 
 
 def _legend_texts(fig):
@@ -31,8 +32,10 @@ def boundary_ds(regime_ds):
 
 
 def test_regime_map_legend_has_each_status_and_boundary(regime_ds, boundary_ds):
-    """One legend entry per status present and per boundary line; labels and title."""
+    """One legend entry per status present and per boundary line (each dashed or dotted one
+    showing its pattern); labels and title."""
     fig = pr.regime_map(regime_ds, "A", "N", boundary=boundary_ds)
+    assert assert_legend_lines_show_their_curves(fig) >= 2
     texts = _legend_texts(fig)
     present = {st.Status(int(c)).name for c in np.unique(regime_ds["status"].values)}
     assert present >= {"ok", "wall_inadmissible", "eps_too_large_axis", "eps_too_large_path",
@@ -83,6 +86,9 @@ def test_phase_plane_figure_artists():
     assert len(ax.get_lines()) >= 2 + 2 + 4
     assert r"\bar m" in ax.get_ylabel() and r"\xi" in ax.get_xlabel()
     assert "0.603" in ax.get_title() and "$A$ = 0.333333" in ax.get_title()
+    # The E+ trajectories are dash-dot, the E- dotted, the nullcline dashed: so are their entries.
+    drawn = sum(tr.xi.size > 1 for tr in pp.trajectories)
+    assert drawn >= 3 and assert_legend_lines_show_their_curves(fig) == 1 + drawn
 
 
 def test_boundary_figure_lines(boundary_ds):
@@ -253,6 +259,12 @@ def test_profiles_figure_with_composite():
     assert any("sigma_{xy}" in t for t in texts)
     assert "u/u(0)" in ax_u.get_ylabel() and r"\bar m" in ax_m.get_ylabel()
     assert "L" not in fig._suptitle.get_text().split(":")[1].replace("Lambda", "")
+    assert assert_legend_lines_show_their_curves(fig) == 1  # sigma_yx, dash-dot in every colour
+    one = pl.profiles_figure(rs[1:2])
+    assert assert_legend_lines_show_their_curves(one) == 1  # sigma_yx: the curve itself
+    leg = one.axes[2].get_legend()
+    yx = [h for h, t in zip(leg.legend_handles, leg.get_texts()) if "sigma_{yx}" in t.get_text()]
+    assert [h.get_color() for h in yx] == ["C0"]  # the one point's colour, not a grey proxy
     # Composite agrees with the numerical m within a few percent at eps = 1/30, L = 10.
     circ = [ln for ln in ax_m.get_lines() if ln.get_marker() == "o"][1]
     np.testing.assert_allclose(circ.get_ydata(), np.interp(circ.get_xdata(), xi, rs[1].profile["m"]),

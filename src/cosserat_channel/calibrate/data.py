@@ -167,6 +167,9 @@ def _read_csv(path: str, source: str) -> tuple[dict, np.ndarray]:
         raise DataError(f"{source}: no header line (expected e.g. 'quantity,value,std_error,eps')")
     rows = list(csv.reader(line for _, line in numbered))
     header = [h.strip() for h in rows[0]]
+    if len(header) == 1 and ";" in header[0]:
+        raise DataError(f"{source}: the columns are separated by ';'; the file must be "
+                        "comma-separated (e.g. 'quantity,value,std_error,eps')")
     lines = np.array([n for n, _ in numbered[1:]], dtype=np.int64)
     columns: dict = {h: [] for h in header}
     if len(columns) != len(header):
@@ -250,10 +253,10 @@ def _checked(columns: dict, source: str, lines) -> Measurements:
                             f"one of {', '.join(scalar)}, or a profile ({', '.join(profile)}) at xi")
         if not math.isfinite(data.value[i]):
             raise DataError(f"{data.where(i, VALUE)}: the value must be a finite number; got "
-                            f"{data.value[i]!r}")
+                            f"{float(data.value[i])!r}")
         if not (math.isfinite(data.std_error[i]) and data.std_error[i] > 0):
             raise DataError(f"{data.where(i, STD_ERROR)}: the standard error must be a positive "
-                            f"finite number; got {data.std_error[i]!r}")
+                            f"finite number; got {float(data.std_error[i])!r}")
         if q in profile:
             if not 0.0 <= data.xi[i] <= 1.0:  # False for NaN
                 raise DataError(f"{data.where(i, XI)}: the profile {q} needs xi in [0, 1]; got "

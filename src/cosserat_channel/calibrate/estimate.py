@@ -208,11 +208,14 @@ class FitResult:
             lines.append("correlation  " + "  ".join(
                 f"{a}-{b} {self.correlation[i, j]:+.3f}" for i, a in enumerate(self.names)
                 for j, b in enumerate(self.names) if j > i))
-        lines.append(f"chi2 = {self.chi2:.6g}, dof = {self.dof}, chi2/dof = {self.chi2_dof:.4g}, "
+        ratio = (f"chi2/dof = {self.chi2_dof:.4g}" if self.dof > 0 else
+                 "no chi2/dof (as many free parameters as measurements)")
+        lines.append(f"chi2 = {self.chi2:.6g}, dof = {self.dof}, {ratio}, "
                      f"condition number = {self.condition_number:.3g}")
+        # scipy's messages quote its option names in reST backticks: plain text here.
         lines.append(f"{len(self.data)} measurements, {self.n_evaluations} evaluations, "
                      f"{self.n_solves} solves, Jacobian: {self.jacobian_method}; "
-                     f"{self.message}")
+                     f"{self.message.replace('`', '')}")
         return "\n".join(lines)
 
     def __str__(self) -> str:

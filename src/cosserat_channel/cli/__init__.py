@@ -85,7 +85,9 @@ class _Parser(argparse.ArgumentParser):
             flag = word.split("=", 1)[0]
             if not flag.startswith("--") or flag in self._option_string_actions:
                 continue
-            close = difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
+            # The parameters' flags differ from others in case alone (--l is --L, not --rtol).
+            close = [k for k in known if k.lower() == flag.lower()] or \
+                difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
             hint = f"; did you mean {close[0]}?" if close else f"; see '{self.prog} --help'"
             return f"unrecognized option {flag}{hint}"
         return None

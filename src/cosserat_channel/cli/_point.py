@@ -10,6 +10,7 @@ from ..parameters import MATERIAL, ParameterError, TOLERANCES
 from .common import (
     EXIT_FAILURE,
     EXIT_OK,
+    CLOSURE_ARGS,
     MATERIAL_ARGS,
     POINT_ARGS,
     SOLVING,
@@ -119,9 +120,11 @@ def format_point_table(result, tolerances: dict, material: dict | None,
         text = "relative tolerance" if k == "rtol" else "absolute tolerance"
         lines.append(_row(k, float(v), "-", text))
     if material is not None:
-        for _, dest, text in MATERIAL_ARGS:
+        for _, dest, _ in MATERIAL_ARGS + CLOSURE_ARGS:
+            if dest not in material:
+                continue
             lines.append(_row(dest, float(material[dest]), MATERIAL[dest].units,
-                              text.rsplit(" in ", 1)[0]))
+                              MATERIAL[dest].sentence.rsplit(" in ", 1)[0]))
     lines.append(f"status  {result.status.name}: {result.status.message}")
     outputs = [
         _row(name, float(getattr(result, name)), o.units, o.sentence)

@@ -75,7 +75,8 @@ def _boundary_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"searched range of eta = eps L (default {ETA_RANGE}: eps <= 1, L <= 100)")
     p.add_argument("--coarse", type=int, default=ETA_COARSE, metavar="M",
                    help=f"log-spaced samples before bisection (default {ETA_COARSE})")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.nc", help="NetCDF file to write")
+    p.add_argument("-o", "--output", metavar="OUT.nc",
+                   help="NetCDF file to write (without it the table is printed alone)")
     p.add_argument("--plot", metavar="FILE.png", help="also plot eta_max against A, one line per N")
     p.add_argument("--atlas", metavar="ATLAS.nc",
                    help="draw the edges from this atlas (written by 'atlas') instead of tracing "
@@ -113,23 +114,26 @@ def _boundary(args: argparse.Namespace) -> int:
     if not 2 <= args.coarse <= MAX_COARSE:
         raise CliError(f"--coarse must be in [2, {MAX_COARSE}]; got {args.coarse}")
     # An existing OUT.nc may be reused (below); FILE.png is kept unless --overwrite.
-    check_output_path(args.output, "-o", overwrite=True)
+    if args.output is not None:
+        check_output_path(args.output, "-o", overwrite=True)
     if args.plot is not None:
-        check_not_input(args.plot, [args.output], "--plot")
+        check_not_input(args.plot, [p for p in [args.output] if p is not None], "--plot")
         figure_output(args.plot, "--plot", overwrite=args.overwrite)
     from .. import regimes
     from ..status import Status
 
-    if args.atlas is not None:
+    if args.atlas is not None and args.output is not None:
         check_not_input(args.output, [args.atlas], "-o")
     source = _edge_source(A, N, atlas=args.atlas, trace=args.trace, eta_range=(lo, hi))
     if not source.traced:
-        check_output_path(args.output, "-o", overwrite=args.overwrite)
+        if args.output is not None:
+            check_output_path(args.output, "-o", overwrite=args.overwrite)
         if args.atlas is None:
             note(f"edges drawn from the {source.describe()} (--trace to trace them)")
         ds = source.boundary
     else:
-        ds = None if args.overwrite else _same_boundary(args.output, A, N, lo, hi, args.coarse)
+        ds = None if args.overwrite or args.output is None else \
+            _same_boundary(args.output, A, N, lo, hi, args.coarse)
     write = ds is None or not source.traced  # a file reused as it is is not written again
     if ds is None:
         try:
@@ -137,12 +141,12 @@ def _boundary(args: argparse.Namespace) -> int:
                 ds = regimes.trace_boundary(A, N, eta_range=(lo, hi), n_coarse=args.coarse,
                                             progress=bar.report)
         except KeyboardInterrupt as exc:
-            return interrupted(exc, f"no file written ({args.output} untouched): a trace keeps "
-                               "nothing before its end")
+            return interrupted(exc, "no file written" + (f" ({args.output} untouched)" if
+                               args.output else "") + ": a trace keeps nothing before its end")
     from ..files import write_dataset
 
     try:
-        if write:
+        if write and args.output is not None:
             write_dataset(args.output, ds)
         if args.plot is not None:
             from ..plot import regimes as plot_regimes

@@ -249,6 +249,9 @@ def number(text: str) -> float:
 POINT_ARGS = tuple((f"--{d}", d, f"{PARAMETERS[d].sentence}, in {PARAMETERS[d].interval}")
                     for d in DIMS)
 MATERIAL_ARGS = tuple(("--" + k.replace("_", "-"), k, MATERIAL[k].sentence) for k in MATERIAL_REQUIRED)
+# The material's optional inputs (gravity, the closure's constants), each with its default.
+CLOSURE_ARGS = tuple(("--" + k.replace("_", "-"), k, f"{MATERIAL[k].sentence} (default {MATERIAL[k].default:g})")
+                     for k in MATERIAL if k not in MATERIAL_REQUIRED)
 # The engineers' inputs that give eps and N (parameters.eps_from_width, N_from_friction): the
 # flag, its destination, the parameter it gives and the material input it needs.
 PHYSICAL_ARGS = (("--W", "W", "eps", "d_p"), ("--delta-w", "delta_w", "N", "phi"))
@@ -306,6 +309,9 @@ def add_material_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("material (all three or none; adds nu and wall stresses in Pa)")
     for flag, dest, text in MATERIAL_ARGS:
         g.add_argument(flag, dest=dest, type=number, help=text)
+    g = p.add_argument_group("gravity and the closure's constants (with the material)")
+    for flag, dest, text in CLOSURE_ARGS:
+        g.add_argument(flag, dest=dest, type=number, help=text)
 
 
 def material_from_args(args: argparse.Namespace) -> dict | None:
@@ -314,16 +320,21 @@ def material_from_args(args: argparse.Namespace) -> dict | None:
     ``--d-p`` given for ``--W`` only, or ``--phi`` for ``--delta-w`` only, is no material.
     """
     given = {dest: getattr(args, dest) for _, dest, _ in MATERIAL_ARGS}
+    closure = {dest: getattr(args, dest) for _, dest, _ in CLOSURE_ARGS
+               if getattr(args, dest, None) is not None}
     consumed = {needs for _, dest, _, needs in PHYSICAL_ARGS if getattr(args, dest, None)
                 is not None}
     if all(v is None for k, v in given.items() if k not in consumed):
+        if closure:
+            flags = ", ".join(f for f, dest, _ in CLOSURE_ARGS if dest in closure)
+            raise CliError(f"{flags}: only with a material (--d-p, --rho-p and --phi)")
         return None
     missing = [flag for flag, dest, _ in MATERIAL_ARGS if given[dest] is None]
     if missing:
         raise CliError(
             "--d-p, --rho-p and --phi go together; missing " + ", ".join(missing)
         )
-    return given
+    return {**given, **closure}
 
 
 def tolerances_from_args(args: argparse.Namespace) -> dict:

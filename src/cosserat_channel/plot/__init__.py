@@ -28,6 +28,10 @@ from ..parameters import DIMS, PARAMETERS
 
 DPI = 120
 FIGSIZE = (10.0, 7.0)
+# The length of a legend's line handles, in font sizes, where a figure draws dashed or dash-dot
+# lines: at matplotlib's 2.0 a dash-dot line 2 points wide shows one solid dash in its legend
+# entry (its pattern scales with the width), so the entry would not match its curve.
+HANDLE_LENGTH = 4.5
 
 # Axis labels of what is neither an output, a profile nor a parameter (those carry their own:
 # :func:`axis_label`).
@@ -189,8 +193,8 @@ def point_profiles(result, path=None) -> Figure:
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel(axis_label("xi"))
-    ax_u.legend(loc="best")
-    ax_s.legend(loc="best")
+    ax_u.legend(loc="best", handlelength=HANDLE_LENGTH)
+    ax_s.legend(loc="best", handlelength=HANDLE_LENGTH)
     title = parameter_title(result.eps, result.L, result.K, result.A, result.N)
     nu = float(getattr(result, "nu", math.nan))
     if math.isfinite(nu):

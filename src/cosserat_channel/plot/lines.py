@@ -12,7 +12,7 @@ from matplotlib import colormaps
 from .. import outputs
 from ..parameters import PARAMETERS
 from ..physics import asymptotics
-from . import axis_label, new_figure, parameter_title, save_figure, shear_stress_label
+from . import HANDLE_LENGTH, axis_label, new_figure, parameter_title, save_figure, shear_stress_label
 from .regimes import DIMS, select_slice
 
 # The profiles a sweep writes (sigma_xy = -xi is solve_point's alone).
@@ -132,7 +132,8 @@ def profiles_figure(results, *, asymptotic=True, path=None):
         label = ", ".join(f"{PARAMETERS[d].symbol} = {getattr(r, d):.4g}" for d in varying) or "numerical"
         ax_u.plot(xi, pr["u_over_u0"], color=color, lw=2, label=label)
         ax_w.plot(xi, pr["omega_hat"], color=color, lw=2)
-        ax_s.plot(xi, pr["sigma_yx"], color=color, lw=2, ls="-.")
+        ax_s.plot(xi, pr["sigma_yx"], color=color, lw=2, ls="-.",
+                  label=outputs.PROFILES["sigma_yx"].symbol if len(results) == 1 else None)
         ax_m.plot(xi, pr["m"], color=color, lw=2)
         if asymptotic and r.N == 1.0:
             sel = np.unique(np.linspace(0, xi.size - 1, min(N_MARKERS, xi.size)).round().astype(int))
@@ -149,7 +150,9 @@ def profiles_figure(results, *, asymptotic=True, path=None):
         ax_u.plot([], [], label=ASYMPTOTIC_EACH_LABEL, **ASYMPTOTIC_PROXY)
     ax_s.plot(results[0].profile["xi"], results[0].profile["sigma_xy"], color="k", lw=1.5,
               label=outputs.PROFILES["sigma_xy"].symbol + r" $= -\xi$")
-    ax_s.plot([], [], color="0.4", ls="-.", lw=2, label=outputs.PROFILES["sigma_yx"].symbol)
+    if len(results) > 1:  # one entry for the dash-dot curves of every colour
+        ax_s.plot([], [], color="0.4", ls="-.", lw=2,
+                  label=outputs.PROFILES["sigma_yx"].symbol + " (each point's colour)")
     ax_u.set_ylabel(axis_label("u_over_u0"))
     ax_w.set_ylabel(axis_label("omega_hat"))
     ax_s.set_ylabel(shear_stress_label())
@@ -159,8 +162,8 @@ def profiles_figure(results, *, asymptotic=True, path=None):
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel(axis_label("xi"))
-    ax_u.legend(loc="lower left", fontsize="small")
-    ax_s.legend(loc="lower left", fontsize="small")
+    ax_u.legend(loc="lower left", fontsize="small", handlelength=HANDLE_LENGTH)
+    ax_s.legend(loc="lower left", fontsize="small", handlelength=HANDLE_LENGTH)
     fig.suptitle("Profiles: " + parameter_title(**{d: fixed.get(d) for d in DIMS}))
     if path is not None:
         save_figure(fig, path)

@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import outputs
 from .. import status as st
-from . import axis_label, new_figure, shear_stress_label
+from . import HANDLE_LENGTH, axis_label, new_figure, shear_stress_label
 
 FIGSIZE = (7.5, 6.6)
 TABLE_FIGSIZE = (7.5, 5.0)
@@ -88,7 +88,7 @@ def figure2(pf, sub):
     for L, ls in zip(sorted(d["u"]), (LONG_DASHED, SOLID, DASHED)):
         ax.plot(d["xi"], d["u"][L], color="k", ls=ls, lw=1.6, label=f"numerical, $L$ = {L:g}")
     ax.plot(*_markers(d["xi"], d["asymptotic"]), label=ASYMPTOTIC + ", $L$ = 10", **CIRCLE)
-    ax.legend(loc="lower left")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="lower left")
 
 
 def _u_numerical_and_asymptotic(pf, sub):
@@ -96,7 +96,7 @@ def _u_numerical_and_asymptotic(pf, sub):
     ax = _xi_axes(sub, pf, "u_over_u0")
     ax.plot(d["xi"], d["u"], color="k", lw=1.6, label="numerical")
     ax.plot(*_markers(d["xi"], d["asymptotic"]), label=ASYMPTOTIC, **CIRCLE)
-    ax.legend(loc="lower left")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="lower left")
 
 
 figure3 = figure4 = _u_numerical_and_asymptotic
@@ -112,7 +112,7 @@ def figure5(pf, sub):
     ax.plot(d["xi"], d["half_vorticity"], color="k", ls=DASHED, lw=1.6,
             label=r"half the vorticity, $-\frac{1}{2}\,du/d\xi$")
     ax.plot(*_markers(d["xi"], d["asymptotic"]), label=ASYMPTOTIC + r", $\bar\omega$", **CIRCLE)
-    ax.legend(loc="upper left")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="upper left")
 
 
 def figure6(pf, sub):
@@ -121,7 +121,7 @@ def figure6(pf, sub):
     ax.set_xlim(0.0, 1.0)
     ax.plot(d["xi"], d["omega"], color="k", lw=1.6, label=r"numerical $\bar\omega$")
     ax.plot(*_markers(d["xi"], d["asymptotic"]), label=ASYMPTOTIC, **CIRCLE)
-    ax.legend(loc="upper left")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="upper left")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -133,7 +133,7 @@ def _Delta_against(pf, sub, x):
     ax = _axes(sub, pf, axis_label(x), axis_label("Delta"))
     ax.plot(d[x], d["Delta"], color="k", lw=1.6, label="numerical")
     ax.plot(*_markers(d[x], d["asymptotic"], 15), label=ASYMPTOTIC, **CIRCLE)
-    ax.legend(loc="upper left")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="upper left")
     return ax
 
 
@@ -154,7 +154,7 @@ def figure9(pf, sub):
                    label=rf"$K$ = {d['K_star']:.1f}: $u(1) \geq 0.95\,u(0)$, $\Delta$ = 0")
     ax.set_xlim(0.0, float(np.max(d["K"])))
     ax.set_ylim(bottom=0.0)
-    ax.legend(loc="upper right")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="upper right")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -171,7 +171,7 @@ def figure10(pf, sub):
     xy, yx = outputs.PROFILES["sigma_xy"].symbol, outputs.PROFILES["sigma_yx"].symbol
     ax.plot(d["xi"], d["sigma_xy"], color="k", lw=1.6, label=xy + r" $= -\xi$ (both $\varepsilon$)")
     _per_eps(ax, d, "sigma_yx", (DOTTED, LONG_DASHED), yx)
-    ax.legend(loc="lower left")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="lower left")
 
 
 def _per_eps(ax, d, name, dashes, label):
@@ -186,7 +186,7 @@ def figure11(pf, sub):
     d = pf.data
     ax = _xi_axes(sub, pf, "m")
     _per_eps(ax, d, "m", (DOTTED, DASHED), "numerical")
-    ax.legend(loc="upper left")
+    ax.legend(handlelength=HANDLE_LENGTH, loc="upper left")
 
 
 def figure12(pf, sub):

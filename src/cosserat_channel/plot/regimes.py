@@ -20,15 +20,17 @@ from ..physics import analytic
 from .. import regime_codes as rc
 from .. import status as st
 from ..parameters import DIMS
-from . import axis_label, new_figure, parameter_title, save_figure
-# The traced edges are wide translucent bands drawn under the thin analytic lines: where the
-# traced edge is the axis condition (or the wall line) both stay visible, the line inside the band.
+from . import HANDLE_LENGTH, axis_label, new_figure, parameter_title, save_figure
+# The traced edges are opaque lines twice as wide as the analytic lines and drawn under them:
+# where the traced edge is the axis condition (or the wall line) both stay visible, the analytic
+# line inside the traced one. Opaque, so that their colour does not mix with the region's
+# beneath; not wider, so that a line lies on the edge of the region it bounds.
 BOUNDARY_STYLES = {
     "wall": dict(color="k", ls="-", lw=1.8, alpha=1.0, zorder=4),
     "axis": dict(color="#0033cc", ls="--", lw=1.8, alpha=1.0, zorder=4),
     "A=-1": dict(color="#8b4513", ls=":", lw=2.5, alpha=1.0, zorder=4),
-    "traced": dict(color="#00bfff", ls="-", lw=7.0, alpha=0.6, zorder=3),
-    "traced_min": dict(color="#ff69b4", ls="-", lw=7.0, alpha=0.6, zorder=3),
+    "traced": dict(color="#00bfff", ls="-", lw=3.6, alpha=1.0, zorder=3),
+    "traced_min": dict(color="#e7298a", ls="-", lw=3.6, alpha=1.0, zorder=3),
     "switch": dict(color="#d95f02", ls="-.", lw=1.5, alpha=1.0, zorder=4),
 }
 BOUNDARY_LABELS = {
@@ -112,7 +114,7 @@ def phase_plane_figure(pp, nu=None, path=None, *, fig=None):
     ax.set_ylabel(rf"{m.long_name} $\bar m$ ({m.unit_label})" if nu is not None else m.label)
     # Below the plane, in two columns: beside it the long trajectory labels took 40 % of the width.
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncols=2,
-              fontsize="small", frameon=False)
+              fontsize="small", frameon=False, handlelength=HANDLE_LENGTH)
     title = (r"Phase plane (paper figure 12): $E_{+}$ of eq:a1, $E_{-}$ of eq:a2; "
              + parameter_title(pp.eps, pp.L, None, pp.A, pp.N))
     if nu is not None:
@@ -324,7 +326,7 @@ def regime_map(ds, x="A", y="N", at=None, *, boundary=None, path=None):
     ax.set_xlabel(axis_label(x))
     ax.set_ylabel(axis_label(y))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
-              title="status / boundary")
+              title="status / boundary", handlelength=HANDLE_LENGTH)
     ax.set_title("Solution status: " + parameter_title(**fixed))
     if path is not None:
         save_figure(fig, path)

@@ -121,3 +121,19 @@ def test_site_builds_from_scratch_with_warnings_as_errors(tmp_path):
                  "_generated/notebooks/01_quickstart"):
         assert (html / f"{page}.html").is_file(), page
     assert "Not generated in this build" not in (html / "_generated" / "paper.html").read_text()
+
+
+def test_zstd_cost_stated_as_measured():
+    """What README and getting-started say of Zstandard's CPU beside zlib's is the ratio that
+    docs/performance.md measured (its one-thread timings of the same chunks), not a number typed
+    by hand that drifts from it."""
+    perf = (DOCS / "performance.md").read_text()
+    found = re.search(r"zstd -1 ([\d.]+) s, zlib 1 \+ shuffle ([\d.]+) s", perf)
+    assert found, "performance.md's compression timings"
+    zstd, zlib = map(float, found.groups())
+    words = {2: "half", 3: "third", 4: "quarter", 5: "fifth", 6: "sixth", 7: "seventh",
+             8: "eighth", 9: "ninth", 10: "tenth"}
+    word = words[round(zlib / zstd)]
+    assert f"about a {word} of zlib's CPU" in " ".join((ROOT / "README.md").read_text().split())
+    assert f"takes about a {word} of its CPU" in " ".join(
+        (DOCS / "getting-started.md").read_text().split())

@@ -1,8 +1,8 @@
 """Digests of the solver's outputs, to show that a refactoring changed no bit of any result.
 
 Runs the quickstart and regimes sweeps in memory (reduced and, for quickstart, unreduced) and
-``solve_point`` over the test points (with a material, with profiles), and prints one SHA-256 per
-piece. Run it before and after a change and compare the lines::
+``solve_point`` over the test points (with a material, with profiles, with sensitivities), and
+prints one SHA-256 per piece. Run it before and after a change and compare the lines::
 
     .venv/bin/python benchmarks/fingerprint.py > before.txt   # on the old commit
     .venv/bin/python benchmarks/fingerprint.py > after.txt    # on the new one
@@ -39,6 +39,7 @@ POINTS = [
     (1e-7, 1.0, 0.5, 1 / 3, 1.0), (0.5, 100.0, 1e4, 5.0, 10.0),
 ]
 PROFILE_XI = [0.0, 1e-3, 0.1, 0.5, 0.9, 0.99, 1.0]
+FLAGS = ("adjoint", "differences", "unresolved", "no_solution", "undefined")
 
 
 def _digest(*arrays) -> str:
@@ -78,8 +79,28 @@ def _points() -> str:
     return _digest(*[np.asarray(v, float) for v in values])
 
 
+def _sensitivities() -> str:
+    """The derivatives and their flags of ``solve_point(sensitivities=True)`` over the points (at
+    the default rtol and at 1e-11, with a material and a profile)."""
+    from cosserat_channel.solver.point import solve_point
+
+    values = []
+    for p in POINTS:
+        for rtol in (1e-8, 1e-11):
+            r = solve_point(*p, rtol=rtol, material=MATERIAL, profile=PROFILE_XI,
+                            sensitivities=True)
+            for out, d in sorted(r.sensitivities.items()):
+                values.append([d[k] for k in sorted(d)])
+                flags = getattr(r, "sensitivity_flags", None) or {}
+                values.append([float(FLAGS.index(f)) for _, f in sorted(flags.get(out, {}).items())])
+            for _, d in sorted((r.profile_sensitivities or {}).items()):
+                values.extend(np.asarray(v, float) for _, v in sorted(d.items()))
+    return _digest(*[np.asarray(v, float) for v in values])
+
+
 def main() -> int:
     print("solve_point", _points())
+    print("sensitivities", _sensitivities())
     print("quickstart", _sweep("quickstart"))
     print("quickstart unreduced", _sweep("quickstart", reduce=False))
     print("regimes_A_N", _sweep("regimes_A_N"))

@@ -9,7 +9,6 @@ from cosserat_channel.integrate import dense
 from cosserat_channel.integrate.dense import (
     Solution,
     component_minus_level,
-    dense_coefficients,
     dense_eval,
     dense_eval_many,
     dense_eval_step,
@@ -17,7 +16,7 @@ from cosserat_channel.integrate.dense import (
     find_step,
     locate_event,
 )
-from cosserat_channel.integrate.rk45 import dopri5_step, integrate
+from cosserat_channel.integrate.rk45 import dense_coefficients, dopri5_step, integrate
 from cosserat_channel.integrate.stepping import N_STATS, SUCCESS
 from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
 

@@ -243,3 +243,150 @@ def test_steep_spin_with_the_axis_series_to_xi_0_9(p):
     assert r.ok and math.isfinite(r.sensitivities["Delta"]["eps"])
     _check(p)
     _check_profile(p)
+
+
+# ---------------------------------------------------------------------------------------------
+# Over the whole domain and every tolerance: the status is the solve's, and each derivative is
+# within 100 rtol of central differences of the independent reference, or NaN with its reason.
+# ---------------------------------------------------------------------------------------------
+def _domain_draw(rng):
+    """A random point with a solution: eps L log-uniform from 1e-6 (stiff stage 1) to 3, A and
+    N over the range where the model has solutions, and an rtol log-uniform in [1e-12, 1e-6]."""
+    while True:
+        eta = 10 ** rng.uniform(-6, 0.5)
+        eps = 10 ** rng.uniform(max(-6.5, math.log10(eta) - 2), min(-0.3, math.log10(eta) + 1))
+        p = (float(eps), float(eta / eps), float(10 ** rng.uniform(-2, 2)),
+             float(rng.uniform(-0.9, 4)), float(10 ** rng.uniform(-0.3, 1)))
+        if solve_point(*p).ok:
+            return p, float(10 ** rng.uniform(-12, -6))
+
+
+def _flags_explain_every_nan(r):
+    for out, d in r.sensitivities.items():
+        for name, v in d.items():
+            flag = r.sensitivity_flags[out][name]
+            assert math.isnan(v) == (flag not in ("adjoint", "differences")), (out, name, v, flag)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_sensitivities_never_change_the_status(seed):
+    rng = np.random.default_rng(700 + seed)
+    for _ in range(12):
+        p, rtol = _domain_draw(rng)
+        plain = solve_point(*p, rtol=rtol)
+        r = solve_point(*p, rtol=rtol, sensitivities=True)
+        assert r.status == plain.status, (p, rtol, r.status.name)
+        assert {k: repr(v) for k, v in plain.values.items()} == \
+            {k: repr(v) for k, v in r.values.items()}
+        _flags_explain_every_nan(r)
+
+
+@pytest.mark.parametrize("rtol", [1e-8, 1e-10, 1e-12])
+def test_stiff_point_that_lost_its_status_to_derivatives(rtol):
+    # eps L = 1.2e-4: on stage 1's slow manifold the A partials were differences of near-equal
+    # terms whose rounding no panel of the march could resolve
+    p = (9.765e-05, 1.239, 86.07, 2.653, 2.225)
+    r = solve_point(*p, rtol=rtol, sensitivities=True)
+    assert r.ok
+    assert all(f == "adjoint" for d in r.sensitivity_flags.values() for f in d.values())
+
+
+def _reference_outputs(p):
+    from cosserat_channel.physics.reference import reference
+
+    # Radau where stage 1 is stiff (scipy's explicit pairs would crawl), DOP853 elsewhere; None
+    # where the reference has no solution or cannot give one (its own checks, its root bracket)
+    try:
+        ref = reference(*p, method="Radau" if p[0] * p[1] < 1e-2 else "DOP853")
+    except (AssertionError, ValueError, ZeroDivisionError):
+        return None
+    return ref if ref["status"] == "ok" else None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(4))
+def test_random_domain_against_reference_differences(seed):
+    """Richardson-extrapolated central differences of the reference (scipy at rtol 1e-12) with
+    steps h, 2h, 4h: the difference of the extrapolations from (h, 2h) and (2h, 4h) bounds the
+    first's truncation error, and the reference's own error (100 x its rtol, relative) divided
+    by h its rounding. Each derivative is within 100 rtol of the output over the parameter,
+    plus that bound."""
+    from cosserat_channel.physics.reference import RTOL as RTOL_REF
+
+    rng = np.random.default_rng(900 + seed)
+    p, rtol = _domain_draw(rng)
+    r = solve_point(*p, rtol=rtol, sensitivities=True)
+    assert r.ok
+    _flags_explain_every_nan(r)
+    outs = ("Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall")
+    compared = 0
+    for i, name in enumerate(PARAMS):
+        h = 2e-3 * max(abs(p[i]), 1e-2)
+        if name == "A":
+            h = min(h, 0.2 * (p[3] + 1.0))
+        refs = {}
+        for k in (-4, -2, -1, 1, 2, 4):
+            q = list(p)
+            q[i] += k * h
+            refs[k] = _reference_outputs(tuple(q))
+        if any(v is None for v in refs.values()):
+            continue  # an edge within 4h: the differences do not apply
+        for out in outs:
+            d1, d2, d4 = ((refs[k][out] - refs[-k][out]) / (2 * k * h) for k in (1, 2, 4))
+            r1, r2 = (4 * d1 - d2) / 3, (4 * d2 - d4) / 3
+            value = abs(r.values[out])
+            # the output over the parameter (A, which may be near 0, over at least 0.01)
+            bound = (100 * rtol * value / max(abs(p[i]), 1e-2 if name == "A" else 0.0)
+                     + abs(r1 - r2) + 100 * RTOL_REF * value / h + 1e-300)
+            d = r.sensitivities[out][name]
+            if r.sensitivity_flags[out][name] in ("adjoint", "differences"):
+                assert abs(d - r1) <= bound, (p, rtol, out, name, d, r1, bound)
+                compared += 1
+    assert compared >= len(outs), (p, rtol)  # at least one parameter's worth
+
+
+def test_differences_stand_in_where_the_march_leaves_a_parameter_unresolved():
+    """The fallback on its own: the adjoint's results with the A row marked unresolved give the
+    derivatives by A from differences (flagged so), within 10 rtol of the adjoint's own."""
+    from cosserat_channel.solver import sensitivity as sv
+
+    p = (1 / 30, 10, 0.5, 1 / 3, 1.0)
+    rtol = 1e-8
+    full = solve_point(*p, rtol=rtol, sensitivities=True)
+    eps, L, K, A, N = p
+    r = solve_point(*p, rtol=rtol)
+    x = {k: np.array([v]) for k, v in dict(zip(PARAMS, p)).items()}
+    from cosserat_channel.solver.point import Workspace
+
+    ws = Workspace()
+    ws.run(eps * L, A, N, rtol, 1e-12)
+    x.update(J0=np.array([r.u_axis - eps * K]), mu=np.array([r.m_wall / L]),
+             sig=np.array([r.sigma_yx_wall]), one_minus=np.array([1 - r.xi_p]))
+    out = np.empty((1, sv.N_S))
+    sv.sensitivity_kernel(eps * L, A, N, eps * K, 1 - r.xi_p, rtol, 1e-12, ws.ax, ws.res, ws.T1,
+                          ws.Q1, out[0], np.empty(0), np.empty(3), np.empty((sv.N_PS, 1)))
+    out[0, sv.S_UNRESOLVED + 1] = 1.0
+    values, flags = sv.assemble(list(full.sensitivities), out, np.array([0]), x, None, rtol, 1e-12)
+    for o in ("Delta", "u_axis", "m_wall", "sigma_yx_wall"):
+        assert sv.FLAGS[flags[o]["A"][0]] == "differences"
+        assert sv.FLAGS[flags[o]["N"][0]] == "adjoint"
+        want = full.sensitivities[o]["A"]
+        assert abs(values[o]["A"][0] - want) <= 10 * rtol * (abs(full.values[o]) + abs(want)), o
+
+
+def test_differentiable_outputs_are_marked_in_the_registry():
+    from cosserat_channel import outputs
+
+    r = solve_point(1 / 30, 10, 0.5, 1 / 3, 1.0, sensitivities=True,
+                    material={"d_p": 1e-3, "rho_p": 2500.0, "phi": 30.0})
+    assert set(r.sensitivities) == {n for n, o in outputs.OUTPUTS.items() if o.differentiable}
+    assert "xi_stop" not in r.sensitivities
+    plain = outputs.Output("Delta_twice", "1", "twice Delta", lambda x: 2 * x.get("Delta"),
+                           plug_edge=True)
+    with outputs.registered(plain):
+        r = solve_point(1 / 30, 10, 0.5, 1 / 3, 1.0, sensitivities=True)
+        assert "Delta_twice" in r.values and "Delta_twice" not in r.sensitivities
+    marked = outputs.Output("Delta_marked", "1", "twice Delta", lambda x: 2 * x.get("Delta"),
+                            plug_edge=True, differentiable=True)
+    with outputs.registered(marked), pytest.raises(ValueError, match="Delta_marked"):
+        solve_point(1 / 30, 10, 0.5, 1 / 3, 1.0, sensitivities=True)

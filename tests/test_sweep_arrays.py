@@ -196,3 +196,6 @@ def test_sensitivities_are_solve_points_with_attributes():
                     assert var.attrs["long_name"] and var.attrs["units"]
                     got, want = var.values[i, j], r.sensitivities[name][p]
                     assert got == want or (math.isnan(got) and math.isnan(want)), (name, p, i, j)
+                    flag = ds.sensitivity_flags.sel(derivative=f"d{name}_d{p}").values[i, j]
+                    meanings = ds.sensitivity_flags.attrs["flag_meanings"].split()
+                    assert meanings[flag] == r.sensitivity_flags[name][p], (name, p, i, j)

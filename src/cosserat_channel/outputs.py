@@ -102,6 +102,10 @@ class Output(Quantity):
         Needs the plug edge ``1 - xi_p`` of eq:13 (a root search per ``eps K``).
     material : bool
         Needs a material (``nu`` and the stresses in Pa).
+    differentiable : bool
+        Has derivatives by the parameters (``solve_point(sensitivities=True)``): its chain rule
+        from the marched quantities lives in :mod:`cosserat_channel.solver.sensitivity`, which a
+        test holds to this flag.
     symbol : str
         The paper's symbol in mathtext, for figures (``$\\Delta$``).
     description : str
@@ -118,6 +122,7 @@ class Output(Quantity):
     stage: int = STAGE_VELOCITY
     plug_edge: bool = False
     material: bool = False
+    differentiable: bool = False
 
 
 @dataclass(frozen=True)
@@ -254,37 +259,43 @@ SCALES = {
 OUTPUTS: dict[str, Output] = {o.name: o for o in (
     Output("Delta", "1", "shear-layer thickness", lambda x: x.one_minus / x.eps, plug_edge=True,
            symbol=r"$\Delta$", unit_label="particle diameters",
-           description="shear-layer thickness (1 - xi_p)/eps, in particle diameters"),
+           description="shear-layer thickness (1 - xi_p)/eps, in particle diameters",
+           differentiable=True),
     Output("xi_p", "1", "plug edge", lambda x: 1.0 - x.one_minus, plug_edge=True,
-           symbol=r"$\xi_p$", description="plug edge, u(xi_p) = 0.95 u(0) (eq:13)"),
+           symbol=r"$\xi_p$", description="plug edge, u(xi_p) = 0.95 u(0) (eq:13)",
+           differentiable=True),
     Output("slip", "1", "wall slip", lambda x: x.eps_K / x.get("u_axis"),
-           symbol="$u(1)/u(0)$", description="wall slip u(1)/u(0)"),
+           symbol="$u(1)/u(0)$", description="wall slip u(1)/u(0)", differentiable=True),
     Output("u_axis", "1", "centre-line velocity", lambda x: x.eps_K + x.raw("J_axis"),
-           symbol=r"$u(0)/\bar\omega_w$", description="centre-line velocity u(0)/omega_w"),
+           symbol=r"$u(0)/\bar\omega_w$", description="centre-line velocity u(0)/omega_w",
+           differentiable=True),
     Output("m_wall", "1", "wall couple stress", lambda x: x.L * x.raw("mu_wall"),
            stage=STAGE_STRESS, symbol=r"$\bar m(1)/\nu$", unit_label=r"$\rho_p g W d_p$",
-           scale="couple", description="wall couple stress m(1)/nu (rho_p g W d_p units)"),
+           scale="couple", description="wall couple stress m(1)/nu (rho_p g W d_p units)",
+           differentiable=True),
     Output("sigma_yx_wall", "1", "wall shear stress, yx", lambda x: x.raw("sigma_yx_wall"),
            stage=STAGE_STRESS, symbol=r"$\bar\sigma_{yx}(1)/\nu$", unit_label=r"$\rho_p g W$",
-           scale="stress", description="wall shear stress sigma_yx(1)/nu (rho_p g W units)"),
+           scale="stress", description="wall shear stress sigma_yx(1)/nu (rho_p g W units)",
+           differentiable=True),
     Output("xi_stop", "1", "end of the stress path", _xi_stop, stage=STAGE_STRESS,
            symbol=r"$\xi_{\mathrm{stop}}$", description="where the stress path met D = 0"),
     Output("nu", "1", "solids fraction", lambda x: x.nu, stage=STAGE_NONE, material=True,
-           symbol=r"$\nu$", description="solids fraction (eq:35)"),
+           symbol=r"$\nu$", description="solids fraction (eq:35)", differentiable=True),
     Output("sigma_xx_wall_Pa", "Pa", "wall normal stress",
            lambda x: x.stress_scale_Pa / x.tan_delta, stage=STAGE_NONE, material=True,
            symbol=r"$\sigma_{xx}(1)$",
-           description="wall normal stress sigma_xx, compressive positive"),
+           description="wall normal stress sigma_xx, compressive positive", differentiable=True),
     Output("sigma_xy_wall_Pa", "Pa", "wall shear stress, xy",
            lambda x: -x.stress_scale_Pa, stage=STAGE_NONE, material=True,
-           symbol=r"$\sigma_{xy}(1)$", description="wall shear stress sigma_xy"),
+           symbol=r"$\sigma_{xy}(1)$", description="wall shear stress sigma_xy", differentiable=True),
     Output("sigma_yx_wall_Pa", "Pa", "wall shear stress, yx",
            lambda x: np.where(x.ok, SCALES["stress"].factor(x) * x.get("sigma_yx_wall"), np.nan),
            stage=STAGE_STRESS, material=True, symbol=r"$\sigma_{yx}(1)$",
-           description="wall shear stress sigma_yx"),
+           description="wall shear stress sigma_yx", differentiable=True),
     Output("m_wall_Pa_m", "Pa m", "wall couple stress",
            lambda x: np.where(x.ok, SCALES["couple"].factor(x) * x.get("m_wall"), np.nan),
-           stage=STAGE_STRESS, material=True, symbol="$m(1)$", description="wall couple stress m"),
+           stage=STAGE_STRESS, material=True, symbol="$m(1)$", description="wall couple stress m",
+           differentiable=True),
 )}
 
 # Per-point work counters, stored in a sweep only on request.

@@ -12,7 +12,6 @@ distinct points are solved together: the scalar rows of every trial in one
 
 from __future__ import annotations
 
-import inspect
 import math
 
 import numpy as np
@@ -22,7 +21,7 @@ from ..parameters import (DEFAULT_ATOL, DIMS, MATERIAL, MATERIAL_REQUIRED, Param
                           N_from_friction, check_material, check_point, eps_from_width)
 from .data import INPUTS, DataError, Measurements
 
-__all__ = ["Problem", "FitError", "jacobian", "analytic_sensitivities", "OUTSIDE", "NO_VALUE"]
+__all__ = ["Problem", "FitError", "jacobian", "OUTSIDE", "NO_VALUE"]
 
 
 class FitError(ParameterError):
@@ -196,14 +195,6 @@ class Problem:
 # ---------------------------------------------------------------------------------------------
 # The Jacobian: the one place that decides how derivatives are computed
 # ---------------------------------------------------------------------------------------------
-def analytic_sensitivities() -> bool:
-    """Whether ``solve_point`` offers ``sensitivities=True`` (derivatives of its outputs); the fit
-    then uses them and central differences only where they do not cover a row."""
-    from ..solver import point
-
-    return "sensitivities" in inspect.signature(point.solve_point).parameters
-
-
 def fd_step(theta: np.ndarray, rtol: float) -> np.ndarray:
     """Central-difference steps: truncation (h^2) balances the solve's noise (~rtol/h) at
     ``h ~ rtol^(1/3)`` relative, with a floor for parameters near 0 (K, A)."""
@@ -214,8 +205,8 @@ def fd_step(theta: np.ndarray, rtol: float) -> np.ndarray:
 def jacobian(problem: Problem, theta, base: tuple | None = None) -> tuple[np.ndarray, dict]:
     """d prediction / d theta at ``theta``: shape ``(n, p)``, and what it met.
 
-    Analytic where :func:`analytic_sensitivities` says ``solve_point`` offers them (and they cover
-    every row), else central differences (one-sided where a neighbour has no solution).
+    Analytic from ``solve_point(..., sensitivities=True)`` where they cover every row and are
+    all finite, else central differences (one-sided where a neighbour has no solution).
 
     Parameters
     ----------
@@ -233,7 +224,7 @@ def jacobian(problem: Problem, theta, base: tuple | None = None) -> tuple[np.nda
         ``statuses`` (the status codes met by the neighbours that had no solution).
     """
     theta = np.asarray(theta, dtype=np.float64)
-    if problem.analytic is not False and analytic_sensitivities():
+    if problem.analytic is not False:
         J, covered = _analytic(problem, theta)
         # Whether the sensitivities cover the rows depends on their quantities, not on theta:
         # found once per problem.
@@ -279,7 +270,8 @@ def _analytic(problem: Problem, theta):
 
     Returns ``(J, covered)``: ``(None, False)`` where the solver's sensitivities do not cover
     what a row needs, ``(None, None)`` where a row's point (or a neighbour of the closed-form
-    map) is outside the domain at this ``theta``; central differences then."""
+    map) is outside the domain at this ``theta`` or a derivative is NaN (no solution, or
+    unresolved: ``sensitivity_flags``); central differences then."""
     from ..solver import point as point_
 
     data = problem.data
@@ -315,11 +307,11 @@ def _analytic(problem: Problem, theta):
             cache[key] = (r, xi)
         r, xi = cache[key]
         if problem.profile_rows[i]:
-            table = getattr(r, "profile_sensitivities", None) or {}
             k = int(np.flatnonzero(xi == data.xi[i])[0])
-            sens = {name: np.asarray(v)[k] for name, v in table.get(q, {}).items()}
+            sens = {name: np.asarray(v)[k] for name, v in
+                    r.profile_sensitivities.get(q, {}).items()}
         else:
-            sens = (getattr(r, "sensitivities", None) or {}).get(q, {})
+            sens = r.sensitivities.get(q, {})
         for j in range(p):
             total = 0.0
             for name, d in dinputs[j][i].items():
@@ -328,6 +320,8 @@ def _analytic(problem: Problem, theta):
                 if name not in sens:
                     return None, False
                 total += float(sens[name]) * d
+            if not math.isfinite(total):  # a derivative the solver left unresolved
+                return None, None
             J[i, j] = total
     return J, True
 

@@ -9,8 +9,9 @@ The integrators store one interpolant per accepted step in Hairer's ``CONTD8`` l
 
 :mod:`.dop853` fills all eight rows (its 7th-order interpolant). ``CONTD5`` is the same layout
 with ``q5 = q6 = q7 = 0`` (the formula then gives the same bits as CONTD5's own):
-:func:`dense_coefficients` fills it for Dormand–Prince (Shampine's 4th-order interpolant
-[Sh86]); :mod:`.rosenbrock` with RODAS's 3rd-order extension (``q4 = 0`` too). Every step of a
+:func:`.rk45.dense_coefficients` fills it for Dormand–Prince (Shampine's 4th-order interpolant
+[Sh86]); :mod:`.rosenbrock` with RODAS's 3rd-order extension (``q4 = 0`` too). Each
+integrator keeps its own coefficients; the rows 0-3 they share are :func:`hermite_rows`. Every step of a
 run writes all ``N_DENSE`` rows, so one array can hold steps of different integrators. Everything
 else here reads any of them: :func:`find_step`, :func:`dense_eval_step` (and :func:`step_value`, one
 component as a scalar), :func:`dense_eval`, :func:`dense_eval_many`, :func:`locate_event` and
@@ -43,7 +44,6 @@ from .stepping import (STAT_ACCEPTED, STAT_FEV, STAT_REJECTED, STAT_STIFF, STAT_
 
 __all__ = [
     "N_DENSE",
-    "dense_coefficients",
     "find_step",
     "dense_eval_step",
     "step_value",
@@ -54,16 +54,6 @@ __all__ = [
     "component_minus_level",
     "Solution",
 ]
-
-# Coefficients of the 4th-order continuous extension of Dormand–Prince by Shampine [Sh86], in
-# the form of Hairer's CONTD5 [HNW93, II.6] (the optimal-c6 choice); they weigh the stages K of
-# :func:`.rk45.dopri5_step` (K[1] has weight 0).
-D1 = -12715105075 / 11282082432
-D3 = 87487479700 / 32700410799
-D4 = -10690763975 / 1880347072
-D5 = 701980252875 / 199316789632
-D6 = -1453857185 / 822651844
-D7 = 69997945 / 29380423
 
 EVENT_MAX_ITER = 200
 
@@ -82,31 +72,6 @@ def hermite_rows(y, y_new, h, f0, f1, q, i):
     q[1, i] = ydiff
     q[2, i] = bspl
     q[3, i] = ydiff - h * f1 - bspl
-
-
-@njit(**_JIT)
-def dense_coefficients(y, y_new, h, K, q):
-    """Fill the dense-output coefficients of one accepted Dormand–Prince step.
-
-    Parameters
-    ----------
-    y, y_new : ndarray of float64, shape (n,)
-        Solution at the start and end of the step.
-    h : float
-        Signed step size.
-    K : ndarray of float64, shape (7, n)
-        Stage derivatives from :func:`.rk45.dopri5_step` (``K[6]`` is f at `y_new`).
-    q : ndarray of float64, shape (N_DENSE, n)
-        Output, in the layout of the module docstring (rows 5-7 zero).
-    """
-    n = y.shape[0]
-    for i in range(n):
-        hermite_rows(y[i], y_new[i], h, K[0, i], K[6, i], q, i)
-        q[4, i] = h * (D1 * K[0, i] + D3 * K[2, i] + D4 * K[3, i]
-                       + D5 * K[4, i] + D6 * K[5, i] + D7 * K[6, i])
-        q[5, i] = 0.0
-        q[6, i] = 0.0
-        q[7, i] = 0.0
 
 
 @njit(**_JIT)

@@ -8,8 +8,8 @@ parameter sweeps on small (n = 1 or 2) systems. It is split the way scipy splits
 (``integrate/_ivp/rk.py`` + ``common.py``): the tableau as module constants, one step
 (:func:`dopri5_step`) and the controller (:func:`control`) here, which :func:`dopri5` hands to
 the driver loop it shares with DOP853 (:func:`.explicit.explicit_rk`); the error norm,
-``HINIT``, the stiffness test, outcome codes and counters in :mod:`.stepping`; the dense output
-and event location in :mod:`.dense`.
+``HINIT``, the stiffness test, outcome codes and counters in :mod:`.stepping`; the dense output's
+coefficients here (:func:`dense_coefficients`), its evaluation and event location in :mod:`.dense`.
 
 All kernels are compiled with ``error_model="numpy"`` so that a division by zero yields inf/NaN
 (which the integrator then handles as a non-finite trial step) instead of raising a Python
@@ -40,6 +40,8 @@ References
 .. [HNW93] E. Hairer, S. P. Nørsett and G. Wanner, "Solving Ordinary Differential Equations I:
    Nonstiff Problems", 2nd ed., Springer (1993); Sec. II.4 (automatic step size control,
    ``HINIT``), II.5 (``DOPRI5``), II.6 (dense output, ``CONTD5``), IV.2 (stiffness detection).
+.. [Sh86] L. F. Shampine, "Some practical Runge-Kutta formulas", Math. Comp. 46(173), 135-150
+   (1986).
 """
 
 from __future__ import annotations
@@ -50,12 +52,12 @@ import numpy as np
 from numba import njit
 from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
-from .dense import N_DENSE, Solution, dense_coefficients
+from .dense import N_DENSE, Solution, hermite_rows
 from .explicit import explicit_rk
 from .stepping import N_STATS, NONFINITE_SHRINK, error_norm, no_event
 
 # The outcome codes, counter slots and no_event of dopri5's calling convention are stepping's.
-__all__ = ["dopri5", "dopri5_step", "control", "integrate"]
+__all__ = ["dopri5", "dopri5_step", "dense_coefficients", "control", "integrate"]
 
 # ---------------------------------------------------------------------------------------------
 # Dormand–Prince 5(4) tableau [DP80], as printed in [HNW93, Table II.5.2]; exact fractions.
@@ -102,6 +104,42 @@ E6 = 22 / 525
 E7 = -1 / 40
 
 # Order of the embedded error estimate: the local error is O(h**5).
+
+# Coefficients of the 4th-order continuous extension of Dormand–Prince by Shampine [Sh86], in
+# the form of Hairer's CONTD5 [HNW93, II.6] (the optimal-c6 choice); they weigh the stages K of
+# :func:`dopri5_step` (K[1] has weight 0).
+D1 = -12715105075 / 11282082432
+D3 = 87487479700 / 32700410799
+D4 = -10690763975 / 1880347072
+D5 = 701980252875 / 199316789632
+D6 = -1453857185 / 822651844
+D7 = 69997945 / 29380423
+
+
+@njit(**_JIT)
+def dense_coefficients(y, y_new, h, K, q):
+    """Fill the dense-output coefficients of one accepted Dormand–Prince step.
+
+    Parameters
+    ----------
+    y, y_new : ndarray of float64, shape (n,)
+        Solution at the start and end of the step.
+    h : float
+        Signed step size.
+    K : ndarray of float64, shape (7, n)
+        Stage derivatives from :func:`dopri5_step` (``K[6]`` is f at `y_new`).
+    q : ndarray of float64, shape (N_DENSE, n)
+        Output, in the layout of the module docstring (rows 5-7 zero).
+    """
+    n = y.shape[0]
+    for i in range(n):
+        hermite_rows(y[i], y_new[i], h, K[0, i], K[6, i], q, i)
+        q[4, i] = h * (D1 * K[0, i] + D3 * K[2, i] + D4 * K[3, i]
+                       + D5 * K[4, i] + D6 * K[5, i] + D7 * K[6, i])
+        q[5, i] = 0.0
+        q[6, i] = 0.0
+        q[7, i] = 0.0
+
 ERROR_ORDER = 4
 
 # ---------------------------------------------------------------------------------------------

@@ -9,6 +9,10 @@ the exact similarity (docs/model.md, section 7):
     f = ((A+1) xi - sqrt(D)) / eta,  B = 2 (A+1) (N - delta) / (eta sqrt(D)),
     h = (A+1) (1 - (A-1) xi / sqrt(D)).
 
+Where a partial is a difference of near-equal terms on the slow manifold ``sqrt(D) ~ (A+1) xi``
+of small eta, it is written in ``gap = (A+1) xi - sqrt(D) = eta f`` (with ``D_A = (A+1) xi^2 +
+D/(A+1)``), so that the cancellation is exact (see :func:`rate_partials`).
+
 ``D`` itself is passed in (evaluated cancellation-free by the caller); ``r = 1/sqrt(D)``.
 """
 
@@ -48,7 +52,7 @@ def rate_partials(xi, delta, D, eta, A, N, out, j):
     r = 1.0 / math.sqrt(D)
     a1 = A + 1.0
     q = N - delta
-    D_d, D_A, D_N = yield_D_partials(xi, delta, A, N)
+    D_d, _, D_N = yield_D_partials(xi, delta, A, N)
     r3 = r * r * r
     B = model.spin_rate_B(delta, r, eta, A, N)
     c = 2.0 * a1 / eta
@@ -57,13 +61,18 @@ def rate_partials(xi, delta, D, eta, A, N, out, j):
     out[Q_B_DELTA, j] = -c * (r + 0.5 * q * r3 * D_d)
     hd = 0.5 * a1 * (A - 1.0) * xi * r3
     out[Q_H_DELTA, j] = hd * D_d
-    f = (a1 * xi - 1.0 / r) / eta
-    out[Q_F, j] = -f / eta
-    out[Q_F + 1, j] = (xi - 0.5 * D_A * r) / eta
+    sq = 1.0 / r
+    gap = a1 * xi - sq  # eta f: on the slow manifold of small eta a difference of near equals
+    out[Q_F, j] = -gap / (eta * eta)
+    # The A partials written with D_A = (A+1) xi^2 + D/(A+1), so that the cancellation of
+    # xi - D_A/(2 sqrt(D)) (second order in gap) and of 1 - (A+1) xi/sqrt(D) (first order) is
+    # exact: the plain forms leave their rounding ~eps xi^2/gap^2 relative, which no panel of
+    # the sensitivity march can resolve below at small eta.
+    out[Q_F + 1, j] = -gap * gap * r / (2.0 * a1 * eta)
     out[Q_F + 2, j] = -0.5 * D_N * r / eta
     out[Q_BP, j] = -B / eta
-    out[Q_BP + 1, j] = 2.0 * q / eta * (r - 0.5 * a1 * r3 * D_A)
+    out[Q_BP + 1, j] = q / eta * (-gap) * (sq + a1 * xi) * r3
     out[Q_BP + 2, j] = c * (r - 0.5 * q * r3 * D_N)
     out[Q_HP, j] = 0.0
-    out[Q_HP + 1, j] = (1.0 - (A - 1.0) * xi * r) - a1 * xi * r + hd * D_A
+    out[Q_HP + 1, j] = -gap * r * (1.0 - 0.5 * (A - 1.0) * xi * r * (1.0 + a1 * xi * r))
     out[Q_HP + 2, j] = hd * D_N

@@ -72,6 +72,11 @@ class PointResult:
         ``sigma_xy``, ``sigma_yx`` (over nu).
     sensitivities : dict or None
         With ``sensitivities=True``: ``{output: {parameter: d output / d parameter}}``.
+    sensitivity_flags : dict or None
+        With ``sensitivities=True``: ``{output: {parameter: flag}}``, how each derivative was
+        computed or why it is NaN: ``adjoint`` (the adjoint quadrature, or the closed form),
+        ``differences`` (central differences of tighter solves, where the quadrature missed the
+        tolerance), ``unresolved``, ``no_solution`` or ``undefined`` (by A at A = -1).
     profile_sensitivities : dict or None
         With ``profile=xi`` and ``sensitivities=True``: ``{profile: {parameter: ndarray}}`` for
         ``u_over_u0``, ``omega_hat``, ``m`` and ``sigma_yx`` at ``xi``, by ``eps, L, K, A, N``
@@ -88,6 +93,7 @@ class PointResult:
     counters: dict = field(default_factory=dict)
     profile: dict | None = None
     sensitivities: dict | None = None
+    sensitivity_flags: dict | None = None
     profile_sensitivities: dict | None = None
 
     def __getattr__(self, name):
@@ -123,6 +129,7 @@ class PointResult:
         if self.sensitivities is not None:
             d["sensitivities"] = {k: {p: clean(v) for p, v in s.items()}
                                   for k, s in self.sensitivities.items()}
+            d["sensitivity_flags"] = self.sensitivity_flags
         if self.profile_sensitivities is not None:
             d["profile_sensitivities"] = {
                 k: {p: [clean(float(v)) for v in a] for p, a in s.items()}
@@ -241,8 +248,10 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
         derivative}}``; NaN where the point has no solution. Computed by adjoint quadratures
         over the solution (docs/model.md, section 10) to about the accuracy of the solve; at
         ``A = -1`` from the closed form, with NaN for ``A`` (that form holds at ``A = -1``
-        alone). Where ``eq:13``'s target is not positive (``Delta = 0``) the plug edge's
-        derivatives are 0. With ``profile`` also the profiles' derivatives, in
+        alone). Where the quadrature cannot reach the tolerance, by central differences of
+        tighter solves, or NaN; :attr:`PointResult.sensitivity_flags` says which. The status
+        is the solve's, with or without derivatives. Where ``eq:13``'s target is not positive
+        (``Delta = 0``) the plug edge's derivatives are 0. With ``profile`` also the profiles' derivatives, in
         :attr:`PointResult.profile_sensitivities`. Off by default: the first call compiles its
         kernels.
 
@@ -288,11 +297,10 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     if sensitivities:
         from . import sensitivity  # its kernels compile only when asked for
 
-        result.sensitivities, result.profile_sensitivities, code_s = sensitivity.point_sensitivities(
+        (result.sensitivities, result.sensitivity_flags,
+         result.profile_sensitivities) = sensitivity.point_sensitivities(
             code, eps, L, K, A, N, rtol, atol, ws, one_minus, values, mat,
             None if xi_prof is None else (result.profile or {"xi": xi_prof}))
-        if code_s != code:
-            result.status = st.Status(code_s)
     return result
 
 

@@ -63,7 +63,9 @@ def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=Non
         Also ``d<output>_d<param>`` (``dDelta_deps`` ...) for every computed output that
         :func:`.point.solve_point` differentiates and each of ``eps, L, K, A, N``, equal to its
         ``sensitivities`` (NaN without a solution): one more solve per distinct ``(eps L, A, N)``
-        and one sensitivity march per point, on this thread.
+        and one sensitivity march per point, on this thread. ``sensitivity_flags`` (over the
+        points and a ``derivative`` dimension naming them) says how each was computed or why
+        it is NaN, as ``solve_point``'s ``sensitivity_flags``; the status is the solve's.
 
     Returns
     -------
@@ -107,8 +109,12 @@ def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=Non
         d, value, attrs = dataset.output_variable(inputs, name, dims)
         data_vars[name] = (d, value.reshape(shape), attrs)
     if sensitivities:
-        data_vars.update(_sensitivities(flat, eta, names, mat, rtol, atol, shape, dims, status,
-                                        one_minus, per_point))
+        sens, labels = _sensitivities(flat, eta, names, mat, rtol, atol, shape, dims, status,
+                                      one_minus, per_point)
+        if labels:
+            coords["derivative"] = ("derivative", labels,
+                                    {"long_name": "derivative of sensitivity_flags"})
+        data_vars.update(sens)
     data_vars["status"] = dataset.status_variable(status.reshape(shape), dims)
     attrs = dataset.provenance("cosserat-channel solve", "cosserat_channel.solve", rtol, atol,
                                bool(reduce))
@@ -117,16 +123,16 @@ def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=Non
 
 
 def _sensitivities(flat, eta, names, mat, rtol, atol, shape, dims, status, one_minus,
-                   per_point) -> dict:
-    """``{d<output>_d<param>: (dims, values, attrs)}``: :func:`..solver.sensitivity.
-    sensitivity_batch` on the distinct triples (one solve each, one sensitivity march per point),
-    the chain rule to ``eps, L, K`` on whole arrays; the same numbers as ``solve_point``'s.
-    ``status`` turns ``integration_failed`` where a sensitivity march gives up (as there)."""
+                   per_point):
+    """``({d<output>_d<param>: (dims, values, attrs)}`` with ``sensitivity_flags``, their
+    names)``:
+    :func:`..solver.sensitivity.sensitivity_batch` on the distinct triples (one solve each, one
+    sensitivity march per point), then :func:`..solver.sensitivity.assemble` on whole arrays,
+    as for ``solve_point``. The status is the solve's."""
     from ..solver import sensitivity as sv
     from ..solver import stage1, stage2
-    from .. import status as st
 
-    diff = [n for n in names if n in sv.OUTPUTS]
+    diff = sv.differentiable(names)
     n = eta.size
     order, starts = _triples(flat, eta, True)
     offsets = np.append(starts, n).astype(np.int64)
@@ -138,45 +144,28 @@ def _sensitivities(flat, eta, names, mat, rtol, atol, shape, dims, status, one_m
                          stage1.MAX_STEPS_STAGE1, stage2.MAX_STEPS_STAGE2, out_sorted)
     out = np.empty_like(out_sorted)
     out[order] = out_sorted
-    failed = (status == st.OK) & (out[:, sv.S_STATUS] != st.OK) & (flat["A"] != -1.0)
-    status[failed] = st.INTEGRATION_FAILED
-    rows = {"mu": sv.S_MU_WALL, "sig": sv.S_SIGMA_YX_WALL, "J": sv.S_J_AXIS, "om": sv.S_ONE_MINUS}
-    d = {k: [out[:, r + c].copy() for c in range(4 if k == "om" else 3)] for k, r in rows.items()}
-    for i in np.flatnonzero((flat["A"] == -1.0) & (status == st.OK)):
-        closed = sv.a_minus_one(float(eta[i]), float(flat["N"][i]),
-                                float(flat["eps"][i] * flat["K"][i]), not math.isnan(one_minus[i]))
-        for k, vals in zip(rows, closed):
-            for c, v in enumerate(vals):
-                d[k][c][i] = v
-    eps, L, K = flat["eps"], flat["L"], flat["K"]
-    result = sv.chain_rule(d["mu"], d["sig"], d["J"], d["om"], eps, L, K, per_point["J_axis"],
-                           per_point["mu_wall"], one_minus)
-    if mat is not None and any(o in sv._MATERIAL_OUTPUTS for o in diff):
-        # the material's derivatives are scalar Python per point (the closure's root)
-        mats = {o: {p: np.full(n, math.nan) for p in sv.PARAMETERS} for o in diff
-                if o in sv._MATERIAL_OUTPUTS}
-        for i in np.flatnonzero(status == st.OK):
-            point = {o: {p: float(v[i]) for p, v in result[o].items()} for o in result}
-            m = sv.material_sensitivities(diff, mat, float(eps[i]), float(flat["N"][i]),
-                                          float(L[i] * per_point["mu_wall"][i]),
-                                          float(per_point["sigma_yx_wall"][i]), point)
-            for o, ds in m.items():
-                for p in sv.PARAMETERS:
-                    mats[o][p][i] = ds[p]
-        result.update(mats)
+    x = dict(flat, J0=per_point["J_axis"], mu=per_point["mu_wall"],
+             sig=per_point["sigma_yx_wall"], one_minus=one_minus)
+    result, flags = sv.assemble(diff, out, status, x, mat, rtol, atol)
     variables = {}
+    labels = []
     for o in diff:
         for p in sv.PARAMETERS:
-            v = np.where(status == st.OK, np.asarray(result[o][p], dtype=np.float64) * np.ones(n),
-                         math.nan)
             units = out_.OUTPUTS[o].attrs.get("units", "1")
             p_units = PARAMETERS[p].attrs.get("units", "1")
             if p_units != "1":
                 units = f"({units}) / ({p_units})"
             attrs = {"long_name": f"derivative of {out_.OUTPUTS[o].attrs.get('long_name', o)} "
                                   f"by {p}", "units": units}
-            variables[f"d{o}_d{p}"] = (dims, v.reshape(shape), attrs)
-    return variables
+            variables[f"d{o}_d{p}"] = (dims, result[o][p].reshape(shape), attrs)
+            labels.append(f"d{o}_d{p}")
+    if labels:  # one flag per derivative and point
+        codes = np.stack([flags[o][p] for o in diff for p in sv.PARAMETERS], axis=-1)
+        variables["sensitivity_flags"] = (
+            dims + ("derivative",), codes.reshape(shape + (len(labels),)),
+            {"long_name": "how each derivative was computed", "flag_values":
+             np.arange(len(sv.FLAGS), dtype=np.int8), "flag_meanings": " ".join(sv.FLAGS)})
+    return variables, labels
 
 
 def _check_workers(workers) -> int:

@@ -11,8 +11,8 @@ report commands that take minutes (``bench``, ``stability``, ``paper``) run with
 ``dask scheduler`` and ``dask worker`` serve until stopped and need the other nodes, so each
 runs with ``--help`` (the command exists in the venv and takes those options), and
 ``run ... --scheduler ADDRESS`` is parsed by the command line's own parser (the cluster itself
-is tested in ``test_sweep_engine.py``). The ``python`` blocks run with this interpreter in the
-same directory.
+is tested in ``test_sweep_engine.py``), and so is ``explore``, which serves until stopped. The
+``python`` blocks run with this interpreter in the same directory.
 """
 
 from __future__ import annotations
@@ -84,6 +84,12 @@ def scratch(tmp_path_factory):
     return root
 
 
+def serving_command(words: list[str]) -> bool:
+    """``explore`` serves its page until stopped: parsed here, not run (its page is tested in
+    test_explore.py, in a browser)."""
+    return words[0] == ".venv/bin/cosserat-channel" and len(words) > 1 and words[1] == "explore"
+
+
 def cluster_command(words: list[str]) -> bool:
     """A command of the cluster block: checked, not run (module docstring)."""
     return words[0].endswith("/dask") or "--scheduler" in words
@@ -116,6 +122,9 @@ def test_every_readme_command_runs_as_written(scratch, monkeypatch, capsys):
     for line in commands():
         words = shlex.split(line, comments=True)
         if words[0] == "make":
+            continue
+        if serving_command(words):
+            cli.build_parser("explore").parse_args(words[1:])  # raises CliError if wrong
             continue
         if cluster_command(words):
             if words[0] == ".venv/bin/cosserat-channel":

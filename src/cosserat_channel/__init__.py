@@ -151,6 +151,7 @@ _API = {
     "phase_plane": "regimes",
     "fit": "calibrate",
     "FitResult": "calibrate",
+    "explore": "explorer",
 }
 
 __all__ = ["__version__", *_API]

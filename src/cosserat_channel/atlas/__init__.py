@@ -84,7 +84,7 @@ from __future__ import annotations
 
 from .build import build_atlas, check_build_arguments  # noqa: F401
 from .chebyshev import lobatto  # noqa: F401
-from .decide import classify  # noqa: F401
+from .decide import Plane, classify  # noqa: F401
 from .interpolant import Atlas  # noqa: F401
 from .source import EdgeSource, SourceError, edge_source  # noqa: F401
 from .settings import *  # noqa: F401,F403 (the atlas's constants, under the names callers use)

@@ -49,6 +49,52 @@ def classify(eps, L, K, A, N, atlas=None):
     """
     eps, L, K, A, N = np.broadcast_arrays(
         *(check_values(d, v) for d, v in zip(("eps", "L", "K", "A", "N"), (eps, L, K, A, N))))
+    atlas = _atlas_for(A, N, atlas)
+    eta = _eta(eps, L)
+    out = analytic.classify_points(eta, A, N)
+    need = (out == st.OK) & (A != -1.0)
+    if need.any():
+        out[need] = _decide(atlas, eta[need], *atlas.transitions(A[need], N[need]))
+    return out
+
+
+class Plane:
+    """:func:`classify` at fixed points ``(A, N)`` for any ``eps L``: the atlas's transitions
+    there are looked up once, so that each ``eps L`` costs a comparison (a map of the ``(A, N)``
+    plane redrawn as ``eps`` or ``L`` moves). ``Plane(A, N)(eps, L)`` equals
+    ``classify(eps, L, 0, A, N)``.
+
+    Parameters
+    ----------
+    A, N : array_like
+        The points (broadcast), validated as :func:`classify` does.
+    atlas : Atlas or path-like, optional
+        As for :func:`classify`.
+    """
+
+    def __init__(self, A, N, atlas=None):
+        A, N = np.broadcast_arrays(check_values("A", A), check_values("N", N))
+        self.atlas = _atlas_for(A, N, atlas)
+        self.A, self.N = A, N
+        self._fixed = A != -1.0
+        self._looked = self.atlas.transitions(A[self._fixed], N[self._fixed])
+
+    def __call__(self, eps, L):
+        """The status codes (or :data:`UNDECIDED`) of the points at ``(eps, L)`` (numbers)."""
+        eps, L = check_values("eps", eps), check_values("L", L)
+        if eps.ndim or L.ndim:
+            raise ParameterError("Plane: eps and L must be numbers (one eps L per call)")
+        eta = np.broadcast_to(_eta(eps, L), self.A.shape)
+        out = analytic.classify_points(eta, self.A, self.N)
+        need = (out == st.OK) & self._fixed
+        if need.any():
+            sub = need[self._fixed]
+            out[need] = _decide(self.atlas, eta[need], *(x[sub] for x in self._looked))
+        return out
+
+
+def _atlas_for(A, N, atlas):
+    """The atlas to decide ``(A, N)`` with: ``atlas`` (an Atlas or a file), else the default."""
     if atlas is None:
         span = ((float(A.min()), float(A.max())), (float(N.min()), float(N.max()))) if A.size \
             else (None, None)
@@ -58,19 +104,23 @@ def classify(eps, L, K, A, N, atlas=None):
                                  "('atlas --cache') nor the shipped one is there")
     elif not isinstance(atlas, Atlas):
         atlas = load_atlas(atlas)
+    return atlas
+
+
+def _eta(eps, L):
+    """``eps * L``; ParameterError naming the first point outside the solver's range."""
     eta = eps * L
     bad = ~((eta >= ETA_MIN) & (eta <= ETA_MAX))
     if bad.any():
         from ..parameters import check_eta
 
-        k = np.flatnonzero(bad.ravel())[0]
-        check_eta(float(eps.ravel()[k]), float(L.ravel()[k]))
-    out = analytic.classify_points(eta, A, N)
-    need = (out == st.OK) & (A != -1.0)
-    if not need.any():
-        return out
-    e, a, n = eta[need], A[need], N[need]
-    leaf, low, t, err = atlas.transitions(a, n)
+        k = np.flatnonzero(np.ravel(bad))[0]
+        check_eta(float(np.ravel(eps)[k]), float(np.ravel(L)[k]))
+    return eta
+
+
+def _decide(atlas, e, leaf, low, t, err):
+    """The codes at ``eta = e`` from the atlas's :meth:`~Atlas.transitions` there."""
     lo, hi = atlas.eta_range
     known = (low >= 0) & (e >= lo) & (e <= hi)
     band = atlas.undecided_band(leaf)
@@ -80,5 +130,4 @@ def classify(eps, L, K, A, N, atlas=None):
         flips = np.sum(t < e[:, None], axis=-1)
     feasible = (low == 1) ^ (flips % 2 == 1)
     code = np.where(feasible, st.OK, st.EPS_TOO_LARGE_PATH).astype(np.int8)
-    out[need] = np.where(known & ~near, code, UNDECIDED)
-    return out
+    return np.where(known & ~near, code, UNDECIDED)

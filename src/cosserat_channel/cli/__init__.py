@@ -7,7 +7,8 @@ change. This module holds the parser and :func:`main`; what the commands share (
 the error and progress lines, the point and material arguments, the checks of outputs and
 inputs) is :mod:`.common`'s, with public names. The commands live by theme in ``_point``
 (point, phase-plane), ``_sweeps`` (run, query, info), ``_regimes`` (boundary, plot),
-``_atlas`` (atlas), ``_reports`` (stability, bench), ``_paper`` (paper) and ``_fit`` (fit).
+``_atlas`` (atlas), ``_reports`` (stability, bench), ``_paper`` (paper), ``_fit`` (fit) and
+``_explore`` (explore).
 
 Layer: the top one. May import every package; nothing imports it. The computing packages are
 imported inside the commands, so that ``--help`` and a refused input never load the kernels.
@@ -26,11 +27,11 @@ import os
 import re
 import sys
 
-from . import _point, _sweeps, _regimes, _atlas, _reports, _paper, _fit
+from . import _point, _sweeps, _regimes, _atlas, _reports, _paper, _fit, _explore
 from .common import COMMANDS, EXIT_FAILURE, EXIT_USAGE, PROG, CliError, error, interrupted
 
 # The commands register themselves on import (common.register); --help lists them in this order.
-COMMAND_MODULES = (_point, _sweeps, _regimes, _atlas, _reports, _paper, _fit)
+COMMAND_MODULES = (_point, _sweeps, _regimes, _atlas, _reports, _paper, _fit, _explore)
 
 DESCRIPTION = ("Solve the frictional Cosserat model of dense granular flow in a vertical channel "
                "(Mohan, Nott & Rao)\nfor one point or a sweep over (eps, L, K, A, N), and query "

@@ -59,8 +59,9 @@ def moves(steps: int) -> list[dict]:
 
 
 def _post(url, kind, seq, form):
-    req = urllib.request.Request(url + "api/" + kind, data=json.dumps({"seq": seq, "form": form})
-                                 .encode(), headers={"Content-Type": "application/json"})
+    body = {"client": "bench", "seq": seq, "form": form}
+    req = urllib.request.Request(url + "api/" + kind, data=json.dumps(body).encode(),
+                                 headers={"Content-Type": "application/json"})
     with urllib.request.urlopen(req, timeout=600) as resp:
         return json.loads(resp.read())
 
@@ -118,7 +119,7 @@ def drive_browser(url: str, changes: list[dict]) -> list[dict] | str:
     try:
         driver.get(url)
         _until(driver, "return window.explore.ready && window.explore.point && "
-                       "window.explore.last.line && !document.getElementById('busy').textContent")
+                       "window.explore.last.line && window.explore.idle()")
         rows = []
         for change in changes:
             (name, text), = change.items()
@@ -132,7 +133,7 @@ def drive_browser(url: str, changes: list[dict]) -> list[dict] | str:
                 name, text, session.SLIDERS[name]["log"])
             _until(driver, f"return window.explore.changes.length > {n}")
             last = driver.execute_script("return window.explore.changes.at(-1)")
-            _until(driver, "return !document.getElementById('busy').textContent")
+            _until(driver, "return window.explore.idle()")
             rows.append({"change": change, "ms": last["ms"], "pending": last["pending"]})
         return rows
     finally:
@@ -140,7 +141,7 @@ def drive_browser(url: str, changes: list[dict]) -> list[dict] | str:
         shutil.rmtree(profile, ignore_errors=True)
 
 
-def _until(driver, script, timeout=900.0):
+def _until(driver, script, timeout=120.0):
     t0 = time.monotonic()
     while not driver.execute_script(script):
         if time.monotonic() - t0 > timeout:

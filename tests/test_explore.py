@@ -180,6 +180,9 @@ def test_slow_work_goes_to_the_background_and_stale_work_is_dropped(tmp_path):
         old = app.job(first["pending"], wait=600)
         # the first either ran before the second came (an answer) or was dropped unrun
         assert old.get("stale") or old["x_name"] == "L"
+        # another page counts its own requests: its first is not overtaken by this page's second
+        other = app.ask("line", 1, form(line_x="K"), client="another page")
+        assert app.job(other["pending"], wait=600)["x_name"] == "K"
     finally:
         app.close()
 

@@ -87,9 +87,9 @@ class Explorer:
 
         self.pools["fast"].submit(run)
 
-    def _run(self, kind: str, seq: int, form: dict) -> dict:
+    def _run(self, kind: str, seq: int, form: dict, client: str) -> dict:
         with self.lock:
-            if seq < self.latest.get(kind, 0):
+            if seq < self.latest.get((client, kind), 0):
                 return {"stale": True}
         t0 = time.perf_counter()
         try:
@@ -105,13 +105,18 @@ class Explorer:
         answer["seconds"] = time.perf_counter() - t0
         return answer
 
-    def ask(self, kind: str, seq: int, form: dict) -> dict:
-        """Answer request ``seq`` of ``kind`` within the budget, or ``{"pending": id}``."""
+    def ask(self, kind: str, seq: int, form: dict, client: str = "") -> dict:
+        """Answer request ``seq`` of ``kind`` within the budget, or ``{"pending": id}``.
+
+        ``seq`` counts a page's requests of one kind; ``client`` names the page (each open page
+        has its own count, so that one page's requests never overtake another's)."""
         if kind not in KINDS:
             return {"error": f"unknown request {kind!r}"}
         with self.lock:
-            self.latest[kind] = max(seq, self.latest.get(kind, 0))
-        future = self.pools[KINDS[kind][0]].submit(self._run, kind, seq, form)
+            self.latest[client, kind] = max(seq, self.latest.get((client, kind), 0))
+            while len(self.latest) > KEEP_JOBS:
+                self.latest.pop(next(iter(self.latest)))
+        future = self.pools[KINDS[kind][0]].submit(self._run, kind, seq, form, client)
         try:
             return future.result(timeout=self.budget)
         except FutureTimeout:
@@ -203,7 +208,8 @@ class _Handler(BaseHTTPRequestHandler):
             length = int(self.headers.get("Content-Length") or 0)
             body = json.loads(self.rfile.read(min(length, 1 << 20)) or b"{}")
             kind = path.removeprefix("/api/")
-            answer = self.explorer.ask(kind, int(body.get("seq", 0)), body.get("form") or {})
+            answer = self.explorer.ask(kind, int(body.get("seq", 0)), body.get("form") or {},
+                                       str(body.get("client", "")))
         except (ValueError, TypeError, AttributeError) as exc:
             answer = {"error": _one_line(f"bad request: {exc}")}
         self._json(answer)

@@ -14,6 +14,8 @@ const kinds = ["point", "map", "line", "export"];
 const net = {};  // per kind: seq sent, inflight, wanted change, last change drawn
 for (const k of kinds) net[k] = { seq: 0, inflight: false, want: 0, sent: 0, drawnSeq: 0 };
 let changeId = 0;
+// This page's name: the server orders each page's requests by their own count.
+const client = Date.now().toString(36) + Math.random().toString(36).slice(2);
 // Nothing asked and unanswered, nothing in the background.
 probe.idle = () => kinds.every((k) => !net[k].inflight && net[k].want <= net[k].sent) &&
   Object.keys(busy).length === 0;
@@ -162,7 +164,7 @@ function pump(kind) {
   const seq = ++n.seq, change = n.want;
   if (kind === "map") lastMapKey = mapKey();
   fetch("/api/" + kind, { method: "POST", headers: { "Content-Type": "application/json" },
-    body: JSON.stringify({ seq, form }) })
+    body: JSON.stringify({ client, seq, form }) })
     .then((r) => r.json())
     .then((a) => answered(kind, seq, change, a))
     .catch((e) => answered(kind, seq, change, { error: "the server does not answer (" + e + ")" }));

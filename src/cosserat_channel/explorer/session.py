@@ -160,8 +160,14 @@ def point(form: dict) -> dict:
         "profile": None,
     }
     if r.profile is not None:
-        answer["profile"] = {k: [_clean(v) for v in a] for k, a in r.profile.items()}
+        answer["profile"] = {k: _json_list(a) for k, a in r.profile.items()}
     return answer
+
+
+def _json_list(a) -> list:
+    """An array as a list of floats for JSON, None where not finite."""
+    a = np.asarray(a, dtype=float)
+    return np.where(np.isfinite(a), a, None).tolist()
 
 
 _MAPS: dict = {}
@@ -245,9 +251,10 @@ def _line_dataset(form: dict):
 def line(form: dict) -> dict:
     """One output against one parameter over its slider's range, by :func:`solve`."""
     ds, inp, name, output = _line_dataset(form)
+    here = dict(zip(DIMS, inp["point"]))
     return {"x_name": name, "y_name": output, "x": ds[name].values.tolist(),
-            "y": [_clean(v) for v in ds[output].values], "status": ds.status.values.tolist(),
-            "at": dict(zip(DIMS, inp["point"]))[name], "log": SLIDERS[name]["log"]}
+            "y": _json_list(ds[output].values), "status": ds.status.values.tolist(),
+            "at": here[name], "point": here, "log": SLIDERS[name]["log"]}
 
 
 def sweep_toml(inp: dict, name: str, output: str, x: np.ndarray, stem: str) -> str:

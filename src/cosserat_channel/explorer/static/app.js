@@ -24,6 +24,7 @@ const errors = {};
 const busy = {};
 let lastMapKey = null;
 let lastPoint = null;
+let mapImage = null;  // the map's pixels, built once per map answer
 
 // ---------------------------------------------------------------------------------------------
 // numbers as people type them: 0.5, 1e-3, 1/30
@@ -143,7 +144,9 @@ function mapKey() {
 
 // One change of the inputs: ask for what it changes.
 function changed(what) {
-  const want = what === "line" ? ["line"] : ["point", "line"];
+  // A move of the line's own parameter leaves the line as it is: only its marker moves, drawn
+  // with the point's answer.
+  const want = what === "line" ? ["line"] : (what === form.line_x ? ["point"] : ["point", "line"]);
   if (what !== "line" && mapKey() !== lastMapKey) want.push("map");
   ask(want);
 }
@@ -216,7 +219,7 @@ function apply(kind, seq, a) {
   showError();
   probe.last[kind] = a;
   if (kind === "point") drawPoint(a);
-  else if (kind === "map") { probe.map = a; drawMap(); }
+  else if (kind === "map") { probe.map = a; mapImage = null; drawMap(); }
   else if (kind === "line") drawLine(a);
   else if (kind === "export") $("export-result").textContent = "written: " + a.written.join(", ");
 }
@@ -358,6 +361,7 @@ function drawPoint(a) {
   }
   $("outputs").tBodies[0].innerHTML = rows.join("");
   drawMap();
+  if (probe.last.line) drawLine(probe.last.line);
 }
 
 function drawMap() {
@@ -367,24 +371,26 @@ function drawMap() {
   ctx.clearRect(0, 0, W, H);
   if (!a) return;
   const nA = a.A.length, nN = a.N.length;
-  const img = new ImageData(nA, nN);
-  const colors = {};
-  for (const s of meta.statuses.concat([meta.undecided])) {
-    const h = s.color.replace("#", "");
-    colors[s.code] = [parseInt(h.slice(0, 2), 16), parseInt(h.slice(2, 4), 16), parseInt(h.slice(4, 6), 16)];
-  }
-  for (let j = 0; j < nN; j++) {
-    const row = a.codes[nN - 1 - j];  // the image's first row is the largest N
-    for (let i = 0; i < nA; i++) {
-      const c = colors[row[i]] || [255, 255, 255], k = 4 * (j * nA + i);
-      img.data[k] = c[0]; img.data[k + 1] = c[1]; img.data[k + 2] = c[2]; img.data[k + 3] = 255;
+  if (!mapImage) {
+    const img = new ImageData(nA, nN);
+    const colors = {};
+    for (const s of meta.statuses.concat([meta.undecided])) {
+      const h = s.color.replace("#", "");
+      colors[s.code] = [parseInt(h.slice(0, 2), 16), parseInt(h.slice(2, 4), 16), parseInt(h.slice(4, 6), 16)];
     }
+    for (let j = 0; j < nN; j++) {
+      const row = a.codes[nN - 1 - j];  // the image's first row is the largest N
+      for (let i = 0; i < nA; i++) {
+        const c = colors[row[i]] || [255, 255, 255], k = 4 * (j * nA + i);
+        img.data[k] = c[0]; img.data[k + 1] = c[1]; img.data[k + 2] = c[2]; img.data[k + 3] = 255;
+      }
+    }
+    mapImage = document.createElement("canvas");
+    mapImage.width = nA; mapImage.height = nN;
+    mapImage.getContext("2d").putImageData(img, 0, 0);
   }
-  const off = document.createElement("canvas");
-  off.width = nA; off.height = nN;
-  off.getContext("2d").putImageData(img, 0, 0);
   ctx.imageSmoothingEnabled = false;
-  ctx.drawImage(off, L, T, W - L - R, H - T - B);
+  ctx.drawImage(mapImage, L, T, W - L - R, H - T - B);
   const [a0, a1, n0, n1] = [a.A[0], a.A[nA - 1], a.N[0], a.N[nN - 1]];
   const px = (v) => L + (v - a0) / (a1 - a0) * (W - L - R);
   const py = (v) => T + (n1 - v) / (n1 - n0) * (H - T - B);
@@ -429,13 +435,17 @@ function mapClick(ev) {
 
 function drawLine(a) {
   const out = meta.outputs.find((o) => o.name === a.y_name);
-  const here = lastPoint && lastPoint.point[a.x_name] === a.at ? lastPoint.outputs[a.y_name] : null;
-  const i = a.x.indexOf(a.at);
+  // the marker sits at the point shown (its own answer), on this line if the other
+  // parameters are the line's
+  const others = lastPoint && DIMS.every((d) => d === a.x_name || lastPoint.point[d] === a.point[d]);
+  const at = others ? lastPoint.point[a.x_name] : a.at;
+  const here = others ? lastPoint.outputs[a.y_name] : null;
+  const i = a.x.indexOf(at);
   plotLines($("line"), {
     x: a.x, xlog: a.log, xlabel: a.x_name, title: `${a.y_name}${out && out.units !== "1" ? " (" + out.units + ")" : ""} against ${a.x_name}`,
     series: [{ y: a.y, color: "#1f77b4" }],
-    vlines: [{ x: a.at, color: "#999" }],
-    marks: [{ x: a.at, y: here !== null && here !== undefined ? here : (i >= 0 ? a.y[i] : null), color: "#d62728" }],
+    vlines: [{ x: at, color: "#999" }],
+    marks: [{ x: at, y: here !== null && here !== undefined ? here : (i >= 0 ? a.y[i] : null), color: "#d62728" }],
   });
 }
 

@@ -98,24 +98,12 @@ def drive_server(url: str, changes: list[dict]) -> list[dict]:
 
 def drive_browser(url: str, changes: list[dict]) -> list[dict] | str:
     """The same changes in headless Chromium; the page's own timings, or why there are none."""
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    driver_path = shutil.which("chromedriver")
-    try:
-        from selenium import webdriver
-        from selenium.webdriver.chrome.service import Service
-    except ImportError:
-        return "not measured: selenium is not installed"
-    if not (chromium and driver_path):
-        return "not measured: Chromium is not installed (apt-get install chromium chromium-driver)"
-    profile = tempfile.mkdtemp(prefix="bench-explore-chromium-")
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = chromium
-    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--disable-dev-shm-usage", f"--user-data-dir={profile}",
-                 "--window-size=1600,1050"):
-        opts.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(driver_path), options=opts)
+    from cosserat_channel.explorer import chromium
+
+    reason = chromium.missing()
+    if reason:
+        return f"not measured: {reason}"
+    driver, profile = chromium.driver()
     try:
         driver.get(url)
         _until(driver, "return window.explore.ready && window.explore.point && "

@@ -204,31 +204,14 @@ def test_notebook_function_shows_the_page(running):
 # ---------------------------------------------------------------------------------------------
 # the page in a real browser
 # ---------------------------------------------------------------------------------------------
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-CHROMEDRIVER = shutil.which("chromedriver")
-
-
 def _browser():
     """A headless Chromium driven through chromedriver, or a skip naming what to install."""
-    try:
-        from selenium import webdriver
-    except ImportError:
-        pytest.skip("the browser test needs selenium: pip install 'cosserat-channel[test]'")
-    if not (CHROMIUM and CHROMEDRIVER):
-        pytest.skip("the browser test needs Chromium: apt-get install chromium chromium-driver")
-    import tempfile
+    from cosserat_channel.explorer import chromium
 
-    from selenium.webdriver.chrome.service import Service
-
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = CHROMIUM
-    profile = tempfile.mkdtemp(prefix="explore-chromium-")
-    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--disable-dev-shm-usage", f"--user-data-dir={profile}",
-                 "--window-size=1600,1050"):
-        opts.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=opts)
+    reason = chromium.missing()
+    if reason:
+        pytest.skip(f"the browser test needs what is missing: {reason}")
+    driver, profile = chromium.driver()
     driver.set_script_timeout(60)
     return driver, profile
 

@@ -9,8 +9,9 @@ output against one parameter (:func:`cosserat_channel.solve`); and a button that
 view as a sweep file and figures. In a notebook, :func:`explore` shows the same page.
 
 Modules: :mod:`.session` (the page's questions answered by the library's public functions, as
-JSON-ready dicts), :mod:`.server` (the HTTP server, its background jobs) and ``static/`` (the page:
-HTML, CSS and a script that draws the plots in the browser). Standard library only beyond the
+JSON-ready dicts), :mod:`.server` (the HTTP server, its background jobs), ``static/`` (the page:
+HTML, CSS and a script that draws the plots in the browser) and :mod:`.chromium` (headless
+Chromium for the browser test and the benchmark). Standard library only beyond the
 package's own dependencies; the ``explore`` extra installs nothing more (README says why).
 
 Layer: the top, beside the command line: calls the public API, the atlas's reading functions

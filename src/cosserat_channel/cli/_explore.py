@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 from .common import EXIT_OK, CliError, interrupted, interruptible, register
 
@@ -34,5 +35,10 @@ def _explore(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise CliError(f"cannot serve on 127.0.0.1:{args.port}: {exc.strerror or exc}") from None
     except KeyboardInterrupt as exc:
-        return interrupted(exc, "the explorer stopped")
+        code = interrupted(exc, "the explorer stopped")
+        # The process is the server and nothing else: end it now, without waiting for what its
+        # workers still compute (the first run's compilation takes minutes).
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     return EXIT_OK

@@ -48,6 +48,9 @@ LAYERS = {
     "calibrate": ("solver", "sweep", "plot", "parameters", "status", "outputs"),
     "measure": ("solver", "regimes", "physics", "plot", "parameters", "status", "files"),
     "paper": ("solver", "regimes", "sweep", "physics", "plot", *VOCABULARY),
+    # The explorer's page: the public API (solve_point and solve through the package's root),
+    # the atlas's reading functions and the figures; only the command line imports it.
+    "explorer": ("atlas", "plot", *VOCABULARY),
     # The top: may import every part; nothing imports it.
     "cli": ("*",),
 }

@@ -18,7 +18,7 @@ from .. import status as st
 from . import HANDLE_LENGTH, axis_label, new_figure, shear_stress_label
 
 FIGSIZE = (7.5, 6.6)
-TABLE_FIGSIZE = (7.5, 5.0)
+TABLE_FIGSIZE = (7.5, 3.9)
 CAPTION_WIDTH = 110  # characters per line of the comparison under the panel
 N_MARKERS = 21
 # The paper's line kinds (its \linezero, \lineone, \linetwo, \linedotted, \linedotdash).

@@ -147,10 +147,13 @@ def test_plain_xarray_plots_keep_their_labels_inside_the_figure(result):
 
 
 def test_every_file_of_the_tool_carries_conventions(boundary, tmp_path):
-    """Boundary files (traced, or drawn from an atlas) and atlas files say which CF version."""
+    """Boundary files (traced, or drawn from an atlas) and atlas files say which CF version, and
+    every variable of an atlas file has a long_name."""
     from cosserat_channel import atlas
 
     assert boundary.attrs["Conventions"] == "CF-1.8"
     a = atlas.build_atlas((0.25, 0.5), (0.8, 0.9), tol=1e-3, degree=2, max_depth=0)
-    assert atlas.to_dataset(a).attrs["Conventions"] == "CF-1.8"
+    ds = atlas.to_dataset(a)
+    assert ds.attrs["Conventions"] == "CF-1.8"
+    assert [v for v in ds.variables if "long_name" not in ds[v].attrs] == []
     assert a.boundary([0.3], [1.0]).attrs["Conventions"] == "CF-1.8"

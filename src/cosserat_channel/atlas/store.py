@@ -98,10 +98,14 @@ def to_dataset(atlas):
             "sample_bands": (("sample", "transition"), s["bands"], {
                 "long_name": "relative distance from the transition within which the "
                              "solver's status is not reliable (NaN-padded)"}),
-            "leaf_level": ("leaf", atlas.leaf_level.astype(np.int8)),
-            "leaf_i": ("leaf", atlas.leaf_i.astype(np.int32)),
-            "leaf_j": ("leaf", atlas.leaf_j.astype(np.int32)),
-            "leaf_low": ("leaf", atlas.leaf_low.astype(np.int8)),
+            "leaf_level": ("leaf", atlas.leaf_level.astype(np.int8), {
+                "long_name": "depth of the leaf below its root cell"}),
+            "leaf_i": ("leaf", atlas.leaf_i.astype(np.int32), {
+                "long_name": "index of the leaf along A at its depth"}),
+            "leaf_j": ("leaf", atlas.leaf_j.astype(np.int32), {
+                "long_name": "index of the leaf along N at its depth"}),
+            "leaf_low": ("leaf", atlas.leaf_low.astype(np.int8), {
+                "long_name": "1 if the lowest traced eta of the leaf has a solution"}),
             "leaf_n": ("leaf", atlas.leaf_n.astype(np.int8), {
                 "long_name": "transitions in the leaf; -1: unresolved (undecided)"}),
             "leaf_error": ("leaf", atlas.leaf_error, {

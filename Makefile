@@ -43,6 +43,7 @@ bench: $(STAMP)
 atlas: $(STAMP)
 	$(VENV)/bin/cosserat-channel atlas --A=-1:5 --N=0.3:3 --tol 1e-8 \
 	    -o src/cosserat_channel/atlas/data/whole_plane.nc --overwrite
+	$(VENV)/bin/python -c "from cosserat_channel.atlas.store import record_shipped_digest as r; print(r())"
 
 # The documentation site, into docs/_build/html (the `test` extra includes the `docs` extra):
 # executes the notebooks into docs/_generated/notebooks (small mode; the repository keeps them

@@ -13,6 +13,7 @@ refused in one line.
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 import shutil
@@ -37,6 +38,11 @@ class WriteError(OSError):
     disk as ``RuntimeError: NetCDF: HDF error``, the operating system as ``OSError``), so callers
     catch one type.
     """
+
+
+class OutputAppeared(WriteError):
+    """A file appeared at an output path while the output was made (another run, another user):
+    it is kept, and the new output is kept beside it under the name the message gives."""
 
 
 def write_failure(path, exc: BaseException) -> WriteError:
@@ -191,12 +197,18 @@ def space_problem(path, need: int) -> str | None:
             "write elsewhere")
 
 
-def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool = True) -> None:
+def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool = True,
+                  replace: bool = True) -> None:
     """Call ``write(tmp)`` for a fresh temporary path, then rename it onto ``path``.
 
     ``tmp`` lies in ``tmp_dir`` (default: the directory of ``path``), which must be on the same
-    file system so that ``os.replace`` is atomic. The temporary file is removed if ``write``
+    file system so that the rename is atomic. The temporary file is removed if ``write``
     fails or the process is interrupted, and ``path`` keeps whatever it held before.
+
+    ``replace``: whether a file at ``path`` may be replaced. Without it the output is published
+    without replacing (:func:`publish_new`): a file that appeared at ``path`` while the output
+    was made (after the caller checked it was free) is kept, the new output is kept beside it
+    (:func:`keep_beside`), and :class:`OutputAppeared` says both in one line.
 
     A character device or a FIFO at ``path`` (``stream`` True) is not renamed over: the complete
     file is copied into it (opening a FIFO waits for its reader, as a shell's ``>`` does).
@@ -213,7 +225,16 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool
     tmp = temp_path(tmp_dir or os.path.dirname(os.path.abspath(path)), path)
     try:
         write(tmp)
-        os.replace(tmp, path)
+        if replace:
+            os.replace(tmp, path)
+        else:
+            try:
+                publish_new(tmp, path)
+            except FileExistsError:
+                kept = keep_beside(tmp, path)
+                raise OutputAppeared(
+                    f"{path!r} appeared while the output was made and is kept; the new output "
+                    f"is {kept!r} (rename it yourself, or run again with --overwrite)") from None
     except BaseException:
         try:
             os.unlink(tmp)
@@ -222,8 +243,77 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool
         raise
 
 
-def write_text(path, text) -> None:
-    """Write a text file atomically (:func:`atomic_output`): UTF-8, line ends as given.
+# renameat2's flag that makes the rename fail with EEXIST instead of replacing (Linux >= 3.15).
+_RENAME_NOREPLACE = 1
+_AT_FDCWD = -100
+
+
+def _renameat2():
+    """libc's ``renameat2``, or None where there is none (another system, an old C library)."""
+    try:
+        import ctypes
+
+        f = ctypes.CDLL(None, use_errno=True).renameat2
+    except (ImportError, OSError, AttributeError):
+        return None
+    f.argtypes = (ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint)
+    f.restype = ctypes.c_int
+    return f
+
+
+def publish_new(src, dst) -> None:
+    """Rename ``src`` to ``dst`` only if nothing is at ``dst``, atomically: FileExistsError
+    (and ``src`` left as it is) when something is.
+
+    ``renameat2(RENAME_NOREPLACE)`` where the system has it; else a hard link (which never
+    replaces) and the unlink of ``src``. On a file system with neither (no hard links) the check
+    and the rename are two steps: a file appearing between them is the only one replaced.
+    """
+    import ctypes
+
+    src, dst = os.fsencode(os.fspath(src)), os.fsencode(os.fspath(dst))
+    f = _renameat2()
+    if f is not None:
+        if f(_AT_FDCWD, src, _AT_FDCWD, dst, _RENAME_NOREPLACE) == 0:
+            return
+        err = ctypes.get_errno()
+        if err not in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP):
+            raise OSError(err, os.strerror(err), os.fsdecode(dst))
+    try:
+        os.link(src, dst)
+    except FileExistsError:
+        raise
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.ENOSYS):
+            raise
+        if os.path.lexists(dst):
+            raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST),
+                                  os.fsdecode(dst)) from None
+        os.rename(src, dst)
+        return
+    os.unlink(src)
+
+
+def keep_beside(src, path) -> str:
+    """Move ``src`` to a fresh name beside ``path`` (``fit.json`` -> ``fit.new.json``,
+    ``fit.new-2.json``, ...) without replacing anything; returns that name, or ``src`` itself
+    when it cannot be moved (it is then left where it is)."""
+    root, ext = os.path.splitext(os.fspath(path))
+    for n in range(1, 100):
+        candidate = f"{root}.new{'' if n == 1 else f'-{n}'}{ext}"
+        try:
+            publish_new(src, candidate)
+            return candidate
+        except FileExistsError:
+            continue
+        except OSError:
+            break
+    return os.fspath(src)
+
+
+def write_text(path, text, replace: bool = True) -> None:
+    """Write a text file atomically (:func:`atomic_output`, which says what ``replace`` does):
+    UTF-8, line ends as given.
 
     ``text`` is a string, or a callable that writes into the open text file.
     """
@@ -236,7 +326,7 @@ def write_text(path, text) -> None:
             else:
                 f.write(text)
 
-    atomic_output(path, write)
+    atomic_output(path, write, replace=replace)
 
 
 def _stream_output(path: str, write: Callable[[str], None], tmp_dir) -> None:
@@ -259,7 +349,8 @@ def _stream_output(path: str, write: Callable[[str], None], tmp_dir) -> None:
         shutil.rmtree(work, ignore_errors=True)
 
 
-def netcdf_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool = True) -> None:
+def netcdf_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool = True,
+                  replace: bool = True) -> None:
     """:func:`atomic_output` for a NetCDF writer: a failure to write is a :class:`WriteError`.
 
     netCDF4 reports a full disk (or any failed write of the HDF5 library) as a plain
@@ -267,7 +358,7 @@ def netcdf_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool
     :class:`WriteError` (an ``OSError``) that names the file. Other errors pass unchanged.
     """
     try:
-        atomic_output(path, write, tmp_dir, stream)
+        atomic_output(path, write, tmp_dir, stream, replace)
     except WriteError:
         raise
     except (OSError, RuntimeError) as exc:

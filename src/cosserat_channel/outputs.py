@@ -106,6 +106,9 @@ class Output(Quantity):
         Has derivatives by the parameters (``solve_point(sensitivities=True)``): its chain rule
         from the marched quantities lives in :mod:`cosserat_channel.solver.sensitivity`, which a
         test holds to this flag.
+    valued_when_ok : bool
+        Has a value at every point whose status is ok (False: it may be NaN there too); a
+        reader takes a missing value there as damage of the file (:mod:`.results.damage`).
     symbol : str
         The paper's symbol in mathtext, for figures (``$\\Delta$``).
     description : str
@@ -123,6 +126,7 @@ class Output(Quantity):
     plug_edge: bool = False
     material: bool = False
     differentiable: bool = False
+    valued_when_ok: bool = True
 
 
 @dataclass(frozen=True)
@@ -278,6 +282,7 @@ OUTPUTS: dict[str, Output] = {o.name: o for o in (
            scale="stress", description="wall shear stress sigma_yx(1)/nu (rho_p g W units)",
            differentiable=True),
     Output("xi_stop", "1", "end of the stress path", _xi_stop, stage=STAGE_STRESS,
+           valued_when_ok=False,
            symbol=r"$\xi_{\mathrm{stop}}$", description="where the stress path met D = 0"),
     Output("nu", "1", "solids fraction", lambda x: x.nu, stage=STAGE_NONE, material=True,
            symbol=r"$\nu$", description="solids fraction (eq:35)", differentiable=True),

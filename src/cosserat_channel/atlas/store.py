@@ -5,6 +5,7 @@ xarray, never numba (reading kept traces imports the solver: only a build does).
 from __future__ import annotations
 
 import errno
+import hashlib
 import json
 import os
 import stat
@@ -34,6 +35,58 @@ SHIPPED = Path(__file__).resolve().parent / "data" / "whole_plane.nc"
 def shipped_path():
     """The whole-plane atlas that comes with the package, or None if this copy has none."""
     return str(SHIPPED) if SHIPPED.is_file() else None
+
+
+# Where the digest of the shipped atlas is recorded: a module of its own, rewritten by
+# ``make atlas`` (record_shipped_digest) in the same step that rewrites the file.
+SHIPPED_DIGEST_MODULE = Path(__file__).resolve().parent / "shipped_digest.py"
+
+
+def file_digest(path) -> str:
+    """SHA-256 (hex) of the bytes of a file."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _is_shipped(path) -> bool:
+    try:
+        return SHIPPED.is_file() and os.path.samefile(path, SHIPPED)
+    except OSError:
+        return False
+
+
+def shipped_problem() -> str | None:
+    """Why the shipped atlas is not the file this package was built with (one line), or None
+    when its digest is the one recorded in the code (:data:`SHIPPED_DIGEST_MODULE`)."""
+    from .shipped_digest import SHA256
+
+    try:
+        found = file_digest(SHIPPED)
+    except OSError as exc:
+        return f"cannot read the shipped atlas {str(SHIPPED)!r} ({exc.strerror or exc})"
+    if found == SHA256:
+        return None
+    return (f"the shipped atlas {str(SHIPPED)!r} is not the file this package records (sha256 "
+            f"{found[:12]}..., recorded {SHA256[:12]}...): it was changed after it was built, so "
+            "it is not used ('make atlas' in a source tree builds it again)")
+
+
+def record_shipped_digest() -> str:
+    """Record the digest of the shipped atlas in :data:`SHIPPED_DIGEST_MODULE` (what
+    ``make atlas`` does after writing the file); returns it."""
+    from ..files import write_text
+
+    digest = file_digest(SHIPPED)
+    write_text(SHIPPED_DIGEST_MODULE, (
+        '"""The SHA-256 of the whole-plane atlas the package carries (data/whole_plane.nc), as\n'
+        '``make atlas`` wrote it, recorded by that same step (:func:`.store.record_shipped_digest`).\n'
+        'The file is used only when it matches (:func:`.store.shipped_problem`)."""\n'
+        "\n"
+        f'SHA256 = "{digest}"\n'))
+    return digest
 
 
 def default_atlas(A_range=None, N_range=None, note=None):
@@ -156,26 +209,57 @@ def from_dataset(ds):
     )
 
 
-def save_atlas(atlas, path):
-    """Write ``atlas`` to ``path`` (NetCDF, checksummed) through :func:`files.netcdf_output`."""
+def save_atlas(atlas, path, replace=True):
+    """Write ``atlas`` to ``path`` (NetCDF, checksummed) through :func:`files.write_dataset`
+    (``replace`` False: never over a file there, :func:`files.atomic_output`)."""
     from ..files import write_dataset
 
-    write_dataset(path, to_dataset(atlas))
+    write_dataset(path, to_dataset(atlas), replace=replace)
 
 
-def load_atlas(path):
-    """Read an atlas written by :func:`save_atlas`; ParameterError (one line) if it is not one."""
+def _read(path):
     import xarray as xr
 
     try:
-        ds = xr.load_dataset(path)
+        return xr.load_dataset(path)
     except (OSError, ValueError, RuntimeError) as exc:
         raise ParameterError(f"cannot read atlas {str(path)!r}: {' '.join(str(exc).split())}") \
             from None
+
+
+def load_atlas(path):
+    """Read an atlas written by :func:`save_atlas`; ParameterError (one line) if it is not one,
+    or if it is the shipped atlas and its content is not what the package records
+    (:func:`shipped_problem`)."""
+    if _is_shipped(path):
+        problem = shipped_problem()
+        if problem:
+            raise ParameterError(problem)
+    ds = _read(path)
     try:
-        return from_dataset(ds)
+        atlas = from_dataset(ds)
     except (KeyError, ParameterError) as exc:
         raise ParameterError(f"{str(path)!r} is not a solvability atlas ({exc})") from None
+    problem = values_problem(atlas)
+    if problem:
+        raise ParameterError(f"{str(path)!r} is a damaged atlas: {problem}")
+    return atlas
+
+
+def values_problem(atlas) -> str | None:
+    """What makes the numbers of ``atlas`` unusable (one clause), or None: a transition of a
+    resolved leaf whose coefficients are not finite, an error estimate that is NaN."""
+    n = np.asarray(atlas.leaf_n)
+    coef = np.asarray(atlas.coef)
+    present = np.arange(coef.shape[1])[None, :] < n[:, None]
+    finite = np.isfinite(coef).all(axis=(2, 3)) if coef.ndim == 4 else np.isfinite(coef)
+    bad = np.flatnonzero((present & ~finite).any(axis=1))
+    if bad.size:
+        return f"{bad.size} resolved leaves (the first: leaf {bad[0]}) have non-finite coefficients"
+    err = np.asarray(atlas.leaf_error)
+    if np.isnan(err).any():
+        return f"{int(np.isnan(err).sum())} leaves have a NaN error estimate"
+    return None
 
 
 # The kept traces of an interrupted build: one .npz file beside the atlas it was to write.

@@ -140,7 +140,7 @@ def _atlas(args: argparse.Namespace) -> int:
     try:
         try:
             with interruptible():
-                atlas_mod.save_atlas(atlas, output)
+                atlas_mod.save_atlas(atlas, output, replace=args.overwrite)
         except KeyboardInterrupt as exc:  # the file is written whole or not at all
             return interrupted(exc, _keep_traces(partial, traces, key, resumed, output))
         if kept:  # the atlas is whole: its traces are in it

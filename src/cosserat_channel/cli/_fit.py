@@ -139,10 +139,12 @@ def _fit(args: argparse.Namespace) -> int:
                            EXIT_FAILURE) from None
     text = json.dumps(result.to_dict(), allow_nan=False)
     if args.output is not None:
-        from ..files import write_text
+        from ..files import OutputAppeared, write_text
 
         try:
-            write_text(args.output, text + "\n")
+            write_text(args.output, text + "\n", replace=args.overwrite)
+        except OutputAppeared as exc:
+            raise CliError(f"-o: {exc}", EXIT_FAILURE) from None
         except OSError as exc:
             raise CliError(f"-o: cannot write {args.output!r}: {exc.strerror or exc}",
                            EXIT_FAILURE) from None

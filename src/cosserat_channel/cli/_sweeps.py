@@ -124,12 +124,12 @@ def _run_command(args: argparse.Namespace) -> int:
         raise CliError(f"{exc}; finished blocks are kept in {partial_dir(output)}/, rerun the same "
                        "command to resume", EXIT_FAILURE) from None
     except OSError as exc:
-        from ..files import WriteError
+        from ..files import OutputAppeared, WriteError
         from ..sweep.store import partial_dir
 
         message = str(exc) if isinstance(exc, WriteError) else \
             f"cannot write {output!r}: {exc.strerror or exc}"
-        if os.path.isdir(partial_dir(output)):
+        if os.path.isdir(partial_dir(output)) and not isinstance(exc, OutputAppeared):
             message += (f"; finished blocks are kept in {partial_dir(output)}/, run the same "
                         "command again to resume")
         raise CliError(message, EXIT_FAILURE) from None
@@ -355,6 +355,8 @@ def _info(args: argparse.Namespace) -> int:
     try:
         # What is described is read first: a damaged file is reported as such, not described.
         problem, skipped = describe.verify(ds, None if args.check_all else describe.CHECK_BYTES)
+        if problem is None and describe.file_kind(ds) == "atlas":
+            problem = describe.atlas_problem(args.results)
         if problem:
             raise CliError(f"{args.results}: {problem}", EXIT_FAILURE)
         try:

@@ -392,9 +392,11 @@ def read_or_write_failure(exc: BaseException, results: str, ds, output: str | No
     ``RuntimeError: NetCDF: HDF error``), so the file is read through once more to tell them
     apart: a damaged result file says so, whatever the output.
     """
-    from ..results import light, selection
+    from ..results import damage, light, selection
     from ..files import WriteError
 
+    if isinstance(exc, damage.DamagedFile):  # found in what was read: no second reading
+        return CliError(f"{results}: {exc}", EXIT_FAILURE)
     if isinstance(ds, light.LightFile):  # read through in chunks, with dask
         # One reader of the file at a time: HDF5 re-reading a damaged file through a second
         # handle while the first is open once ended in SIGBUS.

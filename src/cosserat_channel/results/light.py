@@ -13,6 +13,7 @@ import numpy as np
 
 
 from .render import _python
+from . import damage
 from .flags import _is_flag, check_flags, flag_names
 from .selection import _OPS, Selection, storage_problem
 
@@ -110,8 +111,11 @@ class LightBox(LightFile):
         flat = np.flatnonzero(mask)[:n] if mask is not None else np.arange(n)
         idx = np.unravel_index(flat, selection.shape)
         cols = [self.read(d, (d,))[i] for d, i in zip(selection.row_dims, idx)]
+        raw = {v: self.read(v, selection.row_dims)[idx] for v in selection.columns}
+        damage.check_rows(raw, list(flag_names(self["status"]).values()),
+                          dict(zip(selection.row_dims, cols)))
         for v in selection.columns:
-            values = self.read(v, selection.row_dims)[idx]
+            values = raw[v]
             da = self[v]
             if _is_flag(da):
                 names = {c: k for k, c in flag_names(da).items()}

@@ -19,8 +19,9 @@ from ..files import write_dataset
 
 if TYPE_CHECKING:  # imported where used: a small query never imports xarray (LightFile)
     import xarray as xr
+from . import damage
 from .flags import _is_flag, flag_names, printable
-from .selection import ROW_BLOCK, Selection
+from .selection import ROW_BLOCK, Selection, read_problem
 
 TABLE_ROWS = 200
 
@@ -57,6 +58,9 @@ def iter_rows(selection: Selection, limit: int | None = None):
         indexers = {d: xr.DataArray(i, dims="row") for d, i in zip(selection.row_dims, idx)}
         pts = sub.isel(indexers).compute()
         cols = [np.asarray(pts[d].values) for d in selection.row_dims]
+        if "status" in flags:
+            damage.check_rows({v: pts[v].values for v in selection.columns},
+                              list(flags["status"]), dict(zip(selection.row_dims, cols)))
         for v in selection.columns:
             values = pts[v].values
             if v in flags:
@@ -183,6 +187,12 @@ def write_netcdf(selection: Selection, path: str) -> None:
     # other threads still write, and xarray's file manager reopens the temporary file after
     # atomic_output has removed it, leaving it behind.
     with dask.config.set(scheduler="synchronous"):
+        # A part of the file that HDF5 no longer finds reads as fill values without an error:
+        # never copied into the subset as if they were values.
+        problem = read_problem(ds, [v for v in ds.data_vars if damage.valued_when_ok(v)
+                                    or v == "status"])
+        if problem:
+            raise damage.DamagedFile(problem)
         write_dataset(path, ds)
 
 

@@ -212,13 +212,24 @@ def read_problem(ds: xr.Dataset, names=None) -> str | None:
     changed numbers. Used to tell such a file from a failure to write the output, and by
     ``info`` to verify what it describes.
     """
+    import xarray as xr
+
+    from . import damage
+
     for name in [*ds.coords, *ds.data_vars] if names is None else names:
         try:
-            ds[name].count().compute()
+            # Read once: the count reads every chunk through its checksum, and the damage the
+            # checksums do not see (a chunk the index no longer finds reads as fill values) is
+            # counted in the same pass.
+            bad = damage.dataset_counts(ds, name)
+            parts = {"n": ds[name].count(), **({} if bad is None else {"bad": bad})}
+            counted = xr.Dataset(parts).compute()
         except (OSError, RuntimeError, ValueError) as exc:
             reason = " ".join(str(exc).split()) or type(exc).__name__
             return (f"the file is damaged: variable {name!r} cannot be read ({reason}; its "
                     "checksum or the HDF5 structure does not match); write it again")
+        if bad is not None and int(counted["bad"]):
+            return damage.dataset_message(ds, name, int(counted["bad"]))
     return None
 
 

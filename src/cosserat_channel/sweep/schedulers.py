@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+from . import sources
 from .block import _block_task, solve_block, warm_up
 from .plan import BlockInputs
 from .spec import SweepError
@@ -38,6 +39,11 @@ _ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
 class SchedulerLost(RuntimeError):
     """The dask cluster can no longer run the blocks: its scheduler went away mid-run, or it has
     had no worker for ``no_workers_timeout`` seconds. The finished blocks are kept in the store."""
+
+
+class ForeignWorker(SchedulerLost):
+    """A worker that joined the cluster mid-run runs other package sources than this process
+    (:mod:`.sources`): its block is not stored and the run ends; the finished blocks are kept."""
 
 
 def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=None) -> None:
@@ -83,12 +89,14 @@ def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=No
 def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
     """``(client, own)`` for a scheduler address (or a ``distributed.Client``, ``own`` False).
 
-    SweepError in one line when the address is malformed or nothing answers there within
-    ``timeout`` seconds.
+    SweepError in one line when the address is malformed, nothing answers there within
+    ``timeout`` seconds, or a worker runs other package sources than this process
+    (:func:`.sources.foreign_workers`).
     """
     from dask.distributed import Client
 
     if isinstance(scheduler, Client):
+        _check_sources(scheduler)
         return scheduler, False
     address = scheduler.strip() if isinstance(scheduler, str) else scheduler
     if not isinstance(address, str) or not _ADDRESS.match(address):
@@ -97,7 +105,6 @@ def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
     client = Client.__new__(Client)
     try:
         client.__init__(address, timeout=timeout, set_as_default=False)
-        return client, True
     # Whatever the comm layer raises for an address it cannot use: TypeError for tls:// without
     # dask's TLS configuration, for ucx:// without UCX, ValueError for a malformed host.
     except Exception as exc:  # noqa: BLE001
@@ -109,6 +116,19 @@ def connect(scheduler, timeout: float = CONNECT_TIMEOUT):
                              "the address") from None
         raise SweepError(f"scheduler: cannot connect to {address!r} ({reason}); check the "
                          "address and its protocol (tcp:// needs no set-up)") from None
+    try:
+        _check_sources(client)
+    except BaseException:
+        client.close()
+        raise
+    return client, True
+
+
+def _check_sources(client) -> None:
+    """SweepError (one line) if a worker of the cluster runs other sources than this process."""
+    foreign = sources.foreign_workers(client)
+    if foreign:
+        raise SweepError(f"scheduler: {sources.refusal(foreign)}")
 
 
 def _discard(client) -> None:
@@ -121,11 +141,17 @@ def _discard(client) -> None:
         pass
 
 
-def _solve_remote(inp: BlockInputs, args) -> dict:
-    c0 = time.thread_time()
-    out = solve_block(inp, *args)
-    out["cpu"] = time.thread_time() - c0  # the worker thread's, returned with the block
-    return out
+def _solve_remote(inp: BlockInputs, args, client_sources=None) -> dict:
+    from dask.distributed import get_worker
+
+    out = {"worker": get_worker().address}
+    # A worker of other sources says so at once, without solving (its kernels may not even be
+    # compiled); the client checks the digest of every block (sources.foreign_block).
+    if client_sources is None or client_sources == sources.digest():
+        c0 = time.thread_time()
+        out.update(solve_block(inp, *args))
+        out["cpu"] = time.thread_time() - c0  # the worker thread's, returned with the block
+    return sources.stamp(out)
 
 
 def cluster_threads(client) -> int:
@@ -200,7 +226,8 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cp
     for k in todo:
         # The block's own inputs, without the grid indices only this process needs.
         inp = dataclasses.replace(plan.inputs(k), flat=np.empty(0, dtype=np.int64))
-        futures.append(client.submit(_solve_remote, inp, args, key=f"cc-block-{tag}-{k}"))
+        futures.append(client.submit(_solve_remote, inp, args, sources.digest(),
+                                     key=f"cc-block-{tag}-{k}"))
     key_to_block = {f.key: k for f, k in zip(futures, todo)}
     if progress:
         _progress_thread(futures)
@@ -215,6 +242,10 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cp
         for fut in ready:
             k = key_to_block[fut.key]
             out = _result(fut, watch)
+            foreign = sources.foreign_block(out, out.get("worker", "?"))
+            if foreign is not None:
+                raise ForeignWorker(f"{foreign}; its block was not used")
+            del out["sources"], out["worker"]
             seconds = out.pop("cpu")
             if cpu is not None:
                 cpu.append(seconds)
@@ -234,6 +265,15 @@ def _result(fut, watch: _WorkerWatch | None):
         except TimeoutError:  # dask.distributed's is the built-in one
             if watch is not None:
                 watch.check()
+        except (OSError, KeyboardInterrupt):
+            raise
+        except Exception:
+            # A task that fails on a worker of other sources (an older _solve_remote, a module
+            # it lacks) is that worker's doing: say so rather than show its traceback.
+            foreign = sources.foreign_workers(fut.client)
+            if foreign:
+                raise ForeignWorker(f"{sources.refusal(foreign)}; a block failed on it") from None
+            raise
 
 
 def _progress_thread(futures) -> None:

@@ -172,6 +172,9 @@ class WorkStore:
         self.directory = directory
         self.manifest = manifest
         self.created = False  # True when this run made the store (nothing to resume)
+        # Whether publish may replace a file at the output (the run's overwrite): else a file
+        # that appeared there while the run worked is kept.
+        self.replace_output = False
         # Why the manifest on disk does not fit this run (None when it does); the blocks' digests
         # decide then whether the store is this run's (see engine._proven_plan).
         self.disagreement: str | None = None
@@ -381,12 +384,15 @@ class WorkStore:
 
     # -- the result ---------------------------------------------------------------------------
     def publish(self, output: str, write) -> None:
-        """``write(path)`` the result inside the store, then rename it onto ``output``."""
+        """``write(path)`` the result inside the store, then rename it onto ``output``: without
+        replacing a file there unless :attr:`replace_output` (a file that appeared meanwhile is
+        kept, the result beside it: :class:`files.OutputAppeared`)."""
         # The temporary file lives inside the store, so a killed write leaves nothing beside
         # the output and the next run sweeps it away with the store's other leftovers.
         # A failed write (netCDF4's RuntimeError on a full disk included) is a WriteError; the
         # store stays, so the same command writes the file again without solving anything.
-        netcdf_output(output, write, tmp_dir=self.directory, stream=False)
+        netcdf_output(output, write, tmp_dir=self.directory, stream=False,
+                      replace=self.replace_output)
 
     def remove(self) -> None:
         """Delete the store (after the result is in place), then let its lock go: a run that

@@ -11,6 +11,7 @@ Parameters and their order follow the paper (see ``docs/model.md``): ``(eps, L, 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -379,8 +380,6 @@ def parse_number(text: str) -> float:
 
     ValueError for anything else. Ranges are not checked here (see :meth:`Parameter.check`).
     """
-    from fractions import Fraction
-
     text = text.strip()
     try:
         return float(text)
@@ -389,9 +388,38 @@ def parse_number(text: str) -> float:
     num, sep, den = text.partition("/")
     if sep:
         try:
-            q = Fraction(num.strip()) / Fraction(den.strip())
-        except (ValueError, ZeroDivisionError):
+            return _fraction(num.strip(), den.strip())
+        except (ValueError, ZeroDivisionError, ArithmeticError):
             pass
-        else:
-            return float(q)
     raise ValueError(f"not a number or a fraction a/b: {text!r}")
+
+
+# Decimal exponents beyond this are far outside every double (1e-324 .. 1.8e308) whatever the
+# other side of the fraction, unless both sides are as large: such a fraction is divided in
+# decimal arithmetic, not made exact (10**99999999 as an integer takes minutes to build).
+_EXACT_EXPONENT = 1000
+_EXPONENT = re.compile(r"[eE]([+-]?\d+)\s*$")
+
+
+def _fraction(num: str, den: str) -> float:
+    """``num/den`` rounded once to the nearest double (inf where it overflows, 0 where it
+    underflows); ValueError if a side is not a number, ZeroDivisionError for ``den`` 0."""
+    import decimal
+    from fractions import Fraction
+
+    sides = (num, den)
+    for side in sides:
+        float(side)  # ValueError for what is not a number (Decimal would take "snan")
+    exps = [int(m.group(1)) if (m := _EXPONENT.search(s)) else 0 for s in sides]
+    if max(map(abs, exps)) <= _EXACT_EXPONENT:
+        q = Fraction(num) / Fraction(den)
+        try:
+            return float(q)
+        except OverflowError:
+            return math.inf if q > 0 else -math.inf
+    ctx = decimal.Context(prec=60, Emax=decimal.MAX_EMAX, Emin=decimal.MIN_EMIN,
+                          traps=[decimal.DivisionByZero, decimal.InvalidOperation])
+    a, b = (ctx.create_decimal(s) for s in sides)
+    if b == 0:
+        raise ZeroDivisionError(den)
+    return float(ctx.divide(a, b))

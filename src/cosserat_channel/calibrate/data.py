@@ -165,7 +165,12 @@ def _read_csv(path: str, source: str) -> tuple[dict, np.ndarray]:
         raise DataError(f"{source}: cannot read: {exc.strerror or exc}") from None
     if not numbered:
         raise DataError(f"{source}: no header line (expected e.g. 'quantity,value,std_error,eps')")
-    rows = list(csv.reader(line for _, line in numbered))
+    reader = csv.reader(line for _, line in numbered)
+    try:
+        rows = list(reader)
+    except csv.Error as exc:  # a cell beyond the csv module's field limit, a NUL byte
+        n = numbered[min(reader.line_num, len(numbered)) - 1][0]
+        raise DataError(f"{source} line {n}: cannot be read as CSV ({exc})") from None
     header = [h.strip() for h in rows[0]]
     if len(header) == 1 and ";" in header[0]:
         raise DataError(f"{source}: the columns are separated by ';'; the file must be "

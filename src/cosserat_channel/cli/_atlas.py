@@ -103,7 +103,13 @@ def _atlas(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     output = atlas_mod.cache_path() if args.cache else args.output
     if args.cache:
-        os.makedirs(os.path.dirname(output), exist_ok=True)
+        try:
+            os.makedirs(os.path.dirname(output), exist_ok=True)
+        except OSError as exc:  # a read-only home, a file where the directory should be
+            raise CliError(f"--cache: cannot make the cache directory "
+                           f"{os.path.dirname(output)!r} ({exc.strerror or exc}); set "
+                           "XDG_CACHE_HOME to a writable directory, or give -o FILE",
+                           EXIT_FAILURE) from None
     check_output_path(output, "-o", overwrite=args.overwrite)
     if args.plot is not None:
         check_not_input(args.plot, [output], "--plot")

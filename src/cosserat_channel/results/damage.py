@@ -22,9 +22,14 @@ class DamagedFile(RuntimeError):
     """Rows read from a result show damage (:func:`rows_problem`); the message is one line."""
 
 
-def check_rows(columns: dict, flag_values, coordinates=None) -> None:
+# A subset written by ``query --where`` marks the points its clauses chose in this variable and
+# has NaN at the others whatever their status: only the chosen ones are held to their status.
+SELECTED = "selected"
+
+
+def check_rows(columns: dict, flag_values, coordinates=None, selected=None) -> None:
     """Raise :class:`DamagedFile` if :func:`rows_problem` finds damage."""
-    problem = rows_problem(columns, flag_values, coordinates)
+    problem = rows_problem(columns, flag_values, coordinates, selected)
     if problem:
         raise DamagedFile(problem)
 
@@ -67,10 +72,11 @@ def status_message(n: int, example) -> str:
             "values); write it again")
 
 
-def rows_problem(columns: dict, flag_values, coordinates=None) -> str | None:
+def rows_problem(columns: dict, flag_values, coordinates=None, selected=None) -> str | None:
     """One line if the rows ``columns`` (``{name: array}``, ``status`` codes among them, all of
     one shape) or the ``coordinates`` (``{name: values}``) show damage, else None.
-    ``flag_values``: the file's status codes."""
+    ``flag_values``: the file's status codes; ``selected``: the rows' :data:`SELECTED` values
+    in a subset that has them."""
     status = columns.get("status")
     if status is None:
         return None
@@ -83,6 +89,8 @@ def rows_problem(columns: dict, flag_values, coordinates=None) -> str | None:
     if foreign.any():
         return status_message(int(foreign.sum()), int(status[foreign].flat[0]))
     ok = status == st.OK
+    if selected is not None:
+        ok &= np.asarray(selected) == 1
     for name, values in columns.items():
         if name != "status" and valued_when_ok(name):
             n = int(np.count_nonzero(ok & missing(np.asarray(values))))
@@ -105,7 +113,10 @@ def dataset_counts(ds, name: str):
         return (~ds["status"].isin(codes)).sum()
     if not valued_when_ok(name) or not set(ds["status"].dims) <= set(ds[name].dims):
         return None
-    return (missing(ds[name]) & (ds["status"] == st.OK)).sum()
+    ok = ds["status"] == st.OK
+    if SELECTED in ds.data_vars:
+        ok = ok & (ds[SELECTED] == 1)
+    return (missing(ds[name]) & ok).sum()
 
 
 def dataset_message(ds, name: str, n: int) -> str:

@@ -112,8 +112,10 @@ class LightBox(LightFile):
         idx = np.unravel_index(flat, selection.shape)
         cols = [self.read(d, (d,))[i] for d, i in zip(selection.row_dims, idx)]
         raw = {v: self.read(v, selection.row_dims)[idx] for v in selection.columns}
+        chosen = (self.read(damage.SELECTED, selection.row_dims)[idx]
+                  if damage.SELECTED in self.data_vars else None)
         damage.check_rows(raw, list(flag_names(self["status"]).values()),
-                          dict(zip(selection.row_dims, cols)))
+                          dict(zip(selection.row_dims, cols)), chosen)
         for v in selection.columns:
             values = raw[v]
             da = self[v]

@@ -46,9 +46,13 @@ def iter_rows(selection: Selection, limit: int | None = None):
     if n == 0:
         return
     flat = np.flatnonzero(mask)[:n] if mask is not None else None
-    sub = selection.ds[list(selection.columns)]
+    # A subset's own choice of points (query --where) is read with the rows: the damage check
+    # holds only those to their status.
+    names = list(dict.fromkeys([*selection.columns, *(
+        [damage.SELECTED] if damage.SELECTED in selection.ds.data_vars else [])]))
+    sub = selection.ds[names]
     if math.prod(shape) <= ROW_BLOCK:
-        sub = _load_box(selection, list(selection.columns))
+        sub = _load_box(selection, names)
     flags = {v: {c: k for k, c in flag_names(sub[v]).items()}
              for v in selection.columns if _is_flag(sub[v])}
     for start in range(0, n, ROW_BLOCK):
@@ -60,7 +64,8 @@ def iter_rows(selection: Selection, limit: int | None = None):
         cols = [np.asarray(pts[d].values) for d in selection.row_dims]
         if "status" in flags:
             damage.check_rows({v: pts[v].values for v in selection.columns},
-                              list(flags["status"]), dict(zip(selection.row_dims, cols)))
+                              list(flags["status"]), dict(zip(selection.row_dims, cols)),
+                              pts[damage.SELECTED].values if damage.SELECTED in pts else None)
         for v in selection.columns:
             values = pts[v].values
             if v in flags:
@@ -189,8 +194,8 @@ def write_netcdf(selection: Selection, path: str) -> None:
     with dask.config.set(scheduler="synchronous"):
         # A part of the file that HDF5 no longer finds reads as fill values without an error:
         # never copied into the subset as if they were values.
-        problem = read_problem(ds, [v for v in ds.data_vars if damage.valued_when_ok(v)
-                                    or v == "status"])
+        problem = read_problem(ds, [*(d for d in ds.dims if d in ds.coords), *(
+            v for v in ds.data_vars if damage.valued_when_ok(v) or v == "status")])
         if problem:
             raise damage.DamagedFile(problem)
         write_dataset(path, ds)

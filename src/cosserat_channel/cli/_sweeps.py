@@ -343,6 +343,19 @@ def _info_arguments(p: argparse.ArgumentParser) -> None:
                    "values; the report names what was not read)")
 
 
+def _atlas_problem(path) -> str | None:
+    """What reading the atlas at ``path`` as the commands do finds wrong (one line), or None:
+    its layout, its numbers, and for the shipped atlas the digest the package records
+    (:func:`cosserat_channel.atlas.load_atlas`)."""
+    from ..atlas import load_atlas
+
+    try:
+        load_atlas(path)
+    except ParameterError as exc:
+        return str(exc)
+    return None
+
+
 @register("info", "describe a file of the tool (result, boundary or atlas) and verify it: "
           "dimensions, variables, status counts, provenance", _info_arguments)
 def _info(args: argparse.Namespace) -> int:
@@ -356,7 +369,7 @@ def _info(args: argparse.Namespace) -> int:
         # What is described is read first: a damaged file is reported as such, not described.
         problem, skipped = describe.verify(ds, None if args.check_all else describe.CHECK_BYTES)
         if problem is None and describe.file_kind(ds) == "atlas":
-            problem = describe.atlas_problem(args.results)
+            problem = _atlas_problem(args.results)
         if problem:
             raise CliError(f"{args.results}: {problem}", EXIT_FAILURE)
         try:

@@ -84,20 +84,6 @@ def verify(ds: xr.Dataset, budget: int | None = CHECK_BYTES) -> tuple[str | None
     return read_problem(ds, read), skipped
 
 
-def atlas_problem(path) -> str | None:
-    """What reading the atlas at ``path`` as the commands do finds wrong (one line), or None:
-    its layout, its numbers, and for the shipped atlas the digest the package records
-    (:func:`cosserat_channel.atlas.store.load_atlas`)."""
-    from ..atlas.store import load_atlas
-    from ..parameters import ParameterError
-
-    try:
-        load_atlas(path)
-    except ParameterError as exc:
-        return str(exc)
-    return None
-
-
 def describe(ds: xr.Dataset, path: str = "", skipped=None) -> str:
     """The ``info`` report: kind, dimensions, variables, flag counts, provenance, and with
     ``skipped`` (from :func:`verify`) what was read to check the file.

@@ -17,7 +17,7 @@ from cosserat_channel.integrate.dense import (
     locate_event,
 )
 from cosserat_channel.integrate.rk45 import dense_coefficients, dopri5_step, integrate
-from cosserat_channel.integrate.stepping import N_STATS, SUCCESS
+from cosserat_channel.integrate.stepping import N_STATS, SUCCESS, no_event
 from problems import OSC_ARGS, const_one, gauss, gauss_exact, osc_exact, oscillator
 
 
@@ -47,6 +47,30 @@ def one_step(fun, t0, y0, h, args=()):
 # ---------------------------------------------------------------------------
 # Interpolation
 # ---------------------------------------------------------------------------
+def test_step_slope_is_the_interpolants_derivative():
+    """At a step's ends the interpolant's slope is f there (rows 0-3 are Hermite's), and inside
+    it matches a central difference of the interpolant, for both layouts (DOP853's CONTD8 and
+    Dormand-Prince's CONTD5)."""
+    from cosserat_channel.integrate import dop853
+
+    T, Q, y_new = one_step(oscillator, 0.0, [1.0, 0.0], 0.3, OSC_ARGS)
+    T8, Q8, st8 = np.empty(51), np.empty((50, dense.N_DENSE, 2)), np.zeros(N_STATS, np.int64)
+    _, n8, _ = dop853.dop853(oscillator, no_event, 0.0, np.array([1.0, 0.0]), 0.6, OSC_ARGS,
+                             1e-6, np.full(2, 1e-9), 0.3, 0.0, T8, Q8, st8)
+    assert n8 >= 1
+    f = np.empty(2)
+    for TT, QQ in ((T, Q), (T8[:2], Q8[:1])):
+        for i in range(2):
+            oscillator(TT[0], QQ[0, 0], OSC_ARGS, f)
+            assert dense.step_slope(TT, QQ, 0, i, TT[0]) == pytest.approx(f[i], rel=1e-12,
+                                                                           abs=1e-12)
+            for t in np.linspace(TT[0], TT[1], 7)[1:-1]:
+                d = 1e-6 * (TT[1] - TT[0])
+                fd = (dense.step_value(TT, QQ, 0, i, t + d)
+                      - dense.step_value(TT, QQ, 0, i, t - d)) / (2 * d)
+                assert dense.step_slope(TT, QQ, 0, i, t) == pytest.approx(fd, rel=1e-7, abs=1e-8)
+
+
 def test_contd5_steps_read_the_same_bits_through_the_contd8_formula():
     """A Dormand-Prince step (rows 5-7 zero) evaluates to exactly CONTD5's own nesting."""
     T, Q, _ = one_step(oscillator, 0.0, [1.0, 0.0], 0.3, OSC_ARGS)

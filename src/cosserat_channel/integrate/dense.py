@@ -47,6 +47,7 @@ __all__ = [
     "find_step",
     "dense_eval_step",
     "step_value",
+    "step_slope",
     "dense_eval",
     "dense_eval_many",
     "locate_event",
@@ -164,6 +165,29 @@ def _step_polynomial(Q, k, i, theta):
                 Q[k, 3, i] + theta1 * (
                     Q[k, 4, i] + theta * (
                         Q[k, 5, i] + theta1 * (Q[k, 6, i] + theta * Q[k, 7, i]))))))
+
+
+@njit(**_JIT_INLINE)
+def step_slope(T, Q, k, i, t):
+    """The derivative by `t` of component `i` of step `k`'s interpolant at `t` (the nested form
+    of :func:`_step_polynomial` differentiated from the inside out): with :func:`step_value`,
+    what a defect ``u' - f(t, u)`` of the dense output is made of."""
+    h = T[k + 1] - T[k]
+    theta = (t - T[k]) / h
+    theta1 = 1.0 - theta
+    g6 = Q[k, 6, i] + theta * Q[k, 7, i]
+    d6 = Q[k, 7, i]
+    g5 = Q[k, 5, i] + theta1 * g6
+    d5 = -g6 + theta1 * d6
+    g4 = Q[k, 4, i] + theta * g5
+    d4 = g5 + theta * d5
+    g3 = Q[k, 3, i] + theta1 * g4
+    d3 = -g4 + theta1 * d4
+    g2 = Q[k, 2, i] + theta * g3
+    d2 = g3 + theta * d3
+    g1 = Q[k, 1, i] + theta1 * g2
+    d1 = -g2 + theta1 * d2
+    return (g1 + theta * d1) / h
 
 
 @njit(**_JIT_INLINE)

@@ -45,11 +45,15 @@ DOP853_RTOL = 1e-6
 # its steps at this fraction of the stretch; capping every march costs 30 % of stage 1 on
 # bench_point's grid, where the error does not arise.
 EDGE_MAX_STEP = 0.25
-# DOP853 marches in at least two steps: its error estimate misses the error of one step across
-# the whole stretch from the series start (where the first step's guess, xi1 clipped to the
-# stretch, puts it): on bench_point's grid at rtol 1e-6 such a step leaves J(0) up to 300 rtol off
-# (m_wall 16 rtol), half the stretch 0.2 rtol (0.1).
+# DOP853's error estimate can miss the error of one step across the whole stretch from the
+# series start (where the first step's guess, xi1 clipped to the stretch, puts it): on
+# bench_point's grid at rtol 1e-6 such a step left J(0) up to 300 rtol off (m_wall 16 rtol),
+# half the stretch 0.2 rtol (0.1). A step longer than this fraction of the stretch is kept only
+# where its interpolant's defect at the step's middle passes the tolerance (_march_dop853);
+# else the stretch is marched again in steps of at most this fraction.
 DOP853_MAX_STEP = 0.5
+# The defect d = u' - f(u) of a step's interpolant, h d times this, is its error estimate there.
+DEFECT_WEIGHT = 0.25
 STAGE1_RTOL_FLOOR = 1e-13
 # D(1) below this many rtol-sized errors of D is zero within stage 1's resolution (solve_eta).
 WALL_D_RESOLUTION = 0.1
@@ -174,11 +178,49 @@ def _march_dopri5(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1
 
 
 @njit(**_JIT)
+def _long_step_defect(xi0, xi_end, args1, rtol, atol1, T1, Q1, n):
+    # (evaluations, whether a step longer than DOP853_MAX_STEP of the stretch has an
+    # interpolant whose defect at its middle exceeds the tolerance): one evaluation of the
+    # right-hand side per such step.
+    evals = 0
+    cap = DOP853_MAX_STEP * (xi_end - xi0)
+    f = np.empty(1)
+    y = np.empty(1)
+    for k in range(n):
+        h = T1[k + 1] - T1[k]
+        if not h > cap:
+            continue
+        mid = T1[k] + 0.5 * h
+        y[0] = dense.step_value(T1, Q1, k, 0, mid)
+        _stage1_rhs(mid, y, args1, f)
+        evals += 1
+        err = DEFECT_WEIGHT * h * abs(dense.step_slope(T1, Q1, k, 0, mid) - f[0])
+        if not err <= atol1[0] + rtol * abs(y[0]):
+            return evals, True
+    return evals, False
+
+
+@njit(**_JIT)
 def _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
     rho0 = abs(_stage1_jac(xi0, y0, args1)[0])  # as in _march_dopri5
     cap = DOP853_MAX_STEP * (xi_end - xi0)
-    return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
-                         cap if not (0.0 < h_max < cap) else h_max, T1, Q1, stats1, rho0)
+    if 0.0 < h_max < cap:
+        return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
+                             h_max, T1, Q1, stats1, rho0)
+    s, n, t = dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
+                            h_max, T1, Q1, stats1, rho0)
+    if not (s == stepping.SUCCESS or s == stepping.EVENT):
+        return s, n, t
+    evals, bad = _long_step_defect(xi0, xi_end, args1, rtol, atol1, T1, Q1, n)
+    stats1[stepping.STAT_FEV] += evals
+    if not bad:
+        return s, n, t
+    spent = stats1.copy()
+    s, n, t = dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
+                            cap, T1, Q1, stats1, rho0)
+    for i in range(stepping.STAT_STIFF):
+        stats1[i] += spent[i]
+    return s, n, t
 
 
 @njit(**_JIT)

@@ -164,7 +164,7 @@ def first_trial(eta, A, N, rtol):
     if stage1.use_stiff_path(eta, A, N, ax, xi1, rtol1):
         return math.nan, 0.0
     split = xi1 + stage1.SPLIT_MARGIN < N < 1.0 - stage1.SPLIT_MARGIN
-    h = min(xi1, stage1.DOP853_MAX_STEP * ((N if split else 1.0) - xi1))
+    h = min(xi1, (N if split else 1.0) - xi1)  # the first trial: xi1, clipped to the stretch
     args = (eta, A, N, ax)
     K = np.empty((dop853.N_STAGES_EXTENDED, 1))
     y = np.full(1, w1)

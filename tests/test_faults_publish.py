@@ -261,7 +261,7 @@ def run_copy(src, *argv, **env):
 def test_a_tampered_shipped_atlas_is_not_used(tampered, tmp_path):
     """boundary on the edited copy: one line saying the shipped atlas is not what the package
     records, and eta_max traced afresh (the true 7.659 at A = 1/3, N = 2, not 8.05)."""
-    proc = run_copy(tampered, "boundary", "--A", "1/3", "--N", "2",
+    proc = run_copy(tampered, "boundary", "--A", "0.3333333333333333", "--N", "2",
                     XDG_CACHE_HOME=str(tmp_path / "home"))  # no cached atlas
     assert proc.returncode == 0, proc.stderr
     lines = [x for x in proc.stderr.splitlines() if "shipped atlas" in x]

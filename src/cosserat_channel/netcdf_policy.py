@@ -69,7 +69,7 @@ def variable_encoding(shape, dtype, *, coordinate: bool = False, compress=True,
     compress : str or bool
         See :func:`codec`.
     chunks : tuple of int, optional
-        Chunk sizes of a compressed variable (default: the library's choice).
+        Chunk sizes of a data variable (default: the library's choice).
     """
     dtype = np.dtype(dtype)
     e = {}
@@ -81,10 +81,12 @@ def variable_encoding(shape, dtype, *, coordinate: bool = False, compress=True,
     if (name != "none" and not coordinate and dtype.kind in "fiu"
             and math.prod(shape) > MIN_COMPRESSED):
         e.update(_CODEC_KEYS[name])
-        if chunks is not None:
-            e["chunksizes"] = tuple(int(c) for c in chunks)
     if len(shape) > 0 and dtype.kind in "fiub":
         e["fletcher32"] = True
+        # Checksummed arrays are stored in chunks; given sizes hold compressed or not (a writer
+        # that encodes chunks itself relies on them).
+        if chunks is not None and not coordinate:
+            e["chunksizes"] = tuple(int(c) for c in chunks)
     return e
 
 

@@ -49,10 +49,10 @@ def _bytes_per_point(spec: SweepSpec, n_xi: int) -> int:
 
 
 # What a run holds besides its plan and the writer's per-integration arrays: the tiles being
-# derived and written (.writer: a dozen tile-sized temporaries, near 200 MB, two tiles at once)
-# and, per worker, the block being solved and stored (its eps K entries with their grid
-# indices, owners and plug-edge values).
-TILE_MEMORY = 2 * (200 << 20)
+# derived and encoded (.writer, .encode: a dozen tile-sized temporaries, near 200 MB, one per
+# worker at once and one more being placed or written) and, per worker, the block being solved
+# and stored (its eps K entries with their grid indices, owners and plug-edge values).
+TILE_MEMORY = 200 << 20
 BLOCK_BYTES_PER_ENTRY = 64
 
 
@@ -67,7 +67,7 @@ def memory_needed(spec: SweepSpec, n_triples: int, xi, output, reduce: bool,
     if output is None:  # everything in memory, the grid-sized result twice while it is built
         need += held + 2 * spec.size * _bytes_per_point(spec, n_xi)
     else:  # beyond WRITER_MEMORY the writer maps its arrays onto the disk
-        need += (held if held <= writer_.WRITER_MEMORY else 0) + TILE_MEMORY
+        need += (held if held <= writer_.WRITER_MEMORY else 0) + (workers + 1) * TILE_MEMORY
     # A block holds whole integrations, about 1/DEFAULT_BLOCKS of the grid up to
     # MAX_BLOCK_ENTRIES entries (.plan), and at least one integration's entries.
     per_triple = -(-spec.size // max(1, n_triples))

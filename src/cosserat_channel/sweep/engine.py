@@ -5,8 +5,10 @@
 The pieces: a block is solved by :mod:`.block`, the blocks run on dask's threads or a
 ``dask.distributed`` cluster (:mod:`.schedulers`), the disk and memory a run needs are checked
 first (:mod:`.budget`). The results come back to this process, which alone writes the store and
-the file (workers need no shared file system). Every finished block is saved at once (see
-:mod:`~cosserat_channel.sweep.store`), so a killed run resumes where it stopped.
+the file (workers need no shared file system); the file's tiles are derived and their chunks
+encoded where the blocks are solved (:mod:`.encode`), and this process places the encoded
+chunks. Every finished block is saved at once (see :mod:`~cosserat_channel.sweep.store`), so a
+killed run resumes where it stopped.
 
 The result file is written tile by tile (:mod:`.writer`), so memory follows the block and the
 tile sizes, not the grid; the disk space it needs is checked before anything is computed. Blocks
@@ -34,7 +36,8 @@ from .dataset import build_dataset
 from .block import _block_task, warm_up
 from .budget import disk_needed, memory_needed, memory_problem
 from .plan import Plan, count_triples
-from .schedulers import NO_WORKERS_TIMEOUT, _run_distributed, _run_threads, connect
+from .schedulers import (NO_WORKERS_TIMEOUT, ClusterEncoder, LocalEncoder, _run_distributed,
+                         _run_threads, connect)
 from .spec import SweepError, SweepSpec, load_sweep
 from .store import FORMAT, BlockDamaged, WorkStore, check_writable
 from .writer import StreamWriter, Tiles
@@ -227,11 +230,20 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     def recompute(k):
         store.put(k, _block_task(plan, k, (spec.rtol, spec.atol, xi)))
 
-    writer = None
+    writer = encoder = None
     if output is not None:
-        writer = StreamWriter(output, spec, plan, store, xi, Tiles(spec.shape, 0 if xi is None
-                                                                   else xi.size),
-                              compress, recompute)
+        # Tiles are derived and encoded where the blocks are solved: beside the solving threads,
+        # or on the cluster's workers.
+        encoder = (LocalEncoder(n_workers) if client is None
+                   else ClusterEncoder(client, no_workers_timeout))
+        try:
+            writer = StreamWriter(output, spec, plan, store, xi,
+                                  Tiles(spec.shape, 0 if xi is None else xi.size), compress,
+                                  recompute, encoder)
+        except BaseException:
+            if encoder is not None:
+                encoder.close()
+            raise
     cpu = []  # the solving threads' CPU seconds per block: inputs, kernels, storing
     if todo and client is None:
         import dask.diagnostics  # noqa: F401 (imported and the kernels loaded before the clock)
@@ -258,6 +270,9 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
         if writer is not None:
             writer.abort()
         raise
+    finally:
+        if encoder is not None:
+            encoder.close()
     t2 = time.perf_counter()
     if output is not None:
         store.remove()
@@ -268,10 +283,12 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     solve = sum(cpu) / n_workers if cpu else t1 - t0
     if writer is not None:
         log.info("%s: solve phase %.2f s (solving threads %.2f s CPU on %d workers; the process %.2f s "
-                 "CPU until the file was complete), %d of %d tiles written during it; writer "
-                 "busy %.2f s (%.2f s CPU), %.2f s after the solve", output, t1 - t0, sum(cpu),
-                 n_workers, time.process_time() - c0, during, writer.tiles.count, writer.busy,
-                 writer.cpu, t2 - t1)
+                 "CPU until the file was complete), %d of %d tiles written during it; tiles "
+                 "derived and encoded %s in %.2f s CPU; writer busy %.2f s (%.2f s CPU), %.2f s "
+                 "after the solve", output, t1 - t0, sum(cpu), n_workers,
+                 time.process_time() - c0, during, writer.tiles.count,
+                 "where solved" if writer.direct else "by the writer", writer.encode_cpu,
+                 writer.busy, writer.cpu, t2 - t1)
     return ds, (solve, len(todo), t2 - t0 - solve)
 
 

@@ -4,8 +4,10 @@ Each block is one :func:`.block.solve_block` call, which holds no GIL, so the th
 keeps every core busy without pickling anything. On a cluster each task carries its own block's
 inputs (:meth:`.plan.Plan.inputs`), nothing scattered: a task whose worker dies is simply run
 again on another. The results come back to this process, which alone writes the store and the
-file. Losing the scheduler, or every worker for ``no_workers_timeout`` seconds, ends the run with
-:class:`SchedulerLost`; the finished blocks are in the store and the same command resumes.
+file; the file's tiles are derived and encoded beside the solving threads (:class:`LocalEncoder`)
+or on the cluster's workers (:class:`ClusterEncoder`). Losing the scheduler, or every worker for
+``no_workers_timeout`` seconds, ends the run with :class:`SchedulerLost`; the finished blocks are
+in the store and the same command resumes.
 """
 
 from __future__ import annotations
@@ -287,3 +289,65 @@ def _progress_thread(futures) -> None:
             pass
 
     threading.Thread(target=show, name="cc-progress", daemon=True).start()
+
+
+class LocalEncoder:
+    """Tiles derived and encoded (:func:`.encode.encode_tile`) in a pool of ``workers`` threads
+    beside the solving ones: numpy's loops, the checksum and deflate leave the GIL, and the solving
+    kernels never take it, so the cores share both."""
+
+    def __init__(self, workers: int):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._pool = ThreadPoolExecutor(max(1, int(workers)), thread_name_prefix="cc-encode")
+        # A tile waiting per thread: each in flight holds one tile's derived values at most.
+        self.slots = max(1, int(workers)) + 1
+
+    def submit(self, function, job):
+        return self._pool.submit(function, job)
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+class ClusterEncoder:
+    """Tiles derived and encoded on the cluster's workers: each task carries its tile's inputs
+    (nothing scattered), so one whose worker is lost runs again on another, and it is placed in
+    the file when its encoded chunks come back."""
+
+    def __init__(self, client, no_workers_timeout: float = NO_WORKERS_TIMEOUT):
+        self.client = client
+        self.watch = _WorkerWatch(client, no_workers_timeout)
+        self.slots = 2 * cluster_threads(client)
+
+    def submit(self, function, job):
+        # Before the blocks still queued: a tile in flight holds memory here and there.
+        return _Watched(self.client.submit(function, job, pure=False, priority=10), self.watch,
+                        self.client)
+
+    def close(self) -> None:
+        pass
+
+
+class _Watched:
+    """A cluster future whose ``result`` watches the cluster (:class:`_WorkerWatch`)."""
+
+    def __init__(self, fut, watch, client):
+        self.fut, self.watch, self.client = fut, watch, client
+
+    def result(self):
+        from dask.distributed import CancelledError
+
+        try:
+            out = _result(self.fut, self.watch)
+        except CancelledError:
+            raise SchedulerLost(f"lost the dask scheduler at {self.client.scheduler.address} "
+                                "(CancelledError)") from None
+        self.fut.release()
+        return out
+
+    def cancel(self) -> None:
+        try:
+            self.fut.cancel()
+        except Exception:  # noqa: BLE001 (a lost scheduler has nothing to cancel)
+            pass

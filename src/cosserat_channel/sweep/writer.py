@@ -16,8 +16,13 @@ blocks are done, in a thread of its own while the other blocks are solved:
    :data:`GROUP_POINTS`, e.g. one that holds every tile because ``eta`` values are shared across
    the grid, goes through per-tile *bucket* files in ``scratch/`` instead);
 3. each tile's values are derived by :func:`.dataset.grid_values` (the function the in-memory
-   result uses, elementwise, hence the same bits) and written with the ``netCDF4`` library, each
-   chunk compressed once.
+   result uses, elementwise, hence the same bits) and its chunks encoded (checksum, shuffle,
+   deflate, as HDF5 would) by :func:`.encode.encode_tile`, in parallel where the blocks are
+   solved (a pool of threads beside the solving ones, or the cluster's workers); this thread
+   only places the encoded chunks into the file (HDF5's direct chunk write, through h5py, into
+   the variables ``netCDF4`` created). A file whose chunks cannot be encoded that way (profiles,
+   whose chunks cross tiles; Zstandard, a filter plugin) is written through ``netCDF4`` here,
+   each chunk compressed once by the HDF5 library.
 
 The file is written under a temporary name inside the store and renamed when complete
 (:meth:`.store.WorkStore.publish`); a killed run leaves only that temporary file, which the next run
@@ -26,6 +31,7 @@ deletes, and writes the whole file again from the stored blocks.
 
 from __future__ import annotations
 
+import collections
 import math
 import os
 import queue
@@ -43,6 +49,7 @@ from ..solver import layout
 from ..files import write_failure
 from ..parameters import DIMS
 from .. import netcdf_policy
+from . import encode
 from .dataset import chunk_shape, coordinates, global_attrs, grid_values, variable_encoding
 from .store import BlockDamaged
 
@@ -199,6 +206,13 @@ class StreamWriter:
     being solved. :meth:`finish` writes what is left and closes the file (at :attr:`tmp`, inside
     the store, for the run to rename onto the output); :meth:`abort` stops and removes it.
 
+    The file, its coordinates and its empty variables are made at once by ``netCDF4``. Then,
+    when every result variable's chunks lie inside tiles and its filters are HDF5's built-in ones
+    (:func:`.encode.supported`), each tile is derived and its chunks encoded by ``encoder``
+    (:func:`.encode.encode_tile` in the solving threads' pool or on the cluster's workers) and
+    this object's thread only places the encoded chunks (h5py's ``write_direct_chunk``, which
+    runs no filter again); otherwise the tiles are derived here and written through ``netCDF4``.
+
     Parameters
     ----------
     output : str
@@ -216,9 +230,14 @@ class StreamWriter:
     recompute : callable
         ``recompute(k)`` solves block ``k`` again and puts it into the store (a stored block
         found damaged when it is read back).
+    encoder : object, optional
+        ``encoder.submit(function, job)``: a future of ``function(job)`` (``.result()``), and
+        ``encoder.slots``, how many tiles may be in flight. Without one, tiles are written
+        through ``netCDF4`` in this object's thread.
     """
 
-    def __init__(self, output, spec, plan, store, xi, tiles: Tiles, compress, recompute):
+    def __init__(self, output, spec, plan, store, xi, tiles: Tiles, compress, recompute,
+                 encoder=None):
         self.output, self.spec, self.plan, self.store = output, spec, plan, store
         self.xi, self.tiles, self.compress, self.recompute = xi, tiles, compress, recompute
         self.tmp = temp_path(store.directory, output)
@@ -241,12 +260,82 @@ class StreamWriter:
         self._queue: queue.Queue = queue.Queue()
         self._stop = False
         self._error: BaseException | None = None
-        self._nc = None
+        self._nc = None  # the file open in netCDF4 (tiles written by the library)
+        self._h5 = None  # or in h5py (encoded chunks placed)
+        self._layouts: dict | None = None
+        self.encoder = encoder
+        self._inflight: collections.deque = collections.deque()
         self.tiles_written = 0
         self.busy = 0.0  # seconds this writer's thread spent placing, deriving and writing
         self.cpu = 0.0  # and its CPU seconds (the tile-deriving thread's not included)
+        self.encode_cpu = 0.0  # CPU seconds of deriving and encoding tiles where they ran
+        self._create()
         self._thread = threading.Thread(target=self._loop, name="cc-writer", daemon=True)
         self._thread.start()
+
+    @property
+    def direct(self) -> bool:
+        """Whether the tiles are encoded by the encoder and placed as they are."""
+        return self._layouts is not None
+
+    def _create(self) -> None:
+        """Make the file with its coordinates and empty variables; open it for the tiles."""
+        # One point's values give the variables' names, order, types and attributes.
+        one = self.plan.region((slice(0, 1),) * len(DIMS))
+        with np.errstate(all="ignore"):
+            sample = grid_values(self.spec, one, self.per_triple,
+                                 np.zeros(one.shape) if self.need_one_minus else None, self.xi,
+                                 self.profiles)
+        try:
+            with netCDF4.Dataset(self.tmp, "w", format="NETCDF4") as nc:
+                create_variables(nc, self.spec, self.plan, self.xi, sample, self.compress)
+            self._layouts = None if self.encoder is None else self._direct_layouts(list(sample))
+            if self._layouts is not None:
+                import h5py
+
+                self._h5 = h5py.File(self.tmp, "r+")
+            else:
+                self._nc = netCDF4.Dataset(self.tmp, "a")
+                self._nc.set_auto_maskandscale(False)
+        except BaseException as exc:
+            self._close()
+            try:
+                os.unlink(self.tmp)
+            except OSError:
+                pass
+            if isinstance(exc, OSError) or type(exc) is RuntimeError:
+                raise write_failure(self.output, exc) from None
+            raise
+
+    def _direct_layouts(self, names) -> dict | None:
+        """``{name: Layout}`` of the result variables when every one can be encoded outside the
+        library and its chunks lie inside tiles; None otherwise (or without h5py)."""
+        try:
+            import h5py
+        except ImportError:
+            return None
+        layouts = {}
+        with h5py.File(self.tmp, "r") as f:
+            for name in names:
+                ds = f[name]
+                if ds.chunks is None:
+                    return None
+                plist = ds.id.get_create_plist()
+                pipeline = tuple((plist.get_filter(i)[0], tuple(int(v) for v in
+                                                                plist.get_filter(i)[2]))
+                                 for i in range(plist.get_nfilters()))
+                lay = encode.Layout(tuple(ds.chunks), pipeline, ds.fillvalue)
+                if not (encode.supported(pipeline)
+                        and encode.aligned(lay, self.tiles.tile, self.tiles.shape)):
+                    return None
+                layouts[name] = lay
+        return layouts
+
+    def _close(self) -> None:
+        for f in (self._nc, self._h5):
+            if f is not None:
+                f.close()
+        self._nc = self._h5 = None
 
     def _array(self, shape, dtype, mapped: bool) -> np.ndarray:
         """Zeros, in memory or mapped onto a file of the store that is unlinked at once (the
@@ -293,23 +382,28 @@ class StreamWriter:
             raise RuntimeError(f"{self.tiles_written} of {self.tiles.count} tiles written, "
                                f"{int(self._left.sum())} blocks missing")
         try:
-            self._nc.close()
+            self._close()
         except (OSError, RuntimeError) as exc:
             raise write_failure(self.output, exc) from None
         finally:
-            self._nc = None
+            self._nc = self._h5 = None
 
     def abort(self) -> None:
         """Stop the thread (after the group it is writing) and delete the unfinished file."""
         self._stop = True
         self._queue.put(None)
         self._thread.join()
-        if self._nc is not None:
-            try:
-                self._nc.close()
-            except (OSError, RuntimeError):
-                pass
-            self._nc = None
+        for fut in self._inflight:
+            cancel = getattr(fut, "cancel", None)
+            if cancel is not None:
+                cancel()
+        self._inflight.clear()
+        try:
+            self._close()
+        except (OSError, RuntimeError, ValueError):
+            pass
+        finally:
+            self._nc = self._h5 = None
         try:
             os.unlink(self.tmp)
         except OSError:
@@ -328,19 +422,29 @@ class StreamWriter:
     def _loop(self) -> None:
         try:
             while not self._stop:
-                g = self._queue.get()
+                try:
+                    # With tiles in flight, place the oldest while no group is waiting.
+                    g = self._queue.get(block=not self._inflight)
+                except queue.Empty:
+                    self._timed(self._place_oldest)
+                    continue
                 if g is None or self._stop:
+                    while self._inflight and not self._stop:
+                        self._timed(self._place_oldest)
                     return
-                t0, c0 = time.perf_counter(), time.thread_time()
-                self._write_group(g)
-                self.busy += time.perf_counter() - t0
-                self.cpu += time.thread_time() - c0
+                self._timed(self._write_group, g)
         except BaseException as exc:  # noqa: BLE001 (handed to the run, which raises it)
             # As files.netcdf_output: the HDF5 library's RuntimeError and OSErrors are failures
             # to write the output; anything else is a bug and passes unchanged.
             if isinstance(exc, OSError) or type(exc) is RuntimeError:
                 exc = write_failure(self.output, exc)
             self._error = exc
+
+    def _timed(self, work, *args) -> None:
+        t0, c0 = time.perf_counter(), time.thread_time()
+        work(*args)
+        self.busy += time.perf_counter() - t0
+        self.cpu += time.thread_time() - c0
 
     def _read(self, k: int) -> dict:
         """Block ``k`` from the store, checked; computed again if it is damaged."""
@@ -362,6 +466,17 @@ class StreamWriter:
     def _write_group(self, g: int) -> None:
         tiles_g = self.plan.groups[g]
         take = self._place_one_minus(g) if self.need_one_minus else None
+        if self._h5 is not None:
+            for i in tiles_g:
+                region = self.plan.region(self.tiles.slices(i))
+                one_minus = None if take is None else take(i, region.shape)
+                job = encode.tile_job(self.spec, region, self.per_triple, one_minus,
+                                      self._layouts)
+                self._inflight.append(self.encoder.submit(encode.encode_tile, job))
+                del job, one_minus
+                while len(self._inflight) > self.encoder.slots:
+                    self._place_oldest()
+            return
 
         def derive(i):
             region = self.plan.region(self.tiles.slices(i))
@@ -377,14 +492,23 @@ class StreamWriter:
                 region, values = ahead.result()
                 if j + 1 < len(tiles_g):
                     ahead = pool.submit(derive, tiles_g[j + 1])
-                if self._nc is None:
-                    self._nc = netCDF4.Dataset(self.tmp, "w", format="NETCDF4")
-                    create_variables(self._nc, self.spec, self.plan, self.xi, values,
-                                     self.compress)
                 for name, (dims, value, _) in values.items():
                     self._nc[name][region.slices + (slice(None),) * (len(dims) - len(DIMS))] = value
                 del values
                 self.tiles_written += 1
+
+    def _place_oldest(self) -> None:
+        """Wait for the oldest tile in flight and place its encoded chunks into the file."""
+        done = self._inflight[0].result()
+        self._inflight.popleft()
+        datasets = {}
+        for name, offset, data in done["chunks"]:
+            ds = datasets.get(name)
+            if ds is None:
+                ds = datasets[name] = self._h5[name].id
+            ds.write_direct_chunk(offset, data)
+        self.encode_cpu += done["cpu"]
+        self.tiles_written += 1
 
     def _place_one_minus(self, g: int):
         """``take(tile, shape)``: the plug-edge values of group ``g``'s tiles, regrouped from

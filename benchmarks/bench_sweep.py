@@ -16,8 +16,9 @@
     from the file of (c), to CSV, in a fresh process: wall time and peak RSS.
 (e) (a)'s sweep with ``--scheduler`` on a ``dask.distributed`` cluster of 2 local worker
     processes of 1 thread (started here, with its scheduler, in this process): the ``run``
-    process's CPU time (its own rusage, start-up included) against the workers' (the solve, as
-    each task measured it, and the tiles' deriving and encoding).
+    process's CPU time from the start of the solve to the complete file (the engine's log; and
+    all of it, start-up included, from its rusage) against the workers' (the solve, as each task
+    measured it, and the tiles' deriving and encoding).
 
 Targets: (a) peak RSS < 1 GiB, (b) 2 workers >= 1.8x one worker; (c) peak RSS < 2 GiB and wall
 time <= 1.4x the solving threads' CPU over the workers; (d) < 2 s and < 1 GiB; (e) the ``run``
@@ -174,7 +175,10 @@ def main() -> int:
     speedup = t1 / tw
     overhead = c["write"] / c["solve"]
     c_ratio = c["wall"] / c["solve"]  # the solve: the solving threads' CPU over the workers
-    e_ratio = e["cpu"] / e["threads_cpu"]
+    # The run process's CPU from the start of the solve to the complete file (the engine's log),
+    # and all of it (start-up, imports, plan included: os.wait4).
+    e_ratio = e["process_cpu"] / e["threads_cpu"]
+    e_ratio_all = e["cpu"] / e["threads_cpu"]
     load_after = os.getloadavg()
     ok_time = rec.check("(a) large_5d end to end < 60 s", a["wall"] < 60.0, f"{a['wall']:.2f} s")
     ok_rss = rec.check("(a) peak RSS < 1 GiB", a["rss"] < 1 * GiB, f"{a['rss'] / GiB:.2f} GiB")
@@ -193,8 +197,8 @@ def main() -> int:
                             "workers_s": tw, "speedup": speedup})
     rec.add("c_1e8_points", {k: c[k] for k in ("cmd", "wall", "solve", "write", "rss", "size")})
     rec.add("d_query", {k: d[k] for k in ("cmd", "wall", "rss", "rows")})
-    rec.add("e_distributed", {k: e[k] for k in ("cmd", "wall", "cpu", "threads_cpu",
-                                                "encode_cpu", "rss", "size")})
+    rec.add("e_distributed", {k: e[k] for k in ("cmd", "wall", "cpu", "process_cpu",
+                                                "threads_cpu", "encode_cpu", "rss", "size")})
     rec.add("load", {"before": load_before, "after": load_after})
     rec.add("deflate", encode.DEFLATE)
 
@@ -235,8 +239,10 @@ def main() -> int:
          f"{e['size'] / 1e6:.0f} MB file", f"{e['encoded']}"),
         ("    workers' solve CPU", f"{e['threads_cpu']:.2f} s", "", ""),
         ("    workers' deriving and encoding CPU", f"{e['encode_cpu']:.2f} s", "", ""),
-        ("    run process's CPU (all of it)", f"{e['cpu']:.2f} s", "",
+        ("    run process's CPU, solve to file", f"{e['process_cpu']:.2f} s", "",
          f"{e_ratio:.0%} of the workers' solve, <= 25 %: {ok_client.word}"),
+        ("    run process's CPU, all of it", f"{e['cpu']:.2f} s", "",
+         f"{e_ratio_all:.0%} of the workers' solve (start-up included)"),
     ]
     w0 = max(len(r[0]) for r in rows)
     print()

@@ -93,7 +93,8 @@ def test_chunks_encoded_here_read_back_through_netcdf4_with_checksums(tmp_path, 
     for how in ("library", "here"):
         paths[how] = tmp_path / f"{how}.nc"
         with netCDF4.Dataset(paths[how], "w") as nc:
-            for d, n in zip("abcde", shape):
+            dims = tuple(f"d{i}" for i in range(len(shape)))
+            for d, n in zip(dims, shape):
                 nc.createDimension(d, n)
             for name, v in values.items():
                 enc = dict(netcdf_policy.variable_encoding(shape, v.dtype,
@@ -101,7 +102,7 @@ def test_chunks_encoded_here_read_back_through_netcdf4_with_checksums(tmp_path, 
                            chunksizes=chunks)
                 if compress == "zlib":
                     enc.update(zlib=True, complevel=1, shuffle=True)
-                var = netcdf_policy.create_variable(nc, name, v.dtype, tuple("abcde"), enc)
+                var = netcdf_policy.create_variable(nc, name, v.dtype, dims, enc)
                 if how == "library":
                     var[:] = v
     with h5py.File(paths["here"], "r+") as f:

@@ -35,6 +35,7 @@ import collections
 import math
 import os
 import queue
+import re
 import shutil
 import threading
 import time
@@ -298,7 +299,10 @@ class StreamWriter:
                 self._nc = netCDF4.Dataset(self.tmp, "a")
                 self._nc.set_auto_maskandscale(False)
         except BaseException as exc:
-            self._close()
+            try:
+                self._close()
+            except (OSError, RuntimeError, ValueError):
+                pass
             try:
                 os.unlink(self.tmp)
             except OSError:
@@ -332,10 +336,15 @@ class StreamWriter:
         return layouts
 
     def _close(self) -> None:
-        for f in (self._nc, self._h5):
-            if f is not None:
-                f.close()
+        nc, h5 = self._nc, self._h5
         self._nc = self._h5 = None
+        if nc is not None:
+            nc.close()
+        if h5 is not None:
+            try:
+                h5.close()
+            except (OSError, RuntimeError, ValueError) as exc:
+                raise hdf_error(exc) from None
 
     def _array(self, shape, dtype, mapped: bool) -> np.ndarray:
         """Zeros, in memory or mapped onto a file of the store that is unlinked at once (the
@@ -502,11 +511,14 @@ class StreamWriter:
         done = self._inflight[0].result()
         self._inflight.popleft()
         datasets = {}
-        for name, offset, data in done["chunks"]:
-            ds = datasets.get(name)
-            if ds is None:
-                ds = datasets[name] = self._h5[name].id
-            ds.write_direct_chunk(offset, data)
+        try:
+            for name, offset, data in done["chunks"]:
+                ds = datasets.get(name)
+                if ds is None:
+                    ds = datasets[name] = self._h5[name].id
+                ds.write_direct_chunk(offset, data)
+        except (OSError, RuntimeError, ValueError) as exc:
+            raise hdf_error(exc) from None
         self.encode_cpu += done["cpu"]
         self.tiles_written += 1
 
@@ -556,6 +568,15 @@ class StreamWriter:
         """``(tile, local)`` of block ``k``'s entries (:meth:`Tiles.locate` of its grid indices)."""
         found = self.plan.tile_local(k)
         return found if found is not None else self.tiles.locate(self.plan.inputs(k).flat)
+
+
+def hdf_error(exc: BaseException) -> RuntimeError:
+    """h5py's error writing the file, in the words of ``netCDF4``'s (``HDF error``) with the
+    system's reason when HDF5 gives one (``File too large``), not its whole call record."""
+    text = " ".join(str(exc).split())
+    found = re.search(r"error message = '([^']*)'", text)
+    reason = found.group(1) if found else text.split(" (")[0]
+    return RuntimeError(f"HDF error ({reason})" if reason else "HDF error")
 
 
 def temp_path(directory: str, output: str) -> str:

@@ -316,9 +316,14 @@ class ClusterEncoder:
     the file when its encoded chunks come back."""
 
     def __init__(self, client, no_workers_timeout: float = NO_WORKERS_TIMEOUT):
+        import warnings
+
         self.client = client
         self.watch = _WorkerWatch(client, no_workers_timeout)
         self.slots = 2 * cluster_threads(client)
+        # A tile's task carries its inputs (megabytes, on purpose: nothing scattered, so a lost
+        # worker's task runs again elsewhere); dask's advice against large graphs is not for it.
+        warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
 
     def submit(self, function, job):
         # Before the blocks still queued: a tile in flight holds memory here and there.

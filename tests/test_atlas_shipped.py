@@ -143,3 +143,39 @@ def test_classify_without_an_atlas_uses_it_and_agrees_with_solves(shipped):
     decided = codes != at.UNDECIDED
     assert np.array_equal(codes[decided], direct[decided])
     assert decided.mean() >= 0.99
+
+
+def test_threads_loading_it_at_once_share_one_load(monkeypatch):
+    # The explorer and users' threads call classify() concurrently; HDF5 as the wheels build it
+    # is not thread-safe, so the store reads an atlas once, under a lock, and every thread gets
+    # that one object.
+    import threading
+
+    from cosserat_channel.atlas import store
+
+    path = store.shipped_path()
+    if path is None:
+        pytest.skip("this copy of the package carries no atlas")
+    monkeypatch.setattr(store, "_LOADED", {})
+    loads = []
+    real = store.load_atlas
+
+    def counted(p):
+        loads.append(p)
+        return real(p)
+
+    monkeypatch.setattr(store, "load_atlas", counted)
+    got = [None] * 8
+    start = threading.Barrier(len(got))
+
+    def load(i):
+        start.wait()
+        got[i] = store._load_once(path)
+
+    threads = [threading.Thread(target=load, args=(i,)) for i in range(len(got))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(loads) == 1
+    assert all(a is got[0] for a in got)

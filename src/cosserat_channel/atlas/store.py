@@ -9,6 +9,7 @@ import hashlib
 import json
 import os
 import stat
+import threading
 import zipfile
 from pathlib import Path
 
@@ -112,16 +113,21 @@ def default_atlas(A_range=None, N_range=None, note=None):
 
 
 _LOADED = {}  # path -> (its stat key, the atlas): classify() without an atlas reads it once
+# One load at a time: HDF5 as the netCDF4 wheels build it is not thread-safe (two threads reading
+# an atlas at once can crash the process), and a thread that waited finds the atlas loaded.
+_LOAD_LOCK = threading.Lock()
 
 
 def _load_once(path):
-    """:func:`load_atlas`, read again only when the file changed (size or modification time)."""
-    st_ = os.stat(path)
-    key = (st_.st_mtime_ns, st_.st_size, st_.st_ino)
-    hit = _LOADED.get(path)
-    if hit is None or hit[0] != key:
-        hit = _LOADED[path] = (key, load_atlas(path))
-    return hit[1]
+    """:func:`load_atlas`, read again only when the file changed (size or modification time);
+    safe to call from several threads."""
+    with _LOAD_LOCK:
+        st_ = os.stat(path)
+        key = (st_.st_mtime_ns, st_.st_size, st_.st_ino)
+        hit = _LOADED.get(path)
+        if hit is None or hit[0] != key:
+            hit = _LOADED[path] = (key, load_atlas(path))
+        return hit[1]
 
 
 def describe(atlas, path, which=None):

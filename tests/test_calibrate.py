@@ -197,6 +197,36 @@ def test_bad_fit_arguments(kwargs, expected):
     assert expected in str(info.value)
 
 
+@pytest.mark.parametrize("kwargs,expected", [
+    (dict(fixed="A=1/3"), "fixed must be a mapping"),
+    (dict(bounds=[1, 2]), "bounds must be a mapping"),
+    (dict(start=5), "start must be a mapping"),
+    (dict(fixed={**FIXED, "K": "1e400/1"}), "fixed K = inf is outside the allowed range"),
+    (dict(bounds={"L": 5}), "bounds L: expected two numbers lo, hi"),
+])
+def test_arguments_of_the_wrong_kind_are_fit_errors(kwargs, expected):
+    """fit's arguments of the wrong type or beyond a double are one-line FitErrors, not
+    AttributeError, TypeError or OverflowError."""
+    data = {"quantity": ["Delta"], "value": [10.0], "std_error": [0.5], "eps": [1 / 30]}
+    kwargs = dict(kwargs)
+    kwargs.setdefault("fixed", {**FIXED, "K": 0.5})
+    with pytest.raises(FitError) as info:
+        fit(data, "L", **kwargs)
+    assert expected in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("value,std_error", [(1e300, 0.5), (10.0, 1e-300)])
+def test_residuals_beyond_a_double_are_one_data_error(value, std_error):
+    """A value or standard error whose squared residual overflows (wrong units) is refused in
+    one line naming the row, before scipy meets an infinite chi2."""
+    data = {"quantity": ["Delta"], "value": [value], "std_error": [std_error], "eps": [1 / 30]}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(DataError, match=r"data row 1: .*beyond the range of a double"):
+            fit(data, "L", {**FIXED, "K": 0.5})
+
+
 def test_start_without_solution_is_refused():
     """A start at which a row has no solution is a FitError naming the row and the status."""
     data = {"quantity": ["Delta"], "value": [0.3], "std_error": [0.01], "eps": [0.3]}

@@ -286,7 +286,16 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
         raise FitError(f"{data.where(i)}: no solution at the start "
                        f"({_at(names, x0)}): {_status_text(int(s0[0, i]))}; give another start")
     sigma = data.std_error
-    r_start = (f0[0] - data.value) / sigma
+    with np.errstate(over="ignore", invalid="ignore"):
+        r_start = (f0[0] - data.value) / sigma
+        # chi2 sums the squares: a residual whose square is beyond a double is as unusable.
+        beyond = ~np.isfinite(r_start * r_start * len(r_start))
+    if beyond.any():
+        i = int(np.flatnonzero(beyond)[0])
+        raise DataError(f"{data.where(i)}: ((prediction - value)/std_error)^2 is beyond the range "
+                        f"of a double at the start (value {float(data.value[i])!r}, std_error "
+                        f"{float(data.std_error[i])!r}, prediction {float(f0[0][i])!r}); check the "
+                        "units of value and std_error")
     # A row without a solution counts this much: more than any residual near the start, so
     # the trust region shrinks back into the solvable region.
     penalty = 1e3 * max(1.0, float(np.max(np.abs(r_start))))
@@ -306,8 +315,11 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
 
     def residuals(x):
         pred, status = evaluate(x)
-        r = (pred - data.value) / sigma
-        return np.where(status == st.OK, r, penalty)
+        with np.errstate(over="ignore", invalid="ignore"):
+            r = (pred - data.value) / sigma
+        # A residual beyond a double (a prediction that grows without bound as the search
+        # goes) counts as a row without a solution: the trust region shrinks back.
+        return np.where((status == st.OK) & np.isfinite(r), r, penalty)
 
     last_info: dict = {}
 
@@ -316,7 +328,11 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
         J, info = jacobian(problem, x, (pred, status))
         last_info.clear()
         last_info.update(info)
-        return J / sigma[:, None]
+        with np.errstate(over="ignore", invalid="ignore"):
+            J = J / sigma[:, None]
+        # A row whose derivative is not finite (next to the small-eps-L end of the domain)
+        # steers nothing: the optimiser needs finite entries.
+        return np.where(np.isfinite(J), J, 0.0)
 
     n_eval = [0]
 
@@ -324,8 +340,13 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
         n_eval[0] += 1
         return residuals(x)
 
-    opt = least_squares(counted, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
-                        ftol=1e-12, xtol=1e-12, gtol=1e-10, max_nfev=max_evaluations)
+    try:
+        opt = least_squares(counted, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
+                            ftol=1e-12, xtol=1e-12, gtol=1e-10, max_nfev=max_evaluations)
+    except (ValueError, np.linalg.LinAlgError) as exc:  # scipy's own checks of what it met
+        raise FitError(f"the optimiser cannot go on from {_at(names, x0)} "
+                       f"({' '.join(str(exc).split())}); check the data's units, or give "
+                       "another start or bounds") from None
     x = opt.x
     pred, status = evaluate(x)
     r = (pred - data.value) / sigma
@@ -369,9 +390,19 @@ def _free_names(free) -> tuple:
     return names
 
 
+def _mapping(value, what: str) -> dict:
+    """``value`` (a mapping, or None) as a dict; FitError for anything else."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise FitError(f"{what} must be a mapping of input names to values, e.g. "
+                       f"{{'A': '1/3'}}; got {type(value).__name__}")
+    return dict(value)
+
+
 def _fixed_values(fixed, names) -> dict:
     out = {}
-    for k, v in (fixed or {}).items():
+    for k, v in _mapping(fixed, "fixed").items():
         if k not in INPUTS:
             raise FitError(f"fixed: unknown input {k!r}; allowed: {', '.join(INPUTS)}")
         if k in names:
@@ -391,17 +422,19 @@ def _check(name: str, value, label: str) -> float:
         return INPUTS[name].check(value, label)
     except ParameterError as exc:
         raise FitError(str(exc)) from None
+    except (TypeError, ValueError, OverflowError):
+        raise FitError(f"{label}: expected a number; got {value!r}") from None
 
 
 def _bounds(bounds, names):
     lo = np.array([INPUTS[n].lo for n in names], dtype=np.float64)
     hi = np.array([INPUTS[n].hi for n in names], dtype=np.float64)
-    for k, pair in (bounds or {}).items():
+    for k, pair in _mapping(bounds, "bounds").items():
         if k not in names:
             raise FitError(f"bounds: {k!r} is not a free input (free: {', '.join(names)})")
         try:
             a, b = (parse_number(v) if isinstance(v, str) else float(v) for v in pair)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise FitError(f"bounds {k}: expected two numbers lo, hi; got {pair!r}") from None
         param = INPUTS[k]
         j = names.index(k)
@@ -413,7 +446,7 @@ def _bounds(bounds, names):
 
 
 def _start(start, names, lo, hi, given_bounds) -> np.ndarray:
-    start = dict(start or {})
+    start = _mapping(start, "start")
     for k in start:
         if k not in names:
             raise FitError(f"start: {k!r} is not a free input (free: {', '.join(names)})")

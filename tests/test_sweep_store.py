@@ -448,3 +448,24 @@ def test_edited_manifest_resumes_from_the_blocks_its_digests_prove(tmp_path, mon
     assert "digests" in err, err
     assert tuple(map(int, LOG.search(err).groups())) == (n_blocks, 0)
     assert_identical(out, run_sweep(str(toml)))
+
+
+def test_a_resumed_run_replaces_the_output_only_if_its_first_run_was_asked_to(tmp_path):
+    """The store records ``overwrite``: resuming a killed ``--overwrite`` run replaces the earlier
+    file (the job it was given), resuming any other run never does."""
+    toml = tmp_path / "s.toml"
+    toml.write_text(SMALL)
+    spec = load_sweep(str(toml))
+    manifest = engine._manifest(spec, engine.Plan(spec.coords()))
+    for first, again, replaces in ((True, False, True), (False, False, False),
+                                   (False, True, True)):
+        out = str(tmp_path / f"{first}-{again}.nc")
+        store = WorkStore.open(out, manifest, given_block_size=False)
+        store.allow_replace(first)
+        assert store.replace_output is first
+        store.close()
+        resumed = WorkStore.open(out, manifest, given_block_size=False)
+        assert not resumed.created
+        resumed.allow_replace(again)
+        assert resumed.replace_output is replaces
+        resumed.remove()

@@ -134,7 +134,7 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     try:
         store = WorkStore.open(output, _manifest(spec, plan),
                                given_block_size=block_size is not None)
-        store.replace_output = overwrite
+        store.allow_replace(overwrite)
         try:
             # Decided under the store's lock: a run of the same output that finished meanwhile
             # put its result in place before it let the lock go.

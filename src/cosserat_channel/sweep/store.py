@@ -65,6 +65,10 @@ from .spec import SweepError
 
 MANIFEST = "manifest.json"
 LOCK = "lock"
+# Present when the run that made the store was asked to replace the output (``overwrite``): a
+# resumed run finishes the job it was given, so a plain rerun of a killed ``--overwrite`` run
+# still replaces the earlier file, and a run never asked to replace never does.
+OVERWRITE = "overwrite"
 FORMAT = 1
 BLOCK_FIELDS = ("triples", "res", "steps", "one_minus")
 DIGEST = "digest"
@@ -383,6 +387,23 @@ class WorkStore:
             pass
 
     # -- the result ---------------------------------------------------------------------------
+    def allow_replace(self, overwrite: bool) -> None:
+        """Set :attr:`replace_output`: True when this run is asked to ``overwrite``, or when the
+        run that made the store was (recorded in the store, so that resuming it finishes the job
+        it was given)."""
+        if self.directory is None:
+            self.replace_output = overwrite
+            return
+        path = os.path.join(self.directory, OVERWRITE)
+        if overwrite:
+            atomic_output(path, lambda tmp: _write_bytes(tmp, b"replace the output\n"),
+                          stream=False)
+        try:
+            recorded = stat.S_ISREG(os.lstat(path).st_mode)
+        except FileNotFoundError:
+            recorded = False
+        self.replace_output = overwrite or recorded
+
     def publish(self, output: str, write) -> None:
         """``write(path)`` the result inside the store, then rename it onto ``output``: without
         replacing a file there unless :attr:`replace_output` (a file that appeared meanwhile is

@@ -7,6 +7,7 @@ taken as 100 x their rtol relative to the output, divided by h).
 """
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -390,3 +391,17 @@ def test_differentiable_outputs_are_marked_in_the_registry():
                             plug_edge=True, differentiable=True)
     with outputs.registered(marked), pytest.raises(ValueError, match="Delta_marked"):
         solve_point(1 / 30, 10, 0.5, 1 / 3, 1.0, sensitivities=True)
+
+
+@pytest.mark.parametrize("K", [1e160, 1e300])
+def test_derivatives_at_a_wall_roughness_beyond_the_square_of_a_double(K):
+    """K has no upper bound: at K where u(0)^2 overflows, the derivatives are finite with no
+    warning, and d slip/dK lies in [0, 1/K] (slip = eps K/(eps K + J(0)))."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = solve_point(1 / 30, 10, K, 1 / 3, 1, sensitivities=True)
+    assert r.status.name == "ok"
+    for name, by in r.sensitivities.items():
+        for p, x in by.items():
+            assert np.isfinite(x), (name, p, x)
+    assert 0.0 <= r.sensitivities["slip"]["K"] <= 1.0 / K

@@ -279,8 +279,11 @@ def chain_rule(d_mu, d_sig, d_J, d_om, eps, L, K, J0, mu, one_minus):
         elif n == "u_axis":
             d = by_point(*d_J, 1.0)
         elif n == "slip":
-            u2 = (eps_K + J0) ** 2
-            d = by_point(*(-eps_K * x / u2 for x in d_J), J0 / u2)
+            # slip = eps K / u(0), u(0) = eps K + J(0): scaled by 1/u(0) first, since u(0)^2
+            # overflows for K beyond ~1e154 (K has no upper bound).
+            inv = 1.0 / (eps_K + J0)
+            slip = eps_K * inv
+            d = by_point(*(-slip * (x * inv) for x in d_J), (J0 * inv) * inv)
         elif n == "m_wall":
             d = by_point(*(L * x for x in d_mu))
             d["L"] += mu

@@ -488,7 +488,7 @@ def test_atlas_stopped_while_writing_keeps_its_traces(capsys, tmp_path, monkeypa
 
     real = atlas.save_atlas
 
-    def stopped(*args):
+    def stopped(*args, **kwargs):
         raise stop
 
     monkeypatch.setattr(atlas, "save_atlas", stopped)

@@ -269,7 +269,7 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     --------
     >>> r = solve_point(1/30, 10, 0.5, 1/3, 1)
     >>> r.status.name, round(r.Delta, 2)
-    ('ok', 10.14)
+    ('ok', 10.25)
     """
     eps, L, K, A, N = check_point(eps, L, K, A, N)
     rtol, atol = check_tolerances(rtol, atol)

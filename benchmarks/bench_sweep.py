@@ -49,7 +49,8 @@ import dask
 import numpy as np
 
 from cosserat_channel.measure import harness
-from cosserat_channel.sweep import block, encode
+from cosserat_channel import chunk_filters
+from cosserat_channel.sweep import block
 from cosserat_channel.sweep.plan import COST_FIXED, COST_PER_INV_ETA, BlockInputs, block_plan
 from cosserat_channel.sweep.spec import load_sweep
 
@@ -201,7 +202,7 @@ def main() -> int:
     rec.add("e_distributed", {k: e[k] for k in ("cmd", "wall", "cpu", "process_cpu",
                                                 "threads_cpu", "encode_cpu", "rss", "size")})
     rec.add("load", {"before": load_before, "after": load_after})
-    rec.add("deflate", encode.DEFLATE)
+    rec.add("deflate", chunk_filters.DEFLATE)
 
     print()
     for r in (a, c, d, e):
@@ -247,7 +248,7 @@ def main() -> int:
     ]
     w0 = max(len(r[0]) for r in rows)
     print()
-    print(f"deflate of the encoded chunks: {encode.DEFLATE}")
+    print(f"deflate of the encoded chunks: {chunk_filters.DEFLATE}")
     print(f"load average before {load_before[0]:.2f} {load_before[1]:.2f} {load_before[2]:.2f}, "
           f"after {load_after[0]:.2f} {load_after[1]:.2f} {load_after[2]:.2f} "
           f"({os.cpu_count()} cores)")

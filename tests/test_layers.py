@@ -30,6 +30,8 @@ LAYERS = {
     "netcdf_policy": (),
     "outputs": ("physics.closure", "parameters", "status"),
     "_jit": (),
+    # HDF5's chunk filters, in Numba kernels (encoding a sweep file's chunks in parallel).
+    "chunk_filters": ("_jit",),
     # Kernels: the integrators know nothing of the physics, the physics nothing of the
     # integrators; the solver is the only part that imports both.
     "integrate": ("_jit",),
@@ -43,8 +45,8 @@ LAYERS = {
     "regimes": ("solver", "physics", "parameters", "status", "regime_codes"),
     "atlas": ("regimes", "solver.point", "physics.analytic", "parameters", "status",
               "regime_codes", "files", "netcdf_policy"),
-    "sweep": ("solver", "physics.analytic", "results", "parameters", "status", "outputs", "files",
-              "netcdf_policy"),
+    "sweep": ("solver", "physics.analytic", "results", "chunk_filters", "parameters", "status",
+              "outputs", "files", "netcdf_policy"),
     "calibrate": ("solver", "sweep", "plot", "parameters", "status", "outputs"),
     "measure": ("solver", "regimes", "physics", "plot", "parameters", "status", "files"),
     "paper": ("solver", "regimes", "sweep", "physics", "plot", *VOCABULARY),
@@ -57,7 +59,7 @@ LAYERS = {
 # Third-party modules only some parts may import: numba's kernels stay below the sweeps (reading
 # a result, an atlas or a sweep file never compiles), matplotlib stays in the figures.
 RESTRICTED = {
-    "numba": ("_jit", "integrate", "physics", "solver", "measure"),
+    "numba": ("_jit", "chunk_filters", "integrate", "physics", "solver", "measure"),
     "matplotlib": ("plot",),
     "dask": ("sweep", "results", "cli"),
     "distributed": ("sweep", "results", "cli"),

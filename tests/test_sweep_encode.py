@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from cosserat_channel import netcdf_policy
+from cosserat_channel import chunk_filters
 from cosserat_channel.sweep import dataset, encode, engine, run_sweep, schedulers, writer
 from cosserat_channel.sweep.spec import load_sweep
 from support import assert_identical
@@ -58,17 +59,17 @@ def test_fletcher32_is_hdf5s(size):
     rng = np.random.default_rng(size)
     for data in (rng.integers(0, 256, size, dtype=np.uint8), np.full(size, 255, np.uint8),
                  np.zeros(size, np.uint8)):
-        assert encode.fletcher32(data) == fletcher32_reference(data.tobytes())
+        assert chunk_filters.fletcher32(data) == fletcher32_reference(data.tobytes())
 
 
 def test_shuffle_groups_bytes_by_significance():
     data = np.arange(8 * 5 + 3, dtype=np.uint8)
     for itemsize in (2, 4, 8):
-        got = encode.shuffle(data, itemsize)
+        got = chunk_filters.shuffle(data, itemsize)
         whole = data.size // itemsize * itemsize
         assert np.array_equal(got[:whole], data[:whole].reshape(-1, itemsize).T.ravel())
         assert np.array_equal(got[whole:], data[whole:])
-    assert encode.shuffle(data, 1) is data
+    assert chunk_filters.shuffle(data, 1) is data
 
 
 def _pipeline(ds):
@@ -109,8 +110,8 @@ def test_chunks_encoded_here_read_back_through_netcdf4_with_checksums(tmp_path, 
         for name, v in values.items():
             ds = f[name]
             layout = encode.Layout(tuple(ds.chunks), _pipeline(ds), ds.fillvalue)
-            assert encode.supported(layout.pipeline)
-            assert layout.pipeline[0][0] == encode.FILTER_FLETCHER32
+            assert chunk_filters.supported(layout.pipeline)
+            assert layout.pipeline[0][0] == chunk_filters.FILTER_FLETCHER32
             job = encode.TileJob(None, None, (0,) * 5, {}, None, {name: layout})
             for _, offset, data in _encode_values(job, name, v):
                 ds.id.write_direct_chunk(offset, data)
@@ -148,7 +149,7 @@ def _encode_values(job, name, value):
         part = value[tuple(slice(a, a + c) for a, c in zip(lo, layout.chunks))]
         whole = np.full(layout.chunks, layout.fill, dtype=value.dtype)
         whole[tuple(slice(0, s) for s in part.shape)] = part
-        out.append((name, lo, encode.encode(whole, layout.pipeline)))
+        out.append((name, lo, chunk_filters.encode(whole, layout.pipeline)))
     return out
 
 

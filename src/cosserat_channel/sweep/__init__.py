@@ -13,8 +13,9 @@ Layer: above :mod:`cosserat_channel.solver` (its batch kernel and slot layout) a
 vocabulary modules (parameters, outputs, status, files, netcdf_policy); beside the results
 reader (:mod:`cosserat_channel.results`, whose flags the Dataset writes);
 :mod:`~cosserat_channel.physics.analytic` tells the plan which triples cost nothing. Below the
-paper's figures, the measurements and the command line. Never imports plotting, the regimes,
-the atlas, an integrator or numba (the kernels are the solver's).
+paper's figures, the measurements and the command line; the file's chunks are encoded by
+:mod:`cosserat_channel.chunk_filters`. Never imports plotting, the regimes, the atlas, an
+integrator or numba (the kernels are the solver's and the chunk filters').
 """
 
 __all__ = ["run_sweep"]

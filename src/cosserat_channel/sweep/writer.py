@@ -49,7 +49,7 @@ from ..files import temp_path as _temp_path
 from ..solver import layout
 from ..files import write_failure
 from ..parameters import DIMS
-from .. import netcdf_policy
+from .. import chunk_filters, netcdf_policy
 from . import encode
 from .dataset import chunk_shape, coordinates, global_attrs, grid_values, variable_encoding
 from .store import BlockDamaged
@@ -209,7 +209,7 @@ class StreamWriter:
 
     The file, its coordinates and its empty variables are made at once by ``netCDF4``. Then,
     when every result variable's chunks lie inside tiles and its filters are HDF5's built-in ones
-    (:func:`.encode.supported`), each tile is derived and its chunks encoded by ``encoder``
+    (:func:`cosserat_channel.chunk_filters.supported`), each tile is derived and its chunks encoded by ``encoder``
     (:func:`.encode.encode_tile` in the solving threads' pool or on the cluster's workers) and
     this object's thread only places the encoded chunks (h5py's ``write_direct_chunk``, which
     runs no filter again); otherwise the tiles are derived here and written through ``netCDF4``.
@@ -329,7 +329,7 @@ class StreamWriter:
                                                                 plist.get_filter(i)[2]))
                                  for i in range(plist.get_nfilters()))
                 lay = encode.Layout(tuple(ds.chunks), pipeline, ds.fillvalue)
-                if not (encode.supported(pipeline)
+                if not (chunk_filters.supported(pipeline)
                         and encode.aligned(lay, self.tiles.tile, self.tiles.shape)):
                     return None
                 layouts[name] = lay

@@ -37,7 +37,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from cosserat_channel.explorer import server, session
+from cosserat_channel.explorer import server, answers
 from cosserat_channel.measure import harness
 
 MEDIAN_MS = 100.0
@@ -48,7 +48,7 @@ def moves(steps: int) -> list[dict]:
     """The changes: each parameter dragged across its slider, the others at figure 2's values."""
     out = []
     for name in ("eps", "L", "K", "A", "N"):
-        s = session.SLIDERS[name]
+        s = answers.SLIDERS[name]
         if s["log"]:
             values = np.logspace(math.log10(s["lo"]), math.log10(s["hi"]), steps)
         else:
@@ -118,7 +118,7 @@ def drive_browser(url: str, changes: list[dict]) -> list[dict] | str:
                 "const x = Number(arguments[1]);"
                 "s.value = arguments[2] ? Math.log10(x) : x;"
                 "s.dispatchEvent(new Event('input'));",
-                name, text, session.SLIDERS[name]["log"])
+                name, text, answers.SLIDERS[name]["log"])
             _until(driver, f"return window.explore.changes.length > {n}")
             last = driver.execute_script("return window.explore.changes.at(-1)")
             _until(driver, "return window.explore.idle()")

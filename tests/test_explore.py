@@ -15,7 +15,7 @@ import pytest
 from cosserat_channel import solve_point
 from cosserat_channel.atlas import classify
 from cosserat_channel.cli import main
-from cosserat_channel.explorer import server, session
+from cosserat_channel.explorer import server, answers
 from cosserat_channel.parameters import ParameterError, N_from_friction, eps_from_width
 from cosserat_channel.sweep.spec import load_sweep
 
@@ -29,17 +29,17 @@ def form(**changes):
 
 
 # ---------------------------------------------------------------------------------------------
-# session: the page's questions, answered by the public API
+# answers: the page's questions, answered by the public API
 # ---------------------------------------------------------------------------------------------
 def test_read_inputs_takes_fractions_and_the_engineers_inputs():
-    inp = session.read_inputs(form(eps="1/30", A="1/3"))
+    inp = answers.read_inputs(form(eps="1/30", A="1/3"))
     assert inp["point"] == (1 / 30, 10.0, 0.5, 1 / 3, 1.0)
     assert inp["material"]["d_p"] == 0.002
-    inp = session.read_inputs(form(eps_from="W", W="0.06", N_from="delta_w", delta_w="20"))
+    inp = answers.read_inputs(form(eps_from="W", W="0.06", N_from="delta_w", delta_w="20"))
     assert inp["point"][0] == eps_from_width(0.002, 0.06)
     assert inp["point"][4] == N_from_friction(25.0, 20.0)
     assert inp["given"] == {"W": 0.06, "d_p": 0.002, "delta_w": 20.0, "phi": 25.0}
-    assert session.read_inputs(form(material=False))["material"] is None
+    assert answers.read_inputs(form(material=False))["material"] is None
 
 
 @pytest.mark.parametrize("changes, words", [
@@ -52,7 +52,7 @@ def test_read_inputs_takes_fractions_and_the_engineers_inputs():
 ])
 def test_bad_input_is_one_line_naming_it(changes, words):
     with pytest.raises(ParameterError) as exc:
-        session.read_inputs(form(**changes))
+        answers.read_inputs(form(**changes))
     message = str(exc.value)
     assert "\n" not in message
     for w in words:
@@ -60,9 +60,9 @@ def test_bad_input_is_one_line_naming_it(changes, words):
 
 
 def test_point_is_solve_points_answer():
-    a = session.point(form(eps="0.05", K="2", A="0.5", N="1.2"))
+    a = answers.point(form(eps="0.05", K="2", A="0.5", N="1.2"))
     r = solve_point(0.05, 10.0, 2.0, 0.5, 1.2, material=MATERIAL,
-                    profile=np.linspace(0, 1, session.PROFILE_POINTS), sensitivities=True)
+                    profile=np.linspace(0, 1, answers.PROFILE_POINTS), sensitivities=True)
     assert a["status"] == r.status.name == "ok"
     assert a["message"] == r.status.message
     for name, value in r.values.items():
@@ -73,7 +73,7 @@ def test_point_is_solve_points_answer():
 
 
 def test_point_without_solution_says_why():
-    a = session.point(form(eps="0.5", L="100"))
+    a = answers.point(form(eps="0.5", L="100"))
     r = solve_point(0.5, 100.0, 0.5, 1 / 3, 1.0)
     assert r.status.name != "ok"
     assert (a["status"], a["message"]) == (r.status.name, r.status.message)
@@ -82,7 +82,7 @@ def test_point_without_solution_says_why():
 
 
 def test_map_is_the_atlas_classification_at_this_eps_L():
-    m = session.solvability_map(form(eps="0.02", L="20"))
+    m = answers.solvability_map(form(eps="0.02", L="20"))
     A, N = np.array(m["A"]), np.array(m["N"])
     codes = np.array(m["codes"])
     assert codes.shape == (N.size, A.size)
@@ -90,14 +90,14 @@ def test_map_is_the_atlas_classification_at_this_eps_L():
     # more than one status on the plane, so the picture says something
     assert len(np.unique(codes)) >= 2
     # the same eps L from another (eps, L): the same map, from memory
-    assert session.solvability_map(form(eps="0.04", L="10"))["codes"] == m["codes"]
+    assert answers.solvability_map(form(eps="0.04", L="10"))["codes"] == m["codes"]
 
 
 def test_line_is_solves_answer_with_the_point_on_it():
-    a = session.line(form(line_x="A", line_y="Delta", A="0.7"))
+    a = answers.line(form(line_x="A", line_y="Delta", A="0.7"))
     x = np.array(a["x"])
     assert 0.7 in a["x"] and a["at"] == 0.7
-    assert x.min() == session.SLIDERS["A"]["lo"] and x.max() == session.SLIDERS["A"]["hi"]
+    assert x.min() == answers.SLIDERS["A"]["lo"] and x.max() == answers.SLIDERS["A"]["hi"]
     k = a["x"].index(0.7)
     assert a["y"][k] == solve_point(1 / 30, 10.0, 0.5, 0.7, 1.0).Delta
     r = solve_point(1 / 30, 10.0, 0.5, x[0], 1.0)
@@ -106,20 +106,20 @@ def test_line_is_solves_answer_with_the_point_on_it():
 
 def test_line_refuses_a_material_output_without_material():
     with pytest.raises(ParameterError, match="nu needs the material"):
-        session.line(form(material=False, line_y="nu"))
+        answers.line(form(material=False, line_y="nu"))
 
 
 def test_export_writes_a_sweep_file_that_reproduces_the_line_and_replaces_nothing(tmp_path):
     (tmp_path / "explore-1.toml").write_text("mine")
     f = form(line_x="K", line_y="slip", eps_from="W", W="0.05")
-    written = session.export(f, str(tmp_path))["written"]
+    written = answers.export(f, str(tmp_path))["written"]
     assert [os.path.basename(p) for p in written] == ["explore-2.toml", "explore-2.png",
                                                        "explore-2-profiles.png"]
     assert (tmp_path / "explore-1.toml").read_text() == "mine"
     for p in written[1:]:
         assert open(p, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
     spec = load_sweep(written[0])
-    line = session.line(f)
+    line = answers.line(f)
     assert spec.K.tolist() == line["x"]
     assert spec.eps.tolist() == [eps_from_width(0.002, 0.05)]
     assert spec.variables == ("slip",)
@@ -320,7 +320,7 @@ def test_page_in_a_browser_answers_like_solve_point(tmp_path):
         A = float(driver.find_element(By.ID, "in-A").get_attribute("value"))
         N = float(driver.find_element(By.ID, "in-N").get_attribute("value"))
         _check_against_solve_point(_settled(driver, A=A, N=N))
-        assert driver.execute_script("return window.explore.map.codes.length") == session.MAP_N
+        assert driver.execute_script("return window.explore.map.codes.length") == answers.MAP_N
 
         # back to figure 2, and a picture a person can look at
         for name, text in (("A", "1/3"), ("N", "1"), ("eps", "1/30")):

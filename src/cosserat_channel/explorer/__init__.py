@@ -8,7 +8,7 @@ tolerance, typed or on sliders; the point's status, profiles, outputs and their 
 output against one parameter (:func:`cosserat_channel.solve`); and a button that writes the
 view as a sweep file and figures. In a notebook, :func:`explore` shows the same page.
 
-Modules: :mod:`.session` (the page's questions answered by the library's public functions, as
+Modules: :mod:`.answers` (the page's questions answered by the library's public functions, as
 JSON-ready dicts), :mod:`.server` (the HTTP server, its background jobs), ``static/`` (the page:
 HTML, CSS and a script that draws the plots in the browser) and :mod:`.chromium` (headless
 Chromium for the browser test and the benchmark). Standard library only beyond the

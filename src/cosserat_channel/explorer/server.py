@@ -28,7 +28,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 
 from ..parameters import ParameterError
-from . import session
+from . import answers
 
 HOST = "127.0.0.1"
 # How long a request may take before it is answered "pending" and finished in the background.
@@ -40,8 +40,8 @@ STATIC = {"/": ("index.html", "text/html; charset=utf-8"),
           "/static/style.css": ("style.css", "text/css; charset=utf-8")}
 # What each kind of request runs, and on which pool: a point and the map are quick, a line
 # and an export may take seconds and must not hold up the quick ones.
-KINDS = {"point": ("fast", session.point), "map": ("fast", session.solvability_map),
-         "line": ("slow", session.line), "export": ("slow", None)}
+KINDS = {"point": ("fast", answers.point), "map": ("fast", answers.solvability_map),
+         "line": ("slow", answers.line), "export": ("slow", None)}
 FIRST_RUN = "the first run of a new version compiles the solver: about a minute"
 
 
@@ -77,9 +77,9 @@ class Explorer:
         def run():
             try:
                 form = default_form()
-                session.point(form)
-                session.solvability_map(form)
-                session.line(form)
+                answers.point(form)
+                answers.solvability_map(form)
+                answers.line(form)
             except Exception:  # the page's own requests report what fails
                 pass
             finally:
@@ -94,7 +94,7 @@ class Explorer:
         t0 = time.perf_counter()
         try:
             if kind == "export":
-                answer = session.export(form, self.directory)
+                answer = answers.export(form, self.directory)
             else:
                 answer = KINDS[kind][1](form)
         except ParameterError as exc:
@@ -151,9 +151,9 @@ class Explorer:
 
 def default_form() -> dict:
     """The page's inputs at start: the paper's figure 2 with its material."""
-    form = {k: s["default"] for k, s in session.SLIDERS.items()}
-    form.update(session.MATERIAL_DEFAULTS, eps_from="eps", N_from="N", material=True,
-                rtol=repr(session.DEFAULT_RTOL), line_x="eps", line_y="Delta")
+    form = {k: s["default"] for k, s in answers.SLIDERS.items()}
+    form.update(answers.MATERIAL_DEFAULTS, eps_from="eps", N_from="N", material=True,
+                rtol=repr(answers.DEFAULT_RTOL), line_x="eps", line_y="Delta")
     return form
 
 
@@ -192,7 +192,7 @@ class _Handler(BaseHTTPRequestHandler):
             body = resources.files(__package__).joinpath("static", name).read_bytes()
             self._send(body, ctype)
         elif path == "/api/meta":
-            self._json(session.meta() | {"defaults": default_form()})
+            self._json(answers.meta() | {"defaults": default_form()})
         elif path == "/favicon.ico":
             self._send(b"", "image/x-icon", HTTPStatus.NO_CONTENT)
         elif path.startswith("/api/job/"):

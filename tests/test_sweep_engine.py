@@ -233,6 +233,20 @@ def test_output_path_from_spec(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["from_spec.nc"]
 
 
+def test_progress_counts_the_blocks_in_the_one_progress_protocol(tmp_path):
+    """progress(done, total, text): once before any block, then once per stored block from the
+    solving threads, in order, ending at the plan's block count; anything else is refused."""
+    calls = []
+    spec = load_sweep(sweep(SHARED))
+    run_sweep(spec, tmp_path / "p.nc", workers=2, block_size=4,
+              progress=lambda *call: calls.append(call))
+    total = calls[0][1]
+    assert total > 2
+    assert calls == [(done, total, "blocks solved") for done in range(total + 1)]
+    with pytest.raises(SweepError, match="progress must be a callable"):
+        run_sweep(spec, progress=True)
+
+
 def test_kernel_exception_costs_one_triple(monkeypatch):
     """A kernel that raises on one triple loses that triple only, as integration_failed."""
     real = batch.solve_batch
@@ -268,12 +282,14 @@ def test_distributed_scheduler_gives_identical_values(tmp_path, caplog):
     here, whatever this machine's cores), not its own idle threads'."""
     distributed = pytest.importorskip("distributed")
     spec = load_sweep(sweep(SHARED, profile_points=3))
-    out = tmp_path / "d.nc"
+    out, calls = tmp_path / "d.nc", []
     with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True,
                                   dashboard_address=None) as cluster, \
             caplog.at_level(logging.INFO, logger="cosserat_channel.sweep"):
-        ds = run_sweep(spec, out, scheduler=cluster.scheduler_address, block_size=4)
+        ds = run_sweep(spec, out, scheduler=cluster.scheduler_address, block_size=4,
+                       progress=lambda *call: calls.append(call))
     assert out.exists() and not (tmp_path / "d.nc.partial").exists()
+    assert [done for done, _, _ in calls] == list(range(len(calls))) and calls[-1][1] == len(calls) - 1
     assert_same_values(ds, run_sweep(spec, workers=2))
     phase = next(r for r in caplog.records if "solving threads" in r.msg)
     cpu, threads = phase.args[2], phase.args[3]

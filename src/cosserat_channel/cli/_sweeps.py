@@ -97,7 +97,7 @@ def _run_command(args: argparse.Namespace) -> int:
     if not args.overwrite and _finished_result_kept(output, spec):
         return EXIT_OK
     logger = logging.getLogger("cosserat_channel.sweep")
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _LineHandler()
     handler.setFormatter(logging.Formatter(f"{PROG}: run: %(message)s"))
     from ..sweep.schedulers import SchedulerLost
 
@@ -106,16 +106,18 @@ def _run_command(args: argparse.Namespace) -> int:
             from ..sweep.block import warm_up
 
             # Here, not inside the run: on a terminal the minute a new version spends compiling
-            # shows as such, before the run's own progress bar starts.
+            # shows as such, before the run's own progress line starts.
             with Progress("run", "loading the solver " + FIRST_RUN, delay=2.0):
                 warm_up()
         logger.addHandler(handler)
         logger.setLevel(logging.INFO)
-        with _quiet_distributed(args.scheduler is not None):
+        with _quiet_distributed(args.scheduler is not None), \
+                Progress("run", "planning the blocks") as bar:
+            handler.bar = bar  # the run's log lines print above the progress line
             run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
                       reduce=args.reduce, block_size=args.block_size,
                       overwrite=args.overwrite, compress=args.compress,
-                      no_workers_timeout=args.no_workers_timeout).close()
+                      no_workers_timeout=args.no_workers_timeout, progress=bar.report).close()
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:
@@ -142,6 +144,19 @@ def _run_command(args: argparse.Namespace) -> int:
     finally:
         logger.removeHandler(handler)
     return EXIT_OK
+
+
+class _LineHandler(logging.Handler):
+    """Log records as lines on stderr, above the progress line while ``bar`` is set."""
+
+    bar = None
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = self.format(record)
+        if self.bar is not None:
+            self.bar.line(text)
+        else:
+            print(text, file=sys.stderr, flush=True)
 
 
 @contextlib.contextmanager

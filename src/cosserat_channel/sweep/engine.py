@@ -22,7 +22,6 @@ import logging
 import math
 import os
 import stat
-import sys
 import time
 
 import numpy as np
@@ -36,8 +35,8 @@ from .dataset import build_dataset
 from .block import _block_task, warm_up
 from .budget import disk_needed, memory_needed, memory_problem
 from .plan import Plan, count_triples
-from .schedulers import (NO_WORKERS_TIMEOUT, ClusterEncoder, LocalEncoder, _run_distributed,
-                         _run_threads, connect)
+from .schedulers import (NO_WORKERS_TIMEOUT, BlockCount, ClusterEncoder, LocalEncoder,
+                         _run_distributed, _run_threads, connect)
 from .spec import SweepError, SweepSpec, load_sweep
 from .store import FORMAT, BlockDamaged, WorkStore, check_writable
 from .writer import StreamWriter, Tiles
@@ -67,8 +66,10 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     block_size : int, optional
         Integrations per block (default: about max(128, 16 x workers) blocks; a resumed run
         keeps the block size it started with).
-    progress : bool, optional
-        Progress bar on stderr; default when stderr is a terminal.
+    progress : callable, optional
+        ``progress(done, total, text)`` (the package's progress protocol), called with the
+        blocks stored so far (those of an earlier run included) at the start and after each
+        block. None (default) or False: quiet. ``cosserat-channel run`` passes its status line.
     compress : str or bool, optional
         Codec of the large NetCDF variables (:mod:`cosserat_channel.netcdf_policy`):
         ``"zlib"`` (level 1 with shuffle, what every netCDF-4 reader opens), ``"zstd"``
@@ -107,6 +108,9 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     if workers is not None and (int(workers) != workers or workers < 1):
         raise SweepError(f"workers must be a positive integer; got {workers!r}")
     n_workers = int(workers or os.cpu_count() or 1)
+    if not (progress is None or progress is False or callable(progress)):
+        raise SweepError(f"progress must be a callable progress(done, total, text) or None; got "
+                         f"{progress!r}")
     try:
         compress = netcdf_policy.codec(spec.compress if compress is None else compress)
     except ValueError as exc:
@@ -224,8 +228,7 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
         len(plan.blocks), plan.block_size, len(done), len(todo),
         f" (resuming {store.directory})" if done else "",
     )
-    if progress is None:
-        progress = sys.stderr.isatty()
+    progress = BlockCount(None if progress is False else progress, len(done), len(plan.blocks))
 
     def recompute(k):
         store.put(k, _block_task(plan, k, (spec.rtol, spec.atol, xi)))

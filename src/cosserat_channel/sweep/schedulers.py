@@ -16,7 +16,6 @@ import dataclasses
 import logging
 import math
 import re
-import sys
 import threading
 import time
 
@@ -48,9 +47,29 @@ class ForeignWorker(SchedulerLost):
     (:mod:`.sources`): its block is not stored and the run ends; the finished blocks are kept."""
 
 
-def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=None) -> None:
+class BlockCount:
+    """The blocks stored so far as ``progress(done, total, "blocks solved")`` (the package's
+    progress protocol), once at the start and after each block from whichever thread stores it;
+    nothing without a callback (``progress`` None)."""
+
+    def __init__(self, progress, done: int, total: int):
+        self.progress, self.done, self.total = progress, done, total
+        self._lock = threading.Lock()
+        self._report()
+
+    def __call__(self) -> None:
+        with self._lock:
+            self.done += 1
+            self._report()
+
+    def _report(self) -> None:
+        if self.progress is not None:
+            self.progress(self.done, self.total, "blocks solved")
+
+
+def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=None,
+                 cpu=None) -> None:
     import dask
-    from dask.diagnostics import ProgressBar
 
     warm_up()
 
@@ -65,6 +84,7 @@ def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=No
         c0 = time.thread_time()
         out = _block_task(plan, k, args)
         store.put(k, out)
+        progress()
         if cpu is not None:
             cpu.append(time.thread_time() - c0)
         if writer is not None:
@@ -79,11 +99,7 @@ def _run_threads(plan, todo, store, args, workers, progress, writer=None, cpu=No
     n = len(todo)
     tasks = [dask.delayed(task, pure=False)(k, dask_key_name=f"block-{n - 1 - i:09d}-{k}")
              for i, k in enumerate(todo)]
-    if progress:
-        with ProgressBar(out=sys.stderr, dt=0.5):
-            dask.compute(*tasks, scheduler="threads", num_workers=workers)
-    else:
-        dask.compute(*tasks, scheduler="threads", num_workers=workers)
+    dask.compute(*tasks, scheduler="threads", num_workers=workers)
     if failure:
         raise failure[0]
 
@@ -162,7 +178,7 @@ def cluster_threads(client) -> int:
     return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
 
 
-def _run_distributed(plan, todo, store, args, client, progress, writer=None, cpu=None,
+def _run_distributed(plan, todo, store, args, client, progress: BlockCount, writer=None, cpu=None,
                      no_workers_timeout=NO_WORKERS_TIMEOUT) -> int:
     """Run the blocks on the cluster of ``client``; returns its threads (:func:`cluster_threads`),
     and appends each block's CPU seconds on its worker to ``cpu``."""
@@ -170,7 +186,7 @@ def _run_distributed(plan, todo, store, args, client, progress, writer=None, cpu
 
     address = client.scheduler.address
     try:
-        with client.as_current():  # as_completed and the progress bar find it
+        with client.as_current():  # as_completed finds it
             _submit_and_store(plan, todo, store, args, client, progress, writer, cpu,
                               _WorkerWatch(client, no_workers_timeout))
             return cluster_threads(client)
@@ -218,7 +234,7 @@ class _WorkerWatch:
                 f"{self.timeout:g} s (all lost, none started)")
 
 
-def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cpu=None,
+def _submit_and_store(plan, todo, store, args, client, progress: BlockCount, writer=None, cpu=None,
                       watch: _WorkerWatch | None = None) -> None:
     from dask.distributed import as_completed
 
@@ -231,8 +247,6 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cp
         futures.append(client.submit(_solve_remote, inp, args, sources.digest(),
                                      key=f"cc-block-{tag}-{k}"))
     key_to_block = {f.key: k for f, k in zip(futures, todo)}
-    if progress:
-        _progress_thread(futures)
     pending = as_completed(futures)
     while not pending.is_empty():
         ready = pending.next_batch(block=False)
@@ -253,6 +267,7 @@ def _submit_and_store(plan, todo, store, args, client, progress, writer=None, cp
                 cpu.append(seconds)
             out["triples"] = plan.blocks[k]
             store.put(k, out)
+            progress()
             if writer is not None:
                 writer.add(k, out)
             fut.release()
@@ -276,19 +291,6 @@ def _result(fut, watch: _WorkerWatch | None):
             if foreign:
                 raise ForeignWorker(f"{sources.refusal(foreign)}; a block failed on it") from None
             raise
-
-
-def _progress_thread(futures) -> None:
-    """dask.distributed's own progress bar, in a thread while this one stores the blocks."""
-    from dask.distributed import progress
-
-    def show():
-        try:
-            progress(futures, multi=False)
-        except Exception:  # noqa: BLE001 (a lost scheduler ends the bar; the run says why)
-            pass
-
-    threading.Thread(target=show, name="cc-progress", daemon=True).start()
 
 
 class LocalEncoder:

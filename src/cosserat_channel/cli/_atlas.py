@@ -128,14 +128,20 @@ def _atlas(args: argparse.Namespace) -> int:
     else:
         traces = {}
     resumed = len(traces)
+    saver = _Saver(partial, traces, key, kept)
     try:
         with interruptible(), Progress("atlas", "tracing " + FIRST_RUN, delay=1.0) as bar:
+            def progress(done, total, text=""):
+                bar.report(done, total, text)
+                saver.maybe()
+
             atlas = atlas_mod.build_atlas(A, N, tol=args.tol, degree=args.degree,
                                           max_depth=args.max_depth, max_degree=args.max_degree,
-                                          eta_range=eta_range, progress=bar.report,
+                                          eta_range=eta_range, progress=progress,
                                           workers=workers, traces=traces)
     except KeyboardInterrupt as exc:
-        return interrupted(exc, _keep_traces(partial, traces, key, resumed, output))
+        return interrupted(exc, _keep_traces(partial, traces, key, resumed, output,
+                                             ours=saver.owns()))
     n_unres = int((atlas.leaf_n < 0).sum())
     over = int((atlas.leaf_error > atlas.tol).sum()) - n_unres
     a = atlas.attrs
@@ -148,8 +154,9 @@ def _atlas(args: argparse.Namespace) -> int:
             with interruptible():
                 atlas_mod.save_atlas(atlas, output, replace=args.overwrite)
         except KeyboardInterrupt as exc:  # the file is written whole or not at all
-            return interrupted(exc, _keep_traces(partial, traces, key, resumed, output))
-        if kept:  # the atlas is whole: its traces are in it
+            return interrupted(exc, _keep_traces(partial, traces, key, resumed, output,
+                                                 ours=saver.owns()))
+        if saver.owns():  # the atlas is whole: its traces are in it
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(partial)
         if args.plot is not None:
@@ -170,9 +177,76 @@ def _atlas(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _keep_traces(partial, traces, key, resumed, output) -> str:
+# Seconds between two savings of the traces while a build runs: a build killed outright (an
+# out-of-memory kill, a batch system's hard limit) loses at most this much tracing.
+SAVE_SECONDS = 60.0
+
+
+class _Saver:
+    """Writes the traces of a running build to ``partial`` every :data:`SAVE_SECONDS`, whole
+    or not at all (:func:`atlas.save_traces`), so that a build killed by SIGKILL resumes.
+
+    Never over a file it did not write or resume from: what is at ``partial`` must be the very
+    file (device and inode) it last saw there; anything else appeared meanwhile and is left
+    alone. A failure to write is said once, and the build goes on (a stopped build still keeps
+    its traces).
+    """
+
+    def __init__(self, partial, traces, key, resumed: bool):
+        import time
+
+        self.partial, self.traces, self.key = partial, traces, key
+        self.wrote = False
+        self._saved = len(traces)
+        self._clock = time.monotonic
+        self._last = self._clock()
+        self._failed = False
+        self._ours = self._identity() if resumed else None
+
+    def _identity(self):
+        try:
+            st_ = os.lstat(self.partial)
+        except OSError:
+            return None
+        return (st_.st_dev, st_.st_ino) if stat.S_ISREG(st_.st_mode) else ("other", st_.st_mode)
+
+    def owns(self) -> bool:
+        """Whether the file at ``partial`` is the one this build saved or resumed from."""
+        return self._ours is not None and self._identity() == self._ours
+
+    def maybe(self) -> None:
+        """Save the traces if :data:`SAVE_SECONDS` have passed and there are new ones."""
+        from .. import atlas as atlas_mod
+        from ..files import describe
+
+        if self.partial is None or self._failed or len(self.traces) == self._saved or \
+                self._clock() - self._last < SAVE_SECONDS:
+            return
+        found = self._identity()
+        if found is not None and found != self._ours:
+            self._failed = True
+            mode = os.lstat(self.partial).st_mode if found[0] == "other" else stat.S_IFREG
+            note(f"{self.partial} appeared meanwhile ({describe(mode)}) and is left alone: the "
+                 "traces are no longer kept as the build goes")
+            return
+        snapshot = dict(self.traces)
+        try:
+            atlas_mod.save_traces(self.partial, snapshot, self.key)
+        except OSError as exc:
+            self._failed = True
+            note(f"cannot keep the traces in {self.partial} as the build goes "
+                 f"({exc.strerror or exc}); they are kept if it is stopped")
+            return
+        self.wrote = True
+        self._ours = self._identity()
+        self._saved = len(snapshot)
+        self._last = self._clock()
+
+
+def _keep_traces(partial, traces, key, resumed, output, ours=False) -> str:
     """Write the traces of a stopped build to ``partial`` (unless there is nothing new to keep);
-    what was kept, for :func:`interrupted`."""
+    what was kept, for :func:`interrupted`. ``ours``: the file at ``partial`` is the one this
+    build resumed from or saved (:meth:`_Saver.owns`); anything else there is left alone."""
     from .. import atlas as atlas_mod
     from ..files import WriteError, describe, write_failure
 
@@ -188,7 +262,7 @@ def _keep_traces(partial, traces, key, resumed, output) -> str:
         mode = os.lstat(partial).st_mode
     except OSError:  # nothing there (or a name too long for one: saving says so)
         mode = None
-    if mode is not None and not (resumed and stat.S_ISREG(mode)):
+    if mode is not None and not (ours and stat.S_ISREG(mode)):
         # Made by someone else while the build ran: never written over.
         return (f"nothing written to {output}; the traces are lost: {partial} appeared meanwhile "
                 f"({describe(mode)}) and is left alone")
@@ -201,6 +275,6 @@ def _keep_traces(partial, traces, key, resumed, output) -> str:
         return f"nothing written to {output}; the traces could not be kept ({exc})"
     except KeyboardInterrupt:
         return (f"nothing written to {output}; stopped again while the traces were written to "
-                f"{partial}: they are lost" + (", the earlier ones kept" if resumed else ""))
+                f"{partial}: they are lost" + (", the earlier ones kept" if ours else ""))
     return (f"the {len(traces)} edges traced so far are kept in {partial}: run the same command "
             "again to resume")

@@ -80,7 +80,10 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     ``one_minus`` is ``1 - xi_p`` at ``eps_K`` (NaN: no plug-edge derivatives). The panels follow
     stage 1's steps and resolve the integrands to ``STAGE2_TOL * rtol`` (relative to the sum of
     their magnitudes), and stop once what is left down to the axis is below
-    ``TAIL_FRACTION * rtol`` of it, as stage 2 does.
+    ``TAIL_FRACTION * rtol`` of it, as stage 2 does. Each panel: its nodes
+    (:func:`_panel_nodes`), ``log omega_hat`` and ``J`` (:func:`_omega_J`), the adjoints
+    (:func:`_adjoints`), the derivative integrals (:func:`_derivative_integrals`) and, with
+    profile points, the forward sensitivities (:func:`_profile_panel`).
 
     With profile points ``xis`` (not empty) and ``F0 = d delta(1)/d(eta, A, N)`` from a first call
     (slots ``S_DELTA_WALL``), the same panels also carry the forward sensitivities, column ``i``
@@ -119,17 +122,19 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     h_axis = _h_axis(A, ax)
     nn = panels.N_NODES
     last = nn - 1
-    X = panels.X
+    # the nodes' xi, the rates' partials, omega_hat, J, I = J(0) - J, the two adjoints, scratch
     P = np.empty((dv.N_Q, nn))
     xs = np.empty(nn)
     w = np.empty(nn)
     Jn = np.empty(nn)
     I0 = np.empty(nn)
-    beta = ax[model.AX_BETA]
     psi0 = np.empty(nn)
     psip = np.empty(nn)
     v = np.empty(nn)
     cum = np.empty(nn)
+    beta = ax[model.AX_BETA]
+    # per integral (_N_ACC): the sums so far and of magnitudes, the panel's, its error and
+    # magnitude, and a bound on what is left below
     acc = np.zeros(_N_ACC)
     acc_abs = np.zeros(_N_ACC)
     pan = np.empty(_N_ACC)
@@ -138,15 +143,10 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
     low = np.empty(_N_ACC)
     t_floor = math.log(XI_FLOOR)
     n_pro = xis.size
-    t_pro = np.empty(n_pro)
+    t_pro = _log_points(xis)
     todo = np.ones(n_pro, dtype=np.bool_)
-    for i in range(n_pro):
-        t_pro[i] = math.log(xis[i]) if xis[i] > 0.0 else -math.inf
-    vF = np.empty((3, nn))
-    vB = np.empty((3, nn))
-    vJ = np.empty((3, nn))
-    Sn = np.empty(nn)
-    Ln = np.empty(nn)
+    # the forward sensitivities' integrands (of F, log omega_hat, J) and running values
+    fwd = np.empty((3, 3, nn))
     Fb = np.zeros(3)
     Lb = np.zeros(3)
     dJb = np.zeros(3)
@@ -171,100 +171,19 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
         if a < lo_eff + 0.25 * length:
             a = lo_eff
         r = 0.5 * (b - a)
-        mid = 0.5 * (a + b)
-        good = True
-        for j in range(nn):
-            t = b if j == 0 else (a if j == last else mid + r * X[j])
-            xi, s = xi_of_log(t)
-            xs[j] = xi
-            delta, D, _ = delta_D_at(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
-            if not D > 0.0:
-                good = False
-                break
-            dv.rate_partials(xi, delta, D, eta, A, N, P, j)
+        good = _panel_nodes(a, b, r, k, eta, A, N, ax, T1, Q1, C, delta1, D1, xs, P)
         err = math.nan
         y_drop = 0.0
         for row in range(3):
             row_err[row] = 0.0
+        above = have_p and a >= t_p
         if good:
-            # log omega_hat and J, as stage 2 (d log omega_hat/dt = xi B, dJ/dt = -xi h omega_hat)
-            for j in range(nn):
-                v[j] = xs[j] * P[dv.Q_B, j]
-            _, err_y = panels.cumulative(v, r, cum)
-            y_drop = cum[last]
-            for j in range(nn):
-                w[j] = math.exp(y_b - cum[j])
-                v[j] = xs[j] * P[dv.Q_H, j] * w[j]
-            _, err_J = panels.cumulative(v, r, cum)
-            for j in range(nn):
-                Jn[j] = J_b + cum[j]
+            err_y, err_J, y_drop = _omega_J(xs, P, r, y_b, J_b, w, Jn, v, cum)
             err = max(err_y / qtol, err_J / (qtol * J0 + atol_J))
-            # the adjoints psi of J(0) and of J(xi_p)
-            above = have_p and a >= t_p
-            # I = J(0) - J(xi), which is rounding noise once it falls below a few hundred ulps
-            # of J(0) (deep in the tail, where what is left of every integral is below 1e-13),
-            # and the difference of two quadratures (stage 2's J(0), this march's J) once what
-            # is left of J falls below their tolerance: there the axis asymptotics
-            # I = xi h omega_hat / (beta + 1) (omega_hat ~ xi^beta) stands in, and I/omega_hat
-            # stays finite (J(0) - J would leave ~qtol J(0) / omega_hat in psi, growing without
-            # bound towards the axis while the tail test waits for it to fall).
-            asym = (J0 - J_b < I_NOISE * _EPS * J0
-                    or xs[0] * P[dv.Q_H, 0] * w[0] < qtol * J0 * (beta + 1.0))
-            for j in range(nn):
-                I0[j] = xs[j] * h_axis * w[j] / (beta + 1.0) if asym else J0 - Jn[j]
-            for j in range(nn):
-                v[j] = xs[j] * (P[dv.Q_H_DELTA, j] - I0[j] / w[j] * P[dv.Q_B_DELTA, j])
-            # an error in psi enters the integrals below weighted by omega_hat, which falls
-            # towards the axis (I/omega_hat, and its rounding, grows there)
-            fall = w[last]
-            tot, e = panels.cumulative(v, r, cum)
-            err = max(err, e * fall / (qtol * (abs(psi0_b) + abs(tot)) + 1e-300))
-            for j in range(nn):
-                psi0[j] = psi0_b + cum[j]
-            if above:
-                for j in range(nn):
-                    v[j] = xs[j] * (P[dv.Q_H_DELTA, j]
-                                    - (target - Jn[j]) / w[j] * P[dv.Q_B_DELTA, j])
-                tot, e = panels.cumulative(v, r, cum)
-                err = max(err, e * fall / (qtol * (abs(psip_b) + abs(tot)) + 1e-300))
-                for j in range(nn):
-                    psip[j] = psip_b + cum[j]
-            else:
-                for j in range(nn):
-                    psip[j] = psip_b
-            for c in range(_N_ACC):
-                row = c % 3
-                kind = c // 3
-                for j in range(nn):
-                    wf = w[j] * P[dv.Q_F + row, j]
-                    if kind == 0:
-                        g = wf
-                    elif kind == 1:
-                        g = (w[j] * P[dv.Q_HP + row, j] - I0[j] * P[dv.Q_BP + row, j]
-                             + psi0[j] * wf)
-                    else:
-                        g = psip[j] * wf
-                        if above:
-                            g += (w[j] * P[dv.Q_HP + row, j]
-                                  - (target - Jn[j]) * P[dv.Q_BP + row, j])
-                    v[j] = xs[j] * g
-                pan[c], pan_err[c] = panels.cumulative(v, r, cum)
-                # What is left below of this integral, bounded as stage 2 bounds J's tail (each
-                # term falls at least like xi^(beta+1) towards the axis, and I <= xi max|h|
-                # omega_hat there: J(0) - J(xi) itself is rounding noise by then).
-                low[c] = abs(v[last])
-                if kind == 1:
-                    h_max = max(abs(P[dv.Q_H, last]), abs(h_axis))
-                    low[c] = xs[last] * w[last] * (
-                        abs(P[dv.Q_HP + row, last]) + xs[last] * h_max * abs(P[dv.Q_BP + row, last])
-                        + abs(psi0[last] * P[dv.Q_F + row, last]))
-                size = 0.0
-                for j in range(nn):
-                    size += abs(v[j])
-                pan_abs[c] = 2.0 * r * size / nn
-                scale = acc_abs[c] + pan_abs[c]
-                if scale > 0.0:
-                    row_err[row] = max(row_err[row], pan_err[c] / (qtol * scale))
+            err = _adjoints(err, xs, P, w, Jn, r, J0, J_b, beta, h_axis, qtol, above, target,
+                            psi0_b, psip_b, I0, psi0, psip, v, cum)
+            _derivative_integrals(xs, P, w, Jn, I0, psi0, psip, r, h_axis, qtol, above, target,
+                                  acc_abs, pan, pan_err, pan_abs, low, row_err, v, cum)
         err_all = err
         for row in range(3):
             err_all = max(err_all, row_err[row])
@@ -276,40 +195,14 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
                 if length < 1e-15:
                     return
                 continue
-            for row in range(3):
-                # resolved to the solve's rtol (STAGE2_TOL is the march's margin below it)
-                if not row_err[row] <= 1.0 / STAGE2_TOL:
-                    unresolved[row] = True
+            _mark_unresolved(row_err, unresolved)
         else:
             err = err_all
         rejected = 0
         accepted += 1
         if n_pro > 0:
-            for row in range(3):
-                for j in range(nn):
-                    vF[row, j] = xs[j] * (w[j] * P[dv.Q_F + row, j])
-                panels.cumulative(vF[row], r, cum)
-                for j in range(nn):
-                    Sn[j] = (F0[row] - (Fb[row] + cum[j])) / w[j]
-                    vB[row, j] = xs[j] * (P[dv.Q_BP + row, j] + P[dv.Q_B_DELTA, j] * Sn[j])
-                panels.cumulative(vB[row], r, cum)
-                for j in range(nn):
-                    Ln[j] = Lb[row] - cum[j]
-                    vJ[row, j] = xs[j] * w[j] * (P[dv.Q_HP + row, j] + P[dv.Q_H_DELTA, j] * Sn[j]
-                                                 + P[dv.Q_H, j] * Ln[j])
-                dJ_pan, _ = panels.cumulative(vJ[row], r, cum)
-                slope[row] = vB[row, last]
-                for i in range(n_pro):
-                    if todo[i] and a <= t_pro[i] <= b:
-                        u = min(2.0, max(0.0, (b - t_pro[i]) / r))
-                        prof[PS_J + row, i] = dJb[row] + panels.partial(vJ[row], r, u)
-                        prof[PS_LOGW + row, i] = Lb[row] - panels.partial(vB[row], r, u)
-                Fb[row] += pan[row]
-                Lb[row] = Ln[last]
-                dJb[row] += dJ_pan
-            for i in range(n_pro):
-                if a <= t_pro[i] <= b:
-                    todo[i] = False
+            _profile_panel(xs, P, w, r, a, b, F0, pan, t_pro, todo, Fb, Lb, dJb, slope, fwd, v,
+                           cum, prof)
         for c in range(_N_ACC):
             acc[c] += pan[c]
             acc_abs[c] += pan_abs[c]
@@ -320,12 +213,8 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
         if have_p and a == t_p:
             hw_p = P[dv.Q_H, last] * w[last]
         b = a
-        passed = not have_p or b <= t_p
-        tail = passed and 2.0 * max(xs[last] * P[dv.Q_H, last] * w[last],
-                                    h_axis * xs[last] * w[last]) < tail_tol * J_b
-        for c in range(_N_ACC):
-            tail = tail and 2.0 * low[c] <= tail_tol * acc_abs[c]
-        if tail or b <= t_floor:
+        if ((not have_p or b <= t_p) and _tail_reached(xs, P, w, h_axis, tail_tol, J_b, low, acc_abs)
+                or b <= t_floor):
             break
         length = 2.0 * r * panels.panel_error_factor(err, 1.0)
         if a == lo and k >= 0:
@@ -333,6 +222,170 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
             lo = math.log(T1[k]) if k >= 0 else t_floor
     else:
         return
+    _profile_below(b, t_pro, todo, Lb, dJb, slope, prof)
+    _wall_derivatives(A, N, delta1, D1, acc, have_p, target, hw_p, accepted, unresolved, out)
+
+
+@njit(**_JIT)
+def _panel_nodes(a, b, r, k, eta, A, N, ax, T1, Q1, C, delta1, D1, xs, P):
+    """The nodes of the panel ``[a, b]`` in ``t = ln xi`` (half-width ``r``) on stage 1's step
+    ``k``: ``xi`` into ``xs`` and the rates' partials (:func:`dv.rate_partials`) into ``P``.
+    False at the first node outside the admissible region (``D <= 0`` or NaN)."""
+    last = panels.N_NODES - 1
+    mid = 0.5 * (a + b)
+    for j in range(panels.N_NODES):
+        t = b if j == 0 else (a if j == last else mid + r * panels.X[j])
+        xi, s = xi_of_log(t)
+        xs[j] = xi
+        delta, D, _ = delta_D_at(xi, s, k, T1, Q1, C, A, N, ax, delta1, D1)
+        if not D > 0.0:
+            return False
+        dv.rate_partials(xi, delta, D, eta, A, N, P, j)
+    return True
+
+
+@njit(**_JIT)
+def _omega_J(xs, P, r, y_b, J_b, w, Jn, v, cum):
+    """``log omega_hat`` and ``J`` on a panel as stage 2 integrates them (``d log omega_hat/dt =
+    xi B``, ``dJ/dt = -xi h omega_hat``), from ``y_b`` and ``J_b`` at its upper end: ``omega_hat``
+    into ``w`` and ``J`` into ``Jn`` at the nodes. Returns both quadratures' errors and the fall
+    of ``log omega_hat`` across the panel."""
+    for j in range(xs.size):
+        v[j] = xs[j] * P[dv.Q_B, j]
+    _, err_y = panels.cumulative(v, r, cum)
+    y_drop = cum[xs.size - 1]
+    for j in range(xs.size):
+        w[j] = math.exp(y_b - cum[j])
+        v[j] = xs[j] * P[dv.Q_H, j] * w[j]
+    _, err_J = panels.cumulative(v, r, cum)
+    for j in range(xs.size):
+        Jn[j] = J_b + cum[j]
+    return err_y, err_J, y_drop
+
+
+@njit(**_JIT)
+def _adjoints(err, xs, P, w, Jn, r, J0, J_b, beta, h_axis, qtol, above, target, psi0_b, psip_b,
+              I0, psi0, psip, v, cum):
+    """The adjoints on a panel: ``psi`` of ``J(0)`` into ``psi0`` and of ``J(xi_p)`` into ``psip``
+    (constant at ``psip_b`` unless the panel lies ``above`` the plug edge), each from its value
+    at the panel's upper end, and ``I = J(0) - J`` into ``I0``. Returns ``err`` raised to their
+    quadratures' errors."""
+    last = xs.size - 1
+    # I = J(0) - J(xi), which is rounding noise once it falls below a few hundred ulps
+    # of J(0) (deep in the tail, where what is left of every integral is below 1e-13),
+    # and the difference of two quadratures (stage 2's J(0), this march's J) once what
+    # is left of J falls below their tolerance: there the axis asymptotics
+    # I = xi h omega_hat / (beta + 1) (omega_hat ~ xi^beta) stands in, and I/omega_hat
+    # stays finite (J(0) - J would leave ~qtol J(0) / omega_hat in psi, growing without
+    # bound towards the axis while the tail test waits for it to fall).
+    asym = (J0 - J_b < I_NOISE * _EPS * J0
+            or xs[0] * P[dv.Q_H, 0] * w[0] < qtol * J0 * (beta + 1.0))
+    for j in range(xs.size):
+        I0[j] = xs[j] * h_axis * w[j] / (beta + 1.0) if asym else J0 - Jn[j]
+    for j in range(xs.size):
+        v[j] = xs[j] * (P[dv.Q_H_DELTA, j] - I0[j] / w[j] * P[dv.Q_B_DELTA, j])
+    # an error in psi enters the integrals below weighted by omega_hat, which falls
+    # towards the axis (I/omega_hat, and its rounding, grows there)
+    fall = w[last]
+    tot, e = panels.cumulative(v, r, cum)
+    err = max(err, e * fall / (qtol * (abs(psi0_b) + abs(tot)) + 1e-300))
+    for j in range(xs.size):
+        psi0[j] = psi0_b + cum[j]
+    if above:
+        for j in range(xs.size):
+            v[j] = xs[j] * (P[dv.Q_H_DELTA, j] - (target - Jn[j]) / w[j] * P[dv.Q_B_DELTA, j])
+        tot, e = panels.cumulative(v, r, cum)
+        err = max(err, e * fall / (qtol * (abs(psip_b) + abs(tot)) + 1e-300))
+        for j in range(xs.size):
+            psip[j] = psip_b + cum[j]
+    else:
+        for j in range(xs.size):
+            psip[j] = psip_b
+    return err
+
+
+@njit(**_JIT)
+def _derivative_integrals(xs, P, w, Jn, I0, psi0, psip, r, h_axis, qtol, above, target, acc_abs,
+                          pan, pan_err, pan_abs, low, row_err, v, cum):
+    """The panel's parts of the ``_N_ACC`` integrals (d delta(1), dJ(0), dJ(xi_p) by eta, A, N)
+    into ``pan``, their errors into ``pan_err``, magnitudes into ``pan_abs`` and bounds on what is
+    left of each below the panel into ``low``; each parameter's largest error relative to
+    ``qtol`` (and to the integral's magnitude so far, ``acc_abs``) into ``row_err``."""
+    last = xs.size - 1
+    for c in range(_N_ACC):
+        row = c % 3
+        kind = c // 3
+        for j in range(xs.size):
+            wf = w[j] * P[dv.Q_F + row, j]
+            if kind == 0:
+                g = wf
+            elif kind == 1:
+                g = w[j] * P[dv.Q_HP + row, j] - I0[j] * P[dv.Q_BP + row, j] + psi0[j] * wf
+            else:
+                g = psip[j] * wf
+                if above:
+                    g += w[j] * P[dv.Q_HP + row, j] - (target - Jn[j]) * P[dv.Q_BP + row, j]
+            v[j] = xs[j] * g
+        pan[c], pan_err[c] = panels.cumulative(v, r, cum)
+        # What is left below of this integral, bounded as stage 2 bounds J's tail (each
+        # term falls at least like xi^(beta+1) towards the axis, and I <= xi max|h|
+        # omega_hat there: J(0) - J(xi) itself is rounding noise by then).
+        low[c] = abs(v[last])
+        if kind == 1:
+            h_max = max(abs(P[dv.Q_H, last]), abs(h_axis))
+            low[c] = xs[last] * w[last] * (
+                abs(P[dv.Q_HP + row, last]) + xs[last] * h_max * abs(P[dv.Q_BP + row, last])
+                + abs(psi0[last] * P[dv.Q_F + row, last]))
+        size = 0.0
+        for j in range(xs.size):
+            size += abs(v[j])
+        pan_abs[c] = 2.0 * r * size / xs.size
+        scale = acc_abs[c] + pan_abs[c]
+        if scale > 0.0:
+            row_err[row] = max(row_err[row], pan_err[c] / (qtol * scale))
+
+
+@njit(**_JIT)
+def _profile_panel(xs, P, w, r, a, b, F0, pan, t_pro, todo, Fb, Lb, dJb, slope, fwd, Sn, cum,
+                   prof):
+    """The forward sensitivities across an accepted panel ``[a, b]``, into ``prof`` at the profile
+    points ``t_pro`` on it (their ``todo`` cleared), and the running values at its upper end moved
+    to its lower end: ``Fb`` (the integral of ``omega_hat df/dp`` from the wall), ``Lb`` (``d log
+    omega_hat/dp``), ``dJb`` and ``slope`` (that of ``d log omega_hat/dp`` in ``ln xi``)."""
+    last = xs.size - 1
+    vF, vB, vJ = fwd[0], fwd[1], fwd[2]
+    for row in range(3):
+        for j in range(xs.size):
+            vF[row, j] = xs[j] * (w[j] * P[dv.Q_F + row, j])
+        panels.cumulative(vF[row], r, cum)
+        for j in range(xs.size):
+            Sn[j] = (F0[row] - (Fb[row] + cum[j])) / w[j]
+            vB[row, j] = xs[j] * (P[dv.Q_BP + row, j] + P[dv.Q_B_DELTA, j] * Sn[j])
+        panels.cumulative(vB[row], r, cum)
+        for j in range(xs.size):
+            vJ[row, j] = xs[j] * w[j] * (P[dv.Q_HP + row, j] + P[dv.Q_H_DELTA, j] * Sn[j]
+                                         + P[dv.Q_H, j] * (Lb[row] - cum[j]))
+        L_end = Lb[row] - cum[last]
+        dJ_pan, _ = panels.cumulative(vJ[row], r, cum)
+        slope[row] = vB[row, last]
+        for i in range(t_pro.size):
+            if todo[i] and a <= t_pro[i] <= b:
+                u = min(2.0, max(0.0, (b - t_pro[i]) / r))
+                prof[PS_J + row, i] = dJb[row] + panels.partial(vJ[row], r, u)
+                prof[PS_LOGW + row, i] = Lb[row] - panels.partial(vB[row], r, u)
+        Fb[row] += pan[row]
+        Lb[row] = L_end
+        dJb[row] += dJ_pan
+    for i in range(t_pro.size):
+        if a <= t_pro[i] <= b:
+            todo[i] = False
+
+
+@njit(**_JIT)
+def _profile_below(b, t_pro, todo, Lb, dJb, slope, prof):
+    """The forward sensitivities at the profile points below the march's end ``b`` (``todo``),
+    and the march's own ``dJ`` at its end in ``prof``'s last column."""
+    n_pro = t_pro.size
     for row in range(3):
         for i in range(n_pro):
             if todo[i]:
@@ -343,6 +396,13 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
                 prof[PS_LOGW + row, i] = Lb[row] + slope[row] * (t_pro[i] - b)
         prof[PS_J + row, n_pro] = dJb[row]
         prof[PS_LOGW + row, n_pro] = math.nan
+
+
+@njit(**_JIT)
+def _wall_derivatives(A, N, delta1, D1, acc, have_p, target, hw_p, accepted, unresolved, out):
+    """The outputs' derivatives from the accumulated integrals ``acc``: the wall's ``delta``,
+    ``mu`` and ``sigma_yx``, ``J(0)``, and ``1 - xi_p`` (``hw_p``: ``h omega_hat`` at the plug
+    edge), into ``out``'s ``S_*`` slots, with the march's panels and unresolved flags; status ok."""
     sq = math.sqrt(D1)
     D_d, D_A, D_N = dv.yield_D_partials(1.0, delta1, A, N)
     for i in range(3):
@@ -366,6 +426,35 @@ def sensitivity_kernel(eta, A, N, eps_K, one_minus, rtol, atol, ax, res, T1, Q1,
         out[S_UNRESOLVED + i] = 1.0 if unresolved[i] else 0.0
     out[S_STATUS] = st.OK
 
+
+@njit(**_JIT)
+def _mark_unresolved(row_err, unresolved):
+    # the parameters whose derivatives a panel taken unresolved leaves above the solve's rtol
+    # (STAGE2_TOL is the march's margin below it)
+    for row in range(3):
+        if not row_err[row] <= 1.0 / STAGE2_TOL:
+            unresolved[row] = True
+
+
+@njit(**_JIT)
+def _log_points(xis):
+    """``ln xi`` of the profile points (``-inf`` at the axis)."""
+    t_pro = np.empty(xis.size)
+    for i in range(xis.size):
+        t_pro[i] = math.log(xis[i]) if xis[i] > 0.0 else -math.inf
+    return t_pro
+
+
+@njit(**_JIT)
+def _tail_reached(xs, P, w, h_axis, tail_tol, J_b, low, acc_abs):
+    """Whether what is left below the last panel's lower end, of ``J`` (bounded as stage 2 bounds
+    it) and of each integral (``low``), is below ``tail_tol`` of what they add up to."""
+    last = xs.size - 1
+    tail = 2.0 * max(xs[last] * P[dv.Q_H, last] * w[last],
+                     h_axis * xs[last] * w[last]) < tail_tol * J_b
+    for c in range(_N_ACC):
+        tail = tail and 2.0 * low[c] <= tail_tol * acc_abs[c]
+    return tail
 
 
 @njit(**_JIT)

@@ -201,14 +201,21 @@ def _long_step_defect(xi0, xi_end, args1, rtol, atol1, T1, Q1, n):
 
 
 @njit(**_JIT)
+def _dop853_run(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1, rho0):
+    # One DOP853 run of stage 1. A kernel of its own, called (not inlined) by _march_dop853's
+    # three runs: each inlined copy of the integrator is typed and optimised again, about a
+    # third of the first point's compilation each.
+    return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
+                         h_max, T1, Q1, stats1, rho0)
+
+
+@njit(**_JIT)
 def _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
     rho0 = abs(_stage1_jac(xi0, y0, args1)[0])  # as in _march_dopri5
     cap = DOP853_MAX_STEP * (xi_end - xi0)
     if 0.0 < h_max < cap:
-        return dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
-                             h_max, T1, Q1, stats1, rho0)
-    s, n, t = dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
-                            h_max, T1, Q1, stats1, rho0)
+        return _dop853_run(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1, rho0)
+    s, n, t = _dop853_run(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1, rho0)
     if not (s == stepping.SUCCESS or s == stepping.EVENT):
         return s, n, t
     evals, bad = _long_step_defect(xi0, xi_end, args1, rtol, atol1, T1, Q1, n)
@@ -216,8 +223,7 @@ def _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1
     if not bad:
         return s, n, t
     spent = stats1.copy()
-    s, n, t = dop853.dop853(_stage1_rhs, _stage1_event, xi0, y0, xi_end, args1, rtol, atol1, h0,
-                            cap, T1, Q1, stats1, rho0)
+    s, n, t = _dop853_run(xi0, y0, xi_end, h0, cap, args1, rtol, atol1, T1, Q1, stats1, rho0)
     for i in range(stepping.STAT_STIFF):
         stats1[i] += spent[i]
     return s, n, t

@@ -1,0 +1,123 @@
+"""Seconds to a user's first ``point``: a fresh process on an empty Numba cache, then from the cache.
+
+Each round makes an empty temporary ``NUMBA_CACHE_DIR``, runs ``cosserat-channel point ...`` in a
+new Python process (the first run compiles every kernel the point needs), then the same command
+again in another new process (the kernels load from that cache). It prints the CPU model, the load
+average before each run, and each run's wall-clock and CPU time (the child's user + system): on a
+loaded machine the wall time grows with the load, the CPU time much less. ``--profile`` adds, per
+compiled function, the compile time spent in it outside the functions it compiled in turn (Numba's
+compile events) and how many specialisations were compiled.
+
+Run:  .venv/bin/python benchmarks/bench_first_run.py [--rounds 1] [--profile] [-- POINT ARGS]
+
+The default point is the paper's (``--eps 1/30 --L 10 --K 0.5 --A 1/3 --N 1``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from cosserat_channel.measure.machine import machine, versions
+
+POINT = ["--eps", "1/30", "--L", "10", "--K", "0.5", "--A", "1/3", "--N", "1"]
+
+# Run in the child with --profile: the CLI under Numba's compile-event listener, which writes
+# {function: [self seconds, compiles]} as JSON to the file named by argv[1].
+_PROFILED = """
+import json, sys, time
+from collections import defaultdict
+from numba.core import event
+
+stack, spent, count = [], defaultdict(float), defaultdict(int)
+
+class Listener(event.Listener):
+    def on_start(self, e):
+        f = e.data["dispatcher"].py_func
+        stack.append([f.__module__ + "." + f.__qualname__, time.perf_counter(), 0.0])
+
+    def on_end(self, e):
+        name, t, inner = stack.pop()
+        dt = time.perf_counter() - t
+        spent[name] += dt - inner
+        count[name] += 1
+        if stack:
+            stack[-1][2] += dt
+
+event.register("numba:compile", Listener())
+from cosserat_channel.cli import main
+rc = main(sys.argv[2:])
+with open(sys.argv[1], "w") as fh:
+    json.dump({k: [spent[k], count[k]] for k in spent}, fh)
+sys.exit(rc)
+"""
+
+
+def _run(args, cache, profile_to=None):
+    """One fresh process: (wall s, CPU s, exit code)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    if profile_to is None:
+        cmd = [sys.executable, "-m", "cosserat_channel.cli", "point", *args]
+    else:
+        cmd = [sys.executable, "-c", _PROFILED, profile_to, "point", *args]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    done = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if done.returncode != 0:
+        sys.stderr.write(done.stderr)
+    return wall, cpu, done.returncode
+
+
+def _load() -> str:
+    return "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=1, help="cold + warm pairs (default 1)")
+    parser.add_argument("--profile", action="store_true",
+                        help="compile time per function in the cold runs (the first round's)")
+    parser.add_argument("--top", type=int, default=15, help="functions listed with --profile")
+    parser.add_argument("point", nargs="*", help="the point's options (after --)")
+    opts = parser.parse_args(argv)
+    args = opts.point or POINT
+    print(f"machine: {machine()}")
+    print(f"{versions()}")
+    print(f"command: cosserat-channel point {' '.join(args)}")
+    print(f"{'round':>5} {'run':>5} {'load (1/5/15 min)':>18} {'wall s':>8} {'CPU s':>7}")
+    profile = None
+    for i in range(opts.rounds):
+        with tempfile.TemporaryDirectory(prefix="numba-first-run-") as cache:
+            out = Path(cache) / "profile.json" if opts.profile and i == 0 else None
+            for run in ("cold", "warm"):
+                load = _load()
+                wall, cpu, rc = _run(args, cache, str(out) if out and run == "cold" else None)
+                if rc != 0:
+                    print(f"the {run} run failed (exit {rc})", file=sys.stderr)
+                    return 1
+                print(f"{i + 1:>5} {run:>5} {load:>18} {wall:8.1f} {cpu:7.1f}", flush=True)
+            if out is not None:
+                profile = json.loads(out.read_text())
+    print(f"load after: {_load()}")
+    if profile:
+        total = sum(s for s, _ in profile.values())
+        n = sum(c for _, c in profile.values())
+        print(f"\ncompile time by function (round 1, cold): {total:.1f} s in {n} compilations")
+        for name, (s, c) in sorted(profile.items(), key=lambda kv: -kv[1][0])[:opts.top]:
+            print(f"{s:7.2f} s  x{c:<3} {name}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -186,12 +186,122 @@ def to_dataset(atlas):
     )
 
 
+# What an atlas file may declare, checked before anything is built from it: the raster of
+# leaves (roots_A * roots_N * 4^max_depth cells, int32) is the largest thing a reader makes
+# (what ``boundary`` and ``classify`` look leaves up in): 2^26 cells are 256 MB, and the
+# default box at the deepest build (6 x 3 roots, depth 8) is 1.2 million.
+MAX_RASTER_CELLS = 1 << 26
+MAX_FILE_DEGREE = 64  # a leaf's Chebyshev degree (check_build_arguments' largest max_degree)
+MAX_FILE_TRANSITIONS = 64  # transitions of one edge
+# Dimensions of an atlas file and their largest sizes: leaves at most the raster's cells, samples
+# (the traces) the nodes of every leaf at the largest degree.
+_MAX_DIMS = {"leaf": MAX_RASTER_CELLS, "sample": MAX_RASTER_CELLS,
+             "transition": MAX_FILE_TRANSITIONS, "cheb_A": MAX_FILE_DEGREE + 1,
+             "cheb_N": MAX_FILE_DEGREE + 1, "direction": 2}
+
+
+def _declared_integer(a: dict, name: str, lo: int, hi: int) -> int:
+    """The integer attribute ``name`` of an atlas, inside ``[lo, hi]``; ParameterError naming
+    it and its range otherwise (a string, a fraction, NaN, an array)."""
+    v = a.get(name)
+    try:
+        f = float(np.asarray(v).item())
+        ok = f.is_integer() and lo <= f <= hi
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
+        raise ParameterError(f"its attribute {name} must be an integer in [{lo}, {hi}]; "
+                             f"got {_shown(v)}")
+    return int(f)
+
+
+def _shown(v) -> str:
+    """An attribute's value as a message shows it (a numpy scalar as a plain number)."""
+    v = v.tolist() if isinstance(v, np.ndarray | np.generic) else v
+    text = repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _declared_float(a: dict, name: str) -> float:
+    v = a.get(name)
+    try:
+        f = float(np.asarray(v).item())
+    except (TypeError, ValueError, OverflowError):
+        f = float("nan")
+    if not np.isfinite(f):
+        raise ParameterError(f"its attribute {name} must be a finite number; got {_shown(v)}")
+    return f
+
+
+def check_declared(a: dict, sizes: dict) -> None:
+    """ParameterError (one clause naming the attribute or dimension and its allowed range) when
+    an atlas file's attributes ``a`` or dimension ``sizes`` are beyond what an atlas can be:
+    checked before its arrays are read or anything is built from them."""
+    from .settings import MAX_DEPTH_LIMIT, TOL_MAX, TOL_MIN
+
+    for dim, size in sizes.items():
+        top = _MAX_DIMS.get(dim)
+        if top is None:
+            raise ParameterError(f"it has a dimension {dim!r} that no atlas has")
+        if size > top:
+            raise ParameterError(f"its dimension {dim} has {size:,} entries, beyond the "
+                                 f"{top:,} an atlas can have")
+    _declared_integer(a, "degree", 1, MAX_FILE_DEGREE)
+    depth = _declared_integer(a, "max_depth", 0, MAX_DEPTH_LIMIT)
+    ra = _declared_integer(a, "roots_A", 1, MAX_RASTER_CELLS)
+    rn = _declared_integer(a, "roots_N", 1, MAX_RASTER_CELLS)
+    if ra * rn << (2 * depth) > MAX_RASTER_CELLS:
+        raise ParameterError(f"its roots_A x roots_N x 4^max_depth = {ra} x {rn} x 4^{depth} "
+                             f"cells are beyond the {MAX_RASTER_CELLS:,} an atlas can have")
+    a0, a1, n0, n1 = (_declared_float(a, k) for k in ("A_min", "A_max", "N_min", "N_max"))
+    if not (a0 < a1 and n0 < n1):
+        raise ParameterError(f"its box must have A_min < A_max and N_min < N_max; got A "
+                             f"[{a0:g}, {a1:g}], N [{n0:g}, {n1:g}]")
+    tol = _declared_float(a, "tol")
+    if not TOL_MIN <= tol <= TOL_MAX:
+        raise ParameterError(f"its attribute tol must be in [{TOL_MIN:g}, {TOL_MAX:g}]; got "
+                             f"{tol!r}")
+    lo, hi = _declared_float(a, "eta_min"), _declared_float(a, "eta_max")
+    if not 0 < lo < hi:
+        raise ParameterError(f"its eta range must be 0 < eta_min < eta_max; got {lo:g}, {hi:g}")
+
+
+def _check_leaves(atlas) -> None:
+    """ParameterError when the leaves of ``atlas`` do not lie in its quadtree, or their arrays
+    do not fit together (each is indexed by the others when the atlas is used)."""
+    n = atlas.leaf_level.shape
+    arrays = {"leaf_i": atlas.leaf_i, "leaf_j": atlas.leaf_j, "leaf_low": atlas.leaf_low,
+              "leaf_n": atlas.leaf_n, "leaf_error": atlas.leaf_error}
+    for name, arr in arrays.items():
+        if arr.shape != n:
+            raise ParameterError(f"its {name} has shape {arr.shape}, leaf_level {n}")
+    level = atlas.leaf_level
+    if level.size and not ((level >= 0) & (level <= atlas.max_depth)).all():
+        raise ParameterError(f"its leaf_level must be in [0, max_depth = {atlas.max_depth}]")
+    for name, idx, roots in (("leaf_i", atlas.leaf_i, atlas.roots[0]),
+                             ("leaf_j", atlas.leaf_j, atlas.roots[1])):
+        if idx.size and not ((idx >= 0) & (idx < np.left_shift(roots, level))).all():
+            raise ParameterError(f"its {name} must be in [0, roots << leaf_level)")
+    t = atlas.coef.shape[1] if atlas.coef.ndim == 4 else -1
+    if atlas.coef.ndim != 4 or atlas.coef.shape[0] != n[0]:
+        raise ParameterError(f"its leaf_coefficients have shape {atlas.coef.shape}; expected "
+                             f"({n[0]}, transition, cheb_A, cheb_N)")
+    if atlas.leaf_n.size and not ((atlas.leaf_n >= -1) & (atlas.leaf_n <= t)).all():
+        raise ParameterError(f"its leaf_n must be in [-1, {t}] (the transitions it holds)")
+    deg = atlas.leaf_degree
+    if deg.shape != (n[0], 2) or (deg.size and not (
+            (deg >= 0).all() and (deg[:, 0] < atlas.coef.shape[2]).all()
+            and (deg[:, 1] < atlas.coef.shape[3]).all())):
+        raise ParameterError("its leaf_degree does not fit its leaf_coefficients")
+
+
 def from_dataset(ds):
     """The inverse of :meth:`to_dataset`; ParameterError if ``ds`` is not an atlas."""
     if ds.attrs.get("format") not in FORMATS:
         raise ParameterError(f"not a solvability atlas (format {ds.attrs.get('format')!r}, "
                              f"expected {FORMAT!r})")
     a = dict(ds.attrs)
+    check_declared(a, dict(ds.sizes))
     keys = ("title", "format", "A_min", "A_max", "N_min", "N_max", "roots_A", "roots_N",
             "degree", "max_depth", "tol", "eta_min", "eta_max")
     v = {k: np.asarray(ds[k].values) for k in ds.data_vars}
@@ -224,13 +334,27 @@ def save_atlas(atlas, path, replace=True):
 
 
 def _read(path):
+    """The atlas file at ``path``, its declared attributes and sizes checked
+    (:func:`check_declared`) before its arrays are read: a small file must not declare
+    gigabytes."""
     import xarray as xr
 
     try:
-        return xr.load_dataset(path)
+        ds = xr.open_dataset(path)
     except (OSError, ValueError, RuntimeError) as exc:
         raise ParameterError(f"cannot read atlas {str(path)!r}: {' '.join(str(exc).split())}") \
             from None
+    with ds:
+        if ds.attrs.get("format") in FORMATS:
+            try:
+                check_declared(dict(ds.attrs), dict(ds.sizes))
+            except ParameterError as exc:
+                raise ParameterError(f"{str(path)!r} is not a usable atlas: {exc}") from None
+        try:
+            return ds.load()
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise ParameterError(f"cannot read atlas {str(path)!r}: "
+                                 f"{' '.join(str(exc).split())}") from None
 
 
 def load_atlas(path):
@@ -244,8 +368,12 @@ def load_atlas(path):
     ds = _read(path)
     try:
         atlas = from_dataset(ds)
-    except (KeyError, ParameterError) as exc:
+    except (KeyError, ParameterError, ValueError, TypeError) as exc:
         raise ParameterError(f"{str(path)!r} is not a solvability atlas ({exc})") from None
+    try:
+        _check_leaves(atlas)
+    except ParameterError as exc:
+        raise ParameterError(f"{str(path)!r} is not a usable atlas: {exc}") from None
     problem = values_problem(atlas)
     if problem:
         raise ParameterError(f"{str(path)!r} is a damaged atlas: {problem}")

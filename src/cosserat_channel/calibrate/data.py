@@ -154,53 +154,92 @@ def read_data(data, *, source: str | None = None) -> Measurements:
     return _checked(columns, source or "data", lines)
 
 
+# Bounds of a CSV table, checked as it is read (a device such as /dev/zero never ends a line, a
+# FIFO may never end): lines (comments and blank ones included), and characters of one line (a
+# measurement is a short line; the csv module's own cell limit is 131,072).
+MAX_LINES = 10_000_000
+MAX_LINE_CHARS = 1 << 20
+
+
+def _numbered_lines(f, source: str, where: list):
+    """The header and data lines of ``f``, one at a time (comments and blank lines skipped);
+    ``where[0]`` is the number of the line last given. DataError past :data:`MAX_LINES` lines
+    or :data:`MAX_LINE_CHARS` characters in one line."""
+    n = 0
+    while True:
+        line = f.readline(MAX_LINE_CHARS + 1)
+        if not line:
+            return
+        n += 1
+        if len(line) > MAX_LINE_CHARS:
+            raise DataError(f"{source} line {n}: longer than {MAX_LINE_CHARS:,} characters (at "
+                            "most that per line: a measurement is one short line)")
+        if n > MAX_LINES:
+            raise DataError(f"{source}: more than {MAX_LINES:,} lines (at most that many in a "
+                            "table; fit a sample, or merge repeated measurements)")
+        if line.strip() and not line.lstrip().startswith("#"):
+            where[0] = n
+            yield line
+
+
 def _read_csv(path: str, source: str) -> tuple[dict, np.ndarray]:
+    """Read a CSV table as it streams: memory grows with the numbers read (8 bytes a cell), not
+    with the text, and nothing beyond :data:`MAX_LINES` or :data:`MAX_LINE_CHARS` is kept."""
+    from array import array
+
+    where = [0]
     try:
         with open(path, encoding="utf-8", newline="") as f:
-            numbered = [(n, line) for n, line in enumerate(f, start=1)
-                        if line.strip() and not line.lstrip().startswith("#")]
+            reader = csv.reader(_numbered_lines(f, source, where))
+            try:
+                header = next(reader, None)
+                if header is None:
+                    raise DataError(f"{source}: no header line (expected e.g. "
+                                    "'quantity,value,std_error,eps')")
+                header = [h.strip() for h in header]
+                if len(header) == 1 and ";" in header[0]:
+                    raise DataError(f"{source}: the columns are separated by ';'; the file must "
+                                    "be comma-separated (e.g. 'quantity,value,std_error,eps')")
+                if len(set(header)) != len(header):
+                    dup = next(h for h in header if header.count(h) > 1)
+                    raise DataError(f"{source}: column {dup!r} appears twice in the header")
+                _check_names(dict.fromkeys(header), source)
+                lines = array("q")
+                names: dict = {}  # one string object per distinct quantity
+                quantity: list = []
+                values = {h: array("d") for h in header if h != QUANTITY}
+                for cells in reader:
+                    n = where[0]
+                    if len(cells) != len(header):
+                        raise DataError(f"{source} line {n}: {len(cells)} cells where the "
+                                        f"header has {len(header)}")
+                    lines.append(n)
+                    for h, cell in zip(header, cells):
+                        cell = cell.strip()
+                        if h == QUANTITY:
+                            quantity.append(names.setdefault(cell, cell))
+                            continue
+                        try:
+                            v = parse_number(cell) if cell else math.nan
+                        except ValueError:
+                            raise DataError(f"{source} row {len(lines)} (line {n}), column "
+                                            f"{h!r}: expected a number or a fraction a/b; got "
+                                            f"{cell!r}") from None
+                        values[h].append(v)
+            except csv.Error as exc:  # a cell beyond the csv module's field limit, a NUL byte
+                raise DataError(f"{source} line {where[0]}: cannot be read as CSV ({exc})") \
+                    from None
     except UnicodeDecodeError:
         raise DataError(f"{source}: not a text (UTF-8) CSV file") from None
     except OSError as exc:
         raise DataError(f"{source}: cannot read: {exc.strerror or exc}") from None
-    if not numbered:
-        raise DataError(f"{source}: no header line (expected e.g. 'quantity,value,std_error,eps')")
-    reader = csv.reader(line for _, line in numbered)
-    try:
-        rows = list(reader)
-    except csv.Error as exc:  # a cell beyond the csv module's field limit, a NUL byte
-        n = numbered[min(reader.line_num, len(numbered)) - 1][0]
-        raise DataError(f"{source} line {n}: cannot be read as CSV ({exc})") from None
-    header = [h.strip() for h in rows[0]]
-    if len(header) == 1 and ";" in header[0]:
-        raise DataError(f"{source}: the columns are separated by ';'; the file must be "
-                        "comma-separated (e.g. 'quantity,value,std_error,eps')")
-    lines = np.array([n for n, _ in numbered[1:]], dtype=np.int64)
-    columns: dict = {h: [] for h in header}
-    if len(columns) != len(header):
-        dup = next(h for h in header if header.count(h) > 1)
-        raise DataError(f"{source}: column {dup!r} appears twice in the header")
-    for (n, _), cells in zip(numbered[1:], rows[1:]):
-        if len(cells) != len(header):
-            raise DataError(f"{source} line {n}: {len(cells)} cells where the header has "
-                            f"{len(header)}")
-        for h, cell in zip(header, cells):
-            columns[h].append(cell.strip())
-    _check_names(columns, source)
-    out = {}
-    for h, cells in columns.items():
-        if h == QUANTITY:
-            out[h] = np.array(cells, dtype=object)
-            continue
-        values = np.empty(len(cells))
-        for i, cell in enumerate(cells):
-            try:
-                values[i] = parse_number(cell) if cell else math.nan
-            except ValueError:
-                raise DataError(f"{source} row {i + 1} (line {lines[i]}), column {h!r}: "
-                                f"expected a number or a fraction a/b; got {cell!r}") from None
-        out[h] = values
-    return out, lines
+    out = {h: np.frombuffer(v, dtype=np.float64).copy() if len(v) else np.empty(0)
+           for h, v in values.items()}
+    if QUANTITY in header:
+        out[QUANTITY] = np.array(quantity, dtype=object)
+    out = {h: out[h] for h in header}
+    return out, np.frombuffer(lines, dtype=np.int64).copy() if len(lines) else \
+        np.empty(0, dtype=np.int64)
 
 
 def _column(values, name: str, source: str) -> np.ndarray:
@@ -251,29 +290,50 @@ def _checked(columns: dict, source: str, lines) -> Measurements:
     data = Measurements(quantity.astype(str), columns[VALUE], columns[STD_ERROR], xi,
                         {k: v for k, v in columns.items() if k in INPUTS}, source, lines)
     scalar, profile = quantities(), profile_quantities()
-    for i in range(n):
-        q = str(data.quantity[i])
-        if q not in scalar and q not in profile:
-            raise DataError(f"{data.where(i, QUANTITY)}: unknown quantity {q!r}; a row measures "
-                            f"one of {', '.join(scalar)}, or a profile ({', '.join(profile)}) at xi")
-        if not math.isfinite(data.value[i]):
-            raise DataError(f"{data.where(i, VALUE)}: the value must be a finite number; got "
-                            f"{float(data.value[i])!r}")
-        if not (math.isfinite(data.std_error[i]) and data.std_error[i] > 0):
-            raise DataError(f"{data.where(i, STD_ERROR)}: the standard error must be a positive "
-                            f"finite number; got {float(data.std_error[i])!r}")
-        if q in profile:
-            if not 0.0 <= data.xi[i] <= 1.0:  # False for NaN
-                raise DataError(f"{data.where(i, XI)}: the profile {q} needs xi in [0, 1]; got "
-                                f"{'nothing' if math.isnan(data.xi[i]) else repr(data.xi[i])}")
-        elif not math.isnan(data.xi[i]):
-            raise DataError(f"{data.where(i, XI)}: xi is for profile quantities "
-                            f"({', '.join(profile)}); {q} is a scalar output")
+    # Checked column by column (time linear in the rows), then the first bad row row by row, so
+    # that the message names the first bad cell as reading row by row would.
+    kinds = np.isin(data.quantity, scalar) | np.isin(data.quantity, profile)
+    profiled = np.isin(data.quantity, profile)
+    with np.errstate(invalid="ignore"):
+        bad = (~kinds | ~np.isfinite(data.value) | ~(np.isfinite(data.std_error)
+                                                      & (data.std_error > 0))
+               | np.where(profiled, ~((data.xi >= 0.0) & (data.xi <= 1.0)), ~np.isnan(data.xi)))
+    for i in np.flatnonzero(bad)[:1]:
+        _check_row(data, int(i), scalar, profile)
     for name, col in data.columns.items():
         param = INPUTS[name]
-        for i in np.flatnonzero(~np.isnan(col)):
+        given = ~np.isnan(col)
+        if not given.any():
+            continue
+        # Each distinct value once (a parameter's check is a scalar's), the first row holding it
+        # named: the first bad row in order is the first of the bad values' first rows.
+        uniq, first = np.unique(col[given], return_index=True)
+        rows = np.flatnonzero(given)[first]
+        for k in np.argsort(rows, kind="stable"):
             try:
-                param.check(float(col[i]), data.where(i, name))
+                param.check(float(uniq[k]), data.where(int(rows[k]), name))
             except ParameterError as exc:
                 raise DataError(str(exc)) from None
     return data
+
+
+def _check_row(data: Measurements, i: int, scalar, profile) -> None:
+    """DataError naming the first bad cell of row ``i`` (its quantity, value, standard error,
+    xi), if there is one."""
+    q = str(data.quantity[i])
+    if q not in scalar and q not in profile:
+        raise DataError(f"{data.where(i, QUANTITY)}: unknown quantity {q!r}; a row measures "
+                        f"one of {', '.join(scalar)}, or a profile ({', '.join(profile)}) at xi")
+    if not math.isfinite(data.value[i]):
+        raise DataError(f"{data.where(i, VALUE)}: the value must be a finite number; got "
+                        f"{float(data.value[i])!r}")
+    if not (math.isfinite(data.std_error[i]) and data.std_error[i] > 0):
+        raise DataError(f"{data.where(i, STD_ERROR)}: the standard error must be a positive "
+                        f"finite number; got {float(data.std_error[i])!r}")
+    if q in profile:
+        if not 0.0 <= data.xi[i] <= 1.0:  # False for NaN
+            raise DataError(f"{data.where(i, XI)}: the profile {q} needs xi in [0, 1]; got "
+                            f"{'nothing' if math.isnan(data.xi[i]) else repr(data.xi[i])}")
+    elif not math.isnan(data.xi[i]):
+        raise DataError(f"{data.where(i, XI)}: xi is for profile quantities "
+                        f"({', '.join(profile)}); {q} is a scalar output")

@@ -351,14 +351,27 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     pred, status = evaluate(x)
     r = (pred - data.value) / sigma
     J, info = jacobian(problem, x, (pred, status))
-    J = J / sigma[:, None]
-    cov, cond, null = _covariance(J)
+    with np.errstate(over="ignore", invalid="ignore"):
+        J = J / sigma[:, None]
+    # A row without a finite derivative at the estimate (no solution there, or next to the
+    # small-eps-L end of the domain) gives the covariance nothing; said below.
+    unsteered = int((~np.isfinite(J).all(axis=1) & (status == st.OK)).sum())
+    J = np.where(np.isfinite(J), J, 0.0)
+    try:
+        cov, cond, null = _covariance(J)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise FitError(f"no covariance at {_at(names, x)} "
+                       f"({' '.join(str(exc).split())}); check the data's units, or give "
+                       "another start or bounds") from None
     se = np.sqrt(np.diag(cov))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(se, se)
     chi2 = float(np.sum(np.where(status == st.OK, r, np.nan) ** 2))
     notes = _warnings(names, x, lo, hi, bounds or {}, opt, status, met, info, J, cond, null, cov,
                       data)
+    if unsteered:
+        notes.append(f"{unsteered} rows have no finite derivative at the estimate: the "
+                     "standard errors leave them out")
     result = FitResult(
         names=names, estimates=x.copy(), std_errors=se, covariance=cov, correlation=corr,
         chi2=chi2, dof=len(data) - len(names), residuals=r, predictions=pred,

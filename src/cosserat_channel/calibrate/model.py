@@ -76,6 +76,7 @@ class Problem:
                 raise FitError(f"{direct} and {physical} (which gives {direct}) are both "
                                      "fixed or free: give one")
         self._columns = {k: v for k, v in data.columns.items()}
+        self._given = {k: data.given(k) for k in INPUTS}  # once, not per row: time linear in n
         self._n = n
 
     # -----------------------------------------------------------------------------------------
@@ -108,7 +109,7 @@ class Problem:
         data = self.data
         given = {}
         for direct, physical, needs, relation in _DERIVED:
-            if data.given(direct)[i] or (not data.given(physical)[i]
+            if self._given[direct][i] or (not self._given[physical][i]
                                          and not math.isnan(v[direct][i])):
                 given[direct] = v[direct][i]
             elif not math.isnan(v[physical][i]):
@@ -167,14 +168,17 @@ class Problem:
             from ..sweep.arrays import solve
 
             for key, jobs in scalar_jobs.items():
-                pts = np.array([p for _, _, p in jobs])
+                # Each distinct point solved once (repeated measurements share it).
+                where: dict = {}
+                at = [where.setdefault(p, len(where)) for _, _, p in jobs]
+                pts = np.array(list(where))
                 names = sorted({quantity[i] for _, i, _ in jobs})
                 ds = solve(*pts.T, material=None if key is None else dict(key), outputs=names,
                            rtol=self.rtol, atol=self.atol, workers=self.workers)
                 self.n_solves += int(ds.attrs["n_solves"])
                 codes = ds["status"].values
                 cols = {q: ds[q].values for q in names}
-                for j, (k, i, _) in enumerate(jobs):
+                for j, (k, i, _) in zip(at, jobs):
                     status[k, i] = codes[j]
                     pred[k, i] = cols[quantity[i]][j]
         if profile_jobs:
@@ -293,6 +297,9 @@ def _analytic(problem: Problem, theta):
     J = np.zeros((len(data), p))
     keys = [(pt, None if mat is None else tuple(mat.items()), bool(problem.profile_rows[i]))
             for i, (pt, mat) in enumerate(rows)]
+    groups: dict = {}  # the rows of each key, in order: one pass over the rows, not one per row
+    for i, key in enumerate(keys):
+        groups.setdefault(key, []).append(i)
     cache: dict = {}
     # profile rows first: where the solver has no profile sensitivities this gives up at once
     for i in sorted(range(len(rows)), key=lambda i: not problem.profile_rows[i]):
@@ -300,14 +307,16 @@ def _analytic(problem: Problem, theta):
         q = data.quantity[i]
         key = keys[i]
         if key not in cache:
-            xi = data.xi[[k == key for k in keys]] if problem.profile_rows[i] else None
+            xi = data.xi[groups[key]] if problem.profile_rows[i] else None
             r = point_.solve_point(*pt, material=mat, rtol=problem.rtol, atol=problem.atol,
                                    profile=xi, sensitivities=True)
             problem.n_solves += 1
-            cache[key] = (r, xi)
-        r, xi = cache[key]
+            # where each xi first stands in the profile solved
+            first = {} if xi is None else {x: k for k, x in reversed(list(enumerate(xi)))}
+            cache[key] = (r, first)
+        r, first = cache[key]
         if problem.profile_rows[i]:
-            k = int(np.flatnonzero(xi == data.xi[i])[0])
+            k = first[data.xi[i]]
             sens = {name: np.asarray(v)[k] for name, v in
                     r.profile_sensitivities.get(q, {}).items()}
         else:

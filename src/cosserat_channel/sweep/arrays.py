@@ -34,6 +34,10 @@ __all__ = ["solve"]
 # arrays and Python overhead (a few tens of microseconds) stay below a percent of its solves.
 MIN_BLOCK_TRIPLES = 256
 BLOCKS_PER_WORKER = 4
+# Points one call solves in memory, checked from the shapes before anything is broadcast: each
+# point holds its five inputs, eta, its status and its outputs (about 200 bytes with every
+# output), so this is some 20 GB. A larger grid is a sweep (``run``), which writes in tiles.
+MAX_SOLVE_POINTS = 100_000_000
 
 
 def solve(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, material=None, outputs=None,
@@ -196,6 +200,17 @@ def _checked(name: str, value):
     return check_values(name, arr)
 
 
+def _check_size(shapes: dict, shape: tuple) -> None:
+    """ParameterError (one line naming the parameters' shapes and the limit) when the broadcast
+    ``shape`` holds more than :data:`MAX_SOLVE_POINTS` points; checked before it is made."""
+    size = math.prod(shape)
+    if size > MAX_SOLVE_POINTS:
+        given = ", ".join(f"{d} {s}" for d, s in shapes.items() if len(s))
+        raise ParameterError(f"eps, L, K, A, N broadcast to {size:,} points ({given}), beyond "
+                             f"the {MAX_SOLVE_POINTS:,} one call solves in memory: solve fewer "
+                             "at a time, or run them as a sweep (cosserat-channel run)")
+
+
 def _broadcast(given: dict):
     """``(dims, coords, {name: broadcast values})`` of the five parameters."""
     checked = {d: _checked(d, v) for d, v in given.items()}
@@ -211,6 +226,10 @@ def _broadcast(given: dict):
         except ValueError as exc:
             raise ParameterError("the DataArrays must have the same coordinates on the "
                                  f"dimensions they share: {str(exc).splitlines()[0]}") from None
+        sizes: dict = {}
+        for v in aligned:
+            sizes.update(v.sizes)
+        _check_size(dict(zip(labelled, (v.shape for v in aligned))), tuple(sizes.values()))
         with_labels = dict(zip(labelled, aligned))
         ref = xr.broadcast(*aligned)[0]
         dims = ref.dims
@@ -222,12 +241,15 @@ def _broadcast(given: dict):
             else:
                 values[d] = np.full(ref.shape, v)
     else:
+        shapes = {d: np.shape(v) for d, v in checked.items()}
         try:
-            bcast = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64)
-                                          for v in checked.values()))
+            shape = np.broadcast_shapes(*shapes.values())
         except ValueError:
-            shapes = ", ".join(f"{d} {np.shape(v)}" for d, v in checked.items())
-            raise ParameterError(f"the parameters' shapes do not broadcast: {shapes}") from None
+            shown = ", ".join(f"{d} {s}" for d, s in shapes.items())
+            raise ParameterError(f"the parameters' shapes do not broadcast: {shown}") from None
+        _check_size(shapes, shape)
+        bcast = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64)
+                                      for v in checked.values()))
         values = dict(zip(checked, bcast))
         dims = tuple(f"dim_{i}" for i in range(bcast[0].ndim))
         coords = {}

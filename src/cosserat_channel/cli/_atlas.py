@@ -22,6 +22,7 @@ from .common import (
     interrupted,
     interruptible,
     note,
+    publish_figure,
     register,
 )
 
@@ -167,7 +168,8 @@ def _atlas(args: argparse.Namespace) -> int:
             bds = atlas.boundary(np.linspace(*A, 301), np.linspace(*N, 201))
             try:
                 with interruptible():
-                    plot_regimes.solvable_region_figure(bds, path=args.plot)
+                    publish_figure(plot_regimes.solvable_region_figure(bds), args.plot,
+                                   "--plot", overwrite=args.overwrite)
             except KeyboardInterrupt as exc:
                 return interrupted(exc, f"the atlas is written to {output}; {args.plot} is not")
     except OSError as exc:

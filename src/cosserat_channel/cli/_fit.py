@@ -18,6 +18,7 @@ from .common import (
     check_not_input,
     check_output_path,
     figure_output,
+    publish_figure,
     number,
     one_line,
     register,
@@ -132,11 +133,7 @@ def _fit(args: argparse.Namespace) -> int:
         if issubclass(w.category, fit_.FitWarning):
             print(f"{PROG}: warning: {one_line(str(w.message))}", file=sys.stderr)
     if args.plot is not None:
-        try:
-            result.plot(args.plot)
-        except OSError as exc:
-            raise CliError(f"--plot: cannot write {args.plot!r}: {exc.strerror or exc}",
-                           EXIT_FAILURE) from None
+        publish_figure(result.plot(), args.plot, "--plot", overwrite=args.overwrite)
     text = json.dumps(result.to_dict(), allow_nan=False)
     if args.output is not None:
         from ..files import OutputAppeared, write_text

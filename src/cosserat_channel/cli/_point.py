@@ -8,7 +8,6 @@ import math
 
 from ..parameters import MATERIAL, ParameterError, TOLERANCES
 from .common import (
-    EXIT_FAILURE,
     EXIT_OK,
     CLOSURE_ARGS,
     MATERIAL_ARGS,
@@ -20,6 +19,7 @@ from .common import (
     add_overwrite_argument,
     add_point_arguments,
     figure_output,
+    publish_figure,
     material_from_args,
     note,
     number,
@@ -72,10 +72,8 @@ def _point(args: argparse.Namespace) -> int:
         if not result.ok:
             note(f"no profile to plot (status {result.status.name}); {args.plot} not written")
         else:
-            try:
-                plot.point_profiles(result, args.plot)
-            except OSError as exc:
-                raise CliError(f"--plot: cannot write {args.plot!r}: {exc}", EXIT_FAILURE) from None
+            publish_figure(plot.point_profiles(result), args.plot, "--plot",
+                           overwrite=args.overwrite)
     if args.json:
         # allow_nan=False: to_dict maps NaN to null, and the output must stay strict JSON.
         data = result.to_dict()
@@ -167,8 +165,6 @@ def _phase_plane(args: argparse.Namespace) -> int:
         print(f"E{tr.root} from m(0) = {tr.start:+.6g}: {tr.end}"
               + (f" at xi = {tr.xi[-1]:.6g}" if tr.end == "D=0" else "")
               + (f", m(1)/nu = {tr.m[-1]:.10g}" if tr.end == "wall" else ""))
-    try:
-        plot_regimes.phase_plane_figure(pp, nu=args.nu, path=args.output)
-    except OSError as exc:
-        raise CliError(f"-o: cannot write {args.output!r}: {exc}", EXIT_FAILURE) from None
+    publish_figure(plot_regimes.phase_plane_figure(pp, nu=args.nu), args.output,
+                   overwrite=args.overwrite)
     return EXIT_OK

@@ -17,6 +17,7 @@ from .common import (
     check_not_input,
     check_output_path,
     figure_output,
+    publish_figure,
     interrupted,
     interruptible,
     note,
@@ -147,11 +148,12 @@ def _boundary(args: argparse.Namespace) -> int:
 
     try:
         if write and args.output is not None:
-            write_dataset(args.output, ds)
+            write_dataset(args.output, ds, replace=args.overwrite)
         if args.plot is not None:
             from ..plot import regimes as plot_regimes
 
-            plot_regimes.boundary_figure(ds, path=args.plot)
+            publish_figure(plot_regimes.boundary_figure(ds), args.plot, "--plot",
+                           overwrite=args.overwrite)
     except OSError as exc:
         from ..files import WriteError
 
@@ -376,15 +378,15 @@ def _plot(args: argparse.Namespace) -> int:
                             from .. import regimes
 
                             boundary = regimes.trace_boundary(*grid, progress=bar.report)
-                    plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary,
-                                            path=args.output)
+                    fig = plot_regimes.regime_map(ds, args.x, args.y, at, boundary=boundary)
                 else:
                     # Imported here: line plots overlay the asymptotics (scipy.optimize, ~0.4 s
                     # of a fresh process), which a regime map never needs.
                     from ..plot import lines as plot_lines
 
-                    plot_lines.line_plot(ds, args.x, args.y, args.hue, at,
-                                         asymptote=args.asymptote, path=args.output)
+                    fig = plot_lines.line_plot(ds, args.x, args.y, args.hue, at,
+                                               asymptote=args.asymptote)
+            publish_figure(fig, args.output, overwrite=args.overwrite)
         except (ValueError, KeyError) as exc:
             # A KeyError's str() is the repr of its message; its argument is the message.
             message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc

@@ -247,14 +247,16 @@ def _example(args: argparse.Namespace) -> int:
         fit = next((line.split(":", 1)[1].strip() for line in text.splitlines()
                     if line.startswith("# Fit:")), f"{PROG} fit {name}")
         then = "fit it with: " + fit.replace(f" {name} ", f" {shlex.quote(args.output)} ", 1)
-    from ..files import atomic_output
+    from ..files import WriteError, atomic_output
 
     def write(tmp):
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
 
     try:
-        atomic_output(args.output, write)
+        atomic_output(args.output, write, replace=args.overwrite)
+    except WriteError as exc:  # a file that appeared meanwhile is kept (OutputAppeared)
+        raise CliError(f"-o: {exc}", EXIT_FAILURE) from None
     except OSError as exc:
         raise CliError(f"-o: cannot write {args.output!r}: {exc.strerror or exc}",
                        EXIT_FAILURE) from None
@@ -331,14 +333,14 @@ def _query(args: argparse.Namespace) -> int:
             if picked.count() == 0:  # reads the file: inside the read-failure handling
                 note("the selection is empty: no point matches")
             if args.format == "netcdf":
-                render.write_netcdf(picked, args.output)
+                render.write_netcdf(picked, args.output, replace=args.overwrite)
             elif args.output is not None:
                 writer = {"table": lambda f: f.write(render.format_table(picked)),
                           "csv": lambda f: render.write_csv(picked, f),
                           "json": lambda f: render.write_json(picked, f)}[args.format]
                 from ..files import write_text
 
-                write_text(args.output, writer)
+                write_text(args.output, writer, replace=args.overwrite)
             else:
                 sys.stdout.write(render.render(picked, args.format))
         except BrokenPipeError:

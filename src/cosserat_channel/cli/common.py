@@ -415,6 +415,22 @@ def read_or_write_failure(exc: BaseException, results: str, ds, output: str | No
     return CliError(f"{results}: cannot read: {' '.join(str(exc).split())}", EXIT_FAILURE)
 
 
+def publish_figure(fig, path: str, option: str = "-o", *, overwrite: bool) -> None:
+    """Write a figure the user named (checked before the work by :func:`figure_output`): over
+    an existing file only with ``overwrite``; a file that appeared meanwhile is kept and the
+    figure put beside it, one line (:class:`..files.OutputAppeared`), exit 1."""
+    from .. import plot
+    from ..files import WriteError
+
+    try:
+        plot.save_figure(fig, path, replace=overwrite)
+    except WriteError as exc:
+        raise CliError(f"{option}: {exc}", EXIT_FAILURE) from None
+    except OSError as exc:
+        raise CliError(f"{option}: cannot write {path!r}: {exc.strerror or exc}",
+                       EXIT_FAILURE) from None
+
+
 def figure_output(path: str, option: str = "-o", *, overwrite: bool) -> None:
     """Check a figure path before any work (:func:`check_output_path`, a format Agg can write)."""
     check_output_path(path, option, overwrite=overwrite)

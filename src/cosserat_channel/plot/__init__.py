@@ -119,12 +119,13 @@ def figure_format(path) -> str:
     return suffix
 
 
-def save_figure(fig: Figure, path, *, dpi: int = DPI) -> None:
+def save_figure(fig: Figure, path, *, dpi: int = DPI, replace: bool = True) -> None:
     """Write ``fig`` to ``path`` atomically (:func:`cosserat_channel.files.atomic_output`): an
-    existing file at ``path`` is replaced only by a complete one."""
+    existing file at ``path`` is replaced only by a complete one, and only with ``replace``
+    (without it a file that appeared meanwhile is kept: ``OutputAppeared``)."""
     path = os.fspath(path)
     fmt = figure_format(path)
-    atomic_output(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))
+    atomic_output(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi), replace=replace)
 
 
 # ---------------------------------------------------------------------------------------------

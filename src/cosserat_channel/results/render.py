@@ -181,8 +181,9 @@ def subset_dataset(selection: Selection) -> xr.Dataset:
     return ds
 
 
-def write_netcdf(selection: Selection, path: str) -> None:
-    """Write :func:`subset_dataset` atomically (temporary file + ``os.replace``)."""
+def write_netcdf(selection: Selection, path: str, replace: bool = True) -> None:
+    """Write :func:`subset_dataset` atomically (:func:`..files.atomic_output`: over a file at
+    ``path`` only with ``replace``)."""
     ds = subset_dataset(selection)
     for v in ds.variables.values():
         v.encoding = {}
@@ -198,7 +199,7 @@ def write_netcdf(selection: Selection, path: str) -> None:
             v for v in ds.data_vars if damage.valued_when_ok(v) or v == "status")])
         if problem:
             raise damage.DamagedFile(problem)
-        write_dataset(path, ds)
+        write_dataset(path, ds, replace=replace)
 
 
 def render(selection: Selection, fmt: str) -> str:

@@ -113,6 +113,34 @@ class BlockInputs:
     offsets: np.ndarray
     flat: np.ndarray
 
+    def unpack(self) -> "BlockInputs":
+        """These inputs (as :meth:`PackedInputs.unpack`)."""
+        return self
+
+
+@dataclass(frozen=True, eq=False)
+class PackedInputs:
+    """A reduced block's :class:`BlockInputs` without its ``eps K`` entries, to be sent where the
+    block is solved: each triple's ``eps`` values (one per ``(eps, L)`` pair of its ``eta``, in
+    pair order; ``pairs[i]`` of them for triple ``i``) and the ``K`` axis. A thousandth of the
+    bytes of the entries, which :meth:`unpack` makes there (without ``flat``, the grid indices
+    only the writing process needs).
+    """
+
+    eta: np.ndarray
+    A: np.ndarray
+    N: np.ndarray
+    pair_eps: np.ndarray
+    pairs: np.ndarray
+    K: np.ndarray
+
+    def unpack(self) -> BlockInputs:
+        """The block's :class:`BlockInputs` (``flat`` empty): the entries are the products
+        ``eps * K`` of :meth:`Plan.inputs`, pair after pair, ``K`` fastest, the same floats."""
+        eps_K = (self.pair_eps[:, None] * self.K[None, :]).ravel()
+        offsets = np.concatenate(([0], np.cumsum(self.pairs * self.K.size))).astype(np.int64)
+        return BlockInputs(self.eta, self.A, self.N, eps_K, offsets, np.empty(0, dtype=np.int64))
+
 
 class Plan:
     """The reduced (or unreduced) solve set of a grid and its division into blocks.
@@ -284,6 +312,23 @@ class Plan:
         eps_K = self.eps[pair // nL] * self.K[kk]
         flat = ((pair * nK + kk) * nA + a[owner]) * nN + n[owner]
         return BlockInputs(eta, A, N, eps_K, offsets, flat)
+
+    def packed_inputs(self, k: int):
+        """Block ``k``'s inputs to send to a worker: :class:`PackedInputs` (reduced), or its
+        :class:`BlockInputs` without ``flat`` (unreduced: one entry per triple, nothing to pack)."""
+        t = self.blocks[k]
+        if not self.reduce:
+            e, _, kk, _, _ = np.unravel_index(t, self.shape)
+            eta, A, N = self.triple_params(t)
+            return BlockInputs(eta, A, N, self.eps[e] * self.K[kk],
+                               np.arange(t.size + 1, dtype=np.int64), np.empty(0, dtype=np.int64))
+        eta, A, N = self.triple_params(t)
+        u = t // (self.shape[3] * self.shape[4])
+        pairs = self.pair_start[u + 1] - self.pair_start[u]
+        owner = np.repeat(np.arange(t.size), pairs)
+        first = np.concatenate(([0], np.cumsum(pairs)))[:-1]
+        pair = self.pair_order[self.pair_start[u[owner]] + np.arange(owner.size) - first[owner]]
+        return PackedInputs(eta, A, N, self.eps[pair // self.shape[1]], pairs, self.K)
 
     def tile_local(self, k: int):
         """``(tile, local)`` of block ``k``'s entries, in :meth:`inputs` order: the tile (C order

@@ -12,19 +12,18 @@ in the store and the same command resumes.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import re
 import threading
 import time
 
-import numpy as np
 
 from . import sources
 from .block import _block_task, solve_block, warm_up
-from .plan import BlockInputs
+from .plan import BlockInputs, PackedInputs
 from .spec import SweepError
+from .store import DIGEST, block_digest
 
 log = logging.getLogger("cosserat_channel.sweep")
 
@@ -35,6 +34,10 @@ CONNECT_TIMEOUT = 5.0
 # for a nanny or a batch system to bring lost workers back, short enough not to look hung.
 NO_WORKERS_TIMEOUT = 120.0
 _ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
+# Seconds between looks at a future's state while it runs, and the longest wait for the result of
+# a finished one (longer: its worker was lost meanwhile, and the task runs again).
+POLL = 0.02
+FETCH_TIMEOUT = 60.0
 
 
 class SchedulerLost(RuntimeError):
@@ -159,7 +162,12 @@ def _discard(client) -> None:
         pass
 
 
-def _solve_remote(inp: BlockInputs, args, client_sources=None) -> dict:
+def _solve_remote(inp: BlockInputs | PackedInputs, args, client_sources=None, k=None,
+                  triples=None, identity=None) -> dict:
+    """Block ``k`` solved on a worker: its arrays, the worker's address and sources, the thread's
+    CPU seconds and, given the store's ``identity``, the block's digest (:func:`.store.block_digest`
+    of the arrays the store keeps, ``triples`` included), computed here rather than in the process
+    that writes."""
     from dask.distributed import get_worker
 
     out = {"worker": get_worker().address}
@@ -167,8 +175,12 @@ def _solve_remote(inp: BlockInputs, args, client_sources=None) -> dict:
     # compiled); the client checks the digest of every block (sources.foreign_block).
     if client_sources is None or client_sources == sources.digest():
         c0 = time.thread_time()
-        out.update(solve_block(inp, *args))
+        block = solve_block(inp.unpack(), *args)
         out["cpu"] = time.thread_time() - c0  # the worker thread's, returned with the block
+        if identity is not None:
+            block["triples"] = triples
+            out[DIGEST] = block_digest(identity, k, block)
+        out.update(block)
     return sources.stamp(out)
 
 
@@ -238,13 +250,21 @@ def _submit_and_store(plan, todo, store, args, client, progress: BlockCount, wri
                       watch: _WorkerWatch | None = None) -> None:
     from dask.distributed import as_completed
 
-    client.run(warm_up)
     tag = plan.digest()[:12]  # keys unique per plan: a shared cluster may hold older runs
+    # Each worker loads (or compiles, a minute of CPU on a new source tree) the kernels in a task
+    # of its own before its first block: in its thread pool, not in its event loop as
+    # client.run would, where a long compile stops the worker's heartbeats until the scheduler
+    # restarts it. Not waited for; a worker that joins later loads them with its first block.
+    warm = [client.submit(warm_up, key=f"cc-warm-up-{tag}-{i}", workers=[address],
+                          allow_other_workers=False, priority=20, pure=False)
+            for i, address in enumerate(client.scheduler_info().get("workers", {}))]
+    identity = store.identity()
     futures = []
     for k in todo:
-        # The block's own inputs, without the grid indices only this process needs.
-        inp = dataclasses.replace(plan.inputs(k), flat=np.empty(0, dtype=np.int64))
-        futures.append(client.submit(_solve_remote, inp, args, sources.digest(),
+        # The block's own inputs, packed (its eps K entries are made on the worker), and what
+        # its digest binds it to: the worker digests the block, this process only writes it.
+        futures.append(client.submit(_solve_remote, plan.packed_inputs(k), args, sources.digest(),
+                                     k, plan.blocks[k] if identity else None, identity,
                                      key=f"cc-block-{tag}-{k}"))
     key_to_block = {f.key: k for f, k in zip(futures, todo)}
     pending = as_completed(futures)
@@ -263,25 +283,44 @@ def _submit_and_store(plan, todo, store, args, client, progress: BlockCount, wri
                 raise ForeignWorker(f"{foreign}; its block was not used")
             del out["sources"], out["worker"]
             seconds = out.pop("cpu")
+            digest = out.pop(DIGEST, None)
             if cpu is not None:
                 cpu.append(seconds)
             out["triples"] = plan.blocks[k]
-            store.put(k, out)
+            store.put(k, out, digest)
             progress()
             if writer is not None:
                 writer.add(k, out)
             fut.release()
+    for fut in warm:
+        fut.release()
 
 
 def _result(fut, watch: _WorkerWatch | None):
     """``fut.result()``, watching the cluster meanwhile: a finished task whose worker is lost
-    before its result is fetched runs again, and waits for a worker like any other."""
+    before its result is fetched runs again, and waits for a worker like any other.
+
+    The result is asked for only once the task has finished (or failed): waiting is a look at the
+    future's state, which this process keeps, not a call through the client's event loop. Such
+    calls with a timeout, made twice a second for every future waited on, cost the client CPU
+    and, timing out on a loaded machine, can end in an error of the library's own (a cancelled
+    wait it does not catch); a cancelled future is the scheduler's loss (CancelledError).
+    """
+    from dask.distributed import CancelledError
+
     while True:
-        try:
-            return fut.result(timeout=0.5)
-        except TimeoutError:  # dask.distributed's is the built-in one
+        status = fut.status
+        if status == "cancelled":
+            raise CancelledError(fut.key)
+        if status not in ("finished", "error"):
             if watch is not None:
                 watch.check()
+            time.sleep(POLL)
+            continue
+        try:
+            return fut.result(timeout=FETCH_TIMEOUT)
+        except TimeoutError:  # dask.distributed's is the built-in one
+            continue  # its worker was lost while the result was fetched: it runs again
         except (OSError, KeyboardInterrupt):
             raise
         except Exception:

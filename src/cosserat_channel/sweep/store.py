@@ -336,14 +336,22 @@ class WorkStore:
             finished.add(k)
         return finished
 
-    def put(self, k: int, result: dict) -> None:
-        """Keep block ``k``'s result (atomically on disk, with its digest)."""
+    def put(self, k: int, result: dict, digest: str | None = None) -> None:
+        """Keep block ``k``'s result (atomically on disk, with its digest: ``digest`` when the
+        process that solved the block computed it, :func:`block_digest` under :meth:`identity`,
+        else computed here)."""
         if self.directory is None:
             self._memory[k] = result
             return
         arrays = {f: v for f, v in result.items() if f != DIGEST}
-        arrays[DIGEST] = np.array(block_digest(self.manifest, k, arrays))
+        arrays[DIGEST] = np.array(digest or block_digest(self.manifest, k, arrays))
         write_npz(self._block_path(k), arrays, stream=False)
+
+    def identity(self) -> dict | None:
+        """What a block's digest binds it to (:data:`IDENTITY` of the manifest), for a digest
+        computed elsewhere (:func:`block_digest`); None for a store in memory (no digests)."""
+        return None if self.directory is None else {key: self.manifest.get(key)
+                                                    for key in IDENTITY}
 
     def get(self, k: int, triples: np.ndarray | None = None) -> dict:
         """Block ``k``'s result; :class:`BlockDamaged` unless it is complete, its digest matches

@@ -32,7 +32,8 @@ loaded machine the time spent waiting for a core lands in the second: it is a bo
 Peak RSS is each child's own (``os.wait4``). Everything runs in one invocation so the ratios hold
 on a noisy shared machine; the load average before and after is printed.
 
-Run:  .venv/bin/python benchmarks/bench_sweep.py [--points 20000] [--repeat 2] [--json PATH]
+Run:  .venv/bin/python benchmarks/bench_sweep.py [--only c,e] [--points 20000] [--repeat 2]
+      [--json PATH]
 """
 
 from __future__ import annotations
@@ -58,7 +59,8 @@ ROOT = Path(__file__).resolve().parent.parent
 LARGE = ROOT / "sweeps" / "large_5d.toml"
 TIMES = re.compile(r"solve ([\d.]+) s .* assemble and write ([\d.]+) s, total ([\d.]+) s")
 PHASE = re.compile(r"solving threads ([\d.]+) s CPU on (\d+) workers; the process ([\d.]+) s CPU"
-                   r".* tiles derived and encoded (where solved|by the writer) in ([\d.]+) s CPU")
+                   r".*\), (\d+) of (\d+) tiles written during it; tiles derived and encoded "
+                   r"(where solved|by the writer) in ([\d.]+) s CPU.*, ([\d.]+) s after the solve")
 GiB = 1024**3
 # (c): a 10^8-point grid, large_5d's outputs: 2,500 (eps, L) pairs x 200 K x 200 (A, N).
 HUGE = LARGE.read_text().split("[grid]")[0] + """[grid]
@@ -99,10 +101,12 @@ def run_sweep_child(sweep: Path, out: Path, workers: int, tmp: Path, *extra) -> 
     """(a), (c), (e): ``run`` in a child process; wall time, the engine's split, peak RSS."""
     r = child(cli("run", sweep, "-o", out, "--workers", workers, "--overwrite", *extra), tmp)
     solve_s, write_s, total_s = map(float, TIMES.search(r["log"]).groups())
-    threads_cpu, n, process_cpu, where, encode_cpu = PHASE.search(r["log"]).groups()
+    (threads_cpu, n, process_cpu, during, tiles, where, encode_cpu,
+     after) = PHASE.search(r["log"]).groups()
     return dict(r, solve=solve_s, write=write_s, engine_total=total_s, size=out.stat().st_size,
                 threads_cpu=float(threads_cpu), workers=int(n), process_cpu=float(process_cpu),
-                encoded=where, encode_cpu=float(encode_cpu))
+                tiles_during=int(during), tiles=int(tiles), encoded=where,
+                encode_cpu=float(encode_cpu), after=float(after))
 
 
 def run_distributed(tmp: Path) -> dict:
@@ -138,116 +142,164 @@ def run_unreduced(inputs, rtol, atol, workers: int) -> float:
     return time.perf_counter() - t0
 
 
+SECTIONS = "abcde"
+
+
+def sections(text: str) -> str:
+    """The sections ``--only`` names (``c,e`` or ``ce``); (d) reads (c)'s file, so it brings (c)."""
+    chosen = "".join(ch for ch in text.lower() if ch.isalpha())
+    unknown = sorted(set(chosen) - set(SECTIONS))
+    if unknown or not chosen:
+        sys.exit(f"bench_sweep: --only takes sections among {', '.join(SECTIONS)}; got {text!r}")
+    return "".join(ch for ch in SECTIONS if ch in chosen or (ch == "c" and "d" in chosen))
+
+
 def main() -> int:
     ap = harness.parser(__doc__)
     ap.add_argument("--points", type=int, default=20_000, help="subsample size for (b)")
     ap.add_argument("--repeat", type=int, default=2, help="best of this many timings in (b)")
     ap.add_argument("--workers", type=int, default=2,
                     help="workers for (a) and the 'N workers' of (b)")
+    ap.add_argument("--only", default=SECTIONS, metavar="SECTIONS",
+                    help="run only these sections, e.g. c,e (default: all; d brings c)")
     args = ap.parse_args()
+    only = sections(args.only)
 
-    rec = harness.Record("bench_sweep", args.json, dask=dask.__version__)
+    rec = harness.Record("bench_sweep", args.json, dask=dask.__version__, sections=only)
     load_before = os.getloadavg()
     block.warm_up()  # compile (or load) the kernels here, not inside a timing
+    a = c = d = e = None
     with tempfile.TemporaryDirectory(dir=ROOT / "benchmarks") as tmp_name:
         tmp = Path(tmp_name)
-        # A tiny run first so that (a) measures a warm Numba cache, as every run but the first does.
+        # A tiny run first so that the runs measure a warm Numba cache, as every run but the
+        # first does (the chunk filters' kernels included).
         subprocess.run(cli("run", ROOT / "sweeps" / "quickstart.toml", "-o", tmp / "q.nc"),
                        check=True, capture_output=True)
-        a = run_sweep_child(LARGE, tmp / "large_5d.nc", args.workers, tmp)
-        huge_toml = tmp / "huge_5d.toml"
-        huge_toml.write_text(HUGE)
-        c = run_sweep_child(huge_toml, tmp / "huge_5d.nc", args.workers, tmp)
-        d = child(cli("query", tmp / "huge_5d.nc", *QUERY, "--format", "csv", "-o",
-                      tmp / "slice.csv"), tmp)
-        d["rows"] = sum(1 for _ in open(tmp / "slice.csv")) - 1
-        e = run_distributed(tmp)
+        if "a" in only:
+            a = run_sweep_child(LARGE, tmp / "large_5d.nc", args.workers, tmp)
+        if "c" in only:
+            huge_toml = tmp / "huge_5d.toml"
+            huge_toml.write_text(HUGE)
+            c = run_sweep_child(huge_toml, tmp / "huge_5d.nc", args.workers, tmp)
+        if "d" in only:
+            d = child(cli("query", tmp / "huge_5d.nc", *QUERY, "--format", "csv", "-o",
+                          tmp / "slice.csv"), tmp)
+            d["rows"] = sum(1 for _ in open(tmp / "slice.csv")) - 1
+        if "e" in only:
+            e = run_distributed(tmp)
 
-    spec, inputs = subsample(args.points)
-    run_unreduced(inputs[:2], spec.rtol, spec.atol, 1)
-    t1 = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol, 1),
-                         args.repeat).seconds
-    tw = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol, args.workers),
-                         args.repeat).seconds
-
+    rows = []
+    spec = load_sweep(LARGE)
     n_large = spec.size
-    reduced_pps = n_large / a["wall"]
-    reduced_solve_pps = n_large / a["solve"]
-    unreduced_pps = args.points / tw
-    speedup = t1 / tw
-    overhead = c["write"] / c["solve"]
-    c_ratio = c["wall"] / c["solve"]  # the solve: the solving threads' CPU over the workers
-    # The run process's CPU from the start of the solve to the complete file (the engine's log),
-    # and all of it (start-up, imports, plan included: os.wait4).
-    e_ratio = e["process_cpu"] / e["threads_cpu"]
-    e_ratio_all = e["cpu"] / e["threads_cpu"]
+    if "b" in only:
+        spec, inputs = subsample(args.points)
+        run_unreduced(inputs[:2], spec.rtol, spec.atol, 1)
+        t1 = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol, 1),
+                             args.repeat).seconds
+        tw = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol, args.workers),
+                             args.repeat).seconds
+        unreduced_pps = args.points / tw
+        speedup = t1 / tw
     load_after = os.getloadavg()
-    ok_time = rec.check("(a) large_5d end to end < 60 s", a["wall"] < 60.0, f"{a['wall']:.2f} s")
-    ok_rss = rec.check("(a) peak RSS < 1 GiB", a["rss"] < 1 * GiB, f"{a['rss'] / GiB:.2f} GiB")
-    ok_speedup = rec.check(f"(b) {args.workers} workers >= 1.8x one worker", speedup >= 1.8,
-                           f"{speedup:.2f}x")
-    ok_huge_rss = rec.check("(c) peak RSS < 2 GiB", c["rss"] < 2 * GiB, f"{c['rss'] / GiB:.2f} GiB")
-    ok_overhead = rec.check("(c) wall <= 1.4x the solving threads' CPU over the workers",
-                            c_ratio <= 1.4, f"{c_ratio:.2f}x")
-    ok_client = rec.check("(e) run process's CPU <= 25 % of the workers' solve CPU",
-                          e_ratio <= 0.25, f"{e_ratio:.0%}")
-    ok_query = rec.check(f"(d) query of {QUERY_ROWS:,} rows < 2 s and < 1 GiB, every row",
-                         d["wall"] < 2.0 and d["rss"] < 1 * GiB and d["rows"] == QUERY_ROWS,
-                         f"{d['wall']:.2f} s, {d['rss'] / GiB:.2f} GiB, {d['rows']:,} rows")
-    rec.add("a_large_5d", {k: a[k] for k in ("cmd", "wall", "solve", "write", "rss", "size")})
-    rec.add("b_unreduced", {"points": args.points, "one_worker_s": t1, "workers": args.workers,
-                            "workers_s": tw, "speedup": speedup})
-    rec.add("c_1e8_points", {k: c[k] for k in ("cmd", "wall", "solve", "write", "rss", "size")})
-    rec.add("d_query", {k: d[k] for k in ("cmd", "wall", "rss", "rows")})
-    rec.add("e_distributed", {k: e[k] for k in ("cmd", "wall", "cpu", "process_cpu",
-                                                "threads_cpu", "encode_cpu", "rss", "size")})
+    if a is not None:
+        reduced_pps = n_large / a["wall"]
+        reduced_solve_pps = n_large / a["solve"]
+        ok_time = rec.check("(a) large_5d end to end < 60 s", a["wall"] < 60.0,
+                            f"{a['wall']:.2f} s")
+        ok_rss = rec.check("(a) peak RSS < 1 GiB", a["rss"] < 1 * GiB,
+                           f"{a['rss'] / GiB:.2f} GiB")
+        rec.add("a_large_5d", {k: a[k] for k in ("cmd", "wall", "solve", "write", "rss", "size")})
+        rows += [
+            ("(a) large_5d, reduced, end to end", f"{a['wall']:.2f} s",
+             f"{reduced_pps:,.0f} points/s", f"< 60 s: {ok_time.word}"),
+            ("    of which solve", f"{a['solve']:.2f} s", f"{reduced_solve_pps:,.0f} points/s",
+             f"{a['solve'] / a['wall']:.0%}"),
+            ("    of which assemble and write", f"{a['write']:.2f} s",
+             f"{a['size'] / 1e6:.0f} MB file", f"{a['write'] / a['wall']:.0%}"),
+            ("    startup, plan, store", f"{a['wall'] - a['solve'] - a['write']:.2f} s", "", ""),
+            ("(a) peak RSS", f"{a['rss'] / GiB:.2f} GiB", "", f"< 1 GiB: {ok_rss.word}"),
+        ]
+    if "b" in only:
+        ok_speedup = rec.check(f"(b) {args.workers} workers >= 1.8x one worker", speedup >= 1.8,
+                               f"{speedup:.2f}x")
+        rec.add("b_unreduced", {"points": args.points, "one_worker_s": t1,
+                                "workers": args.workers, "workers_s": tw, "speedup": speedup})
+        rows += [
+            (f"(b) unreduced, {args.points:,} points, 1 worker", f"{t1:.2f} s",
+             f"{args.points / t1:,.0f} points/s", ""),
+            (f"(b) unreduced, {args.points:,} points, {args.workers} workers", f"{tw:.2f} s",
+             f"{unreduced_pps:,.0f} points/s",
+             f"{speedup:.2f}x one worker, >= 1.8x: {ok_speedup.word}"),
+        ]
+        if a is not None:
+            rows.append(("reduced (a) / unreduced (b), per point", "", "",
+                         f"{reduced_pps / unreduced_pps:,.0f}x end to end "
+                         f"({reduced_solve_pps / unreduced_pps:,.0f}x solve only)"))
+    if c is not None:
+        c_ratio = c["wall"] / c["solve"]  # the solve: the solving threads' CPU over the workers
+        # On free cores the process cannot take less wall time than its CPU over the cores: a
+        # bound that holds whatever else runs on the machine.
+        c_bound = c["cpu"] / os.cpu_count() / c["solve"]
+        ok_huge_rss = rec.check("(c) peak RSS < 2 GiB", c["rss"] < 2 * GiB,
+                                f"{c['rss'] / GiB:.2f} GiB")
+        ok_overhead = rec.check("(c) wall <= 1.4x the solving threads' CPU over the workers",
+                                c_ratio <= 1.4, f"{c_ratio:.2f}x")
+        rec.add("c_1e8_points", {k: c[k] for k in ("cmd", "wall", "solve", "write", "rss", "size",
+                                                   "cpu", "threads_cpu", "encode_cpu")})
+        rows += [
+            ("(c) 10^8 points, reduced, end to end", f"{c['wall']:.2f} s",
+             f"{1e8 / c['wall']:,.0f} points/s",
+             f"{c_ratio:.2f}x the solve, <= 1.4x: {ok_overhead.word}"),
+            ("    of which solve", f"{c['solve']:.2f} s", f"{1e8 / c['solve']:,.0f} points/s",
+             f"solving threads {c['threads_cpu']:.1f} s CPU on {c['workers']}"),
+            ("    of which assemble and write", f"{c['write']:.2f} s",
+             f"{c['size'] / 1e6:.0f} MB file", f"{c['write'] / c['solve']:.0%} of solve"),
+            ("    tiles derived and encoded", f"{c['encode_cpu']:.2f} s", "CPU",
+             f"{c['encoded']}"),
+            ("    the process's CPU, all of it", f"{c['cpu']:.2f} s", "",
+             f"over {os.cpu_count()} cores: {c_bound:.2f}x the solve (wall on free cores >=)"),
+            ("(c) peak RSS", f"{c['rss'] / GiB:.2f} GiB", "", f"< 2 GiB: {ok_huge_rss.word}"),
+        ]
+    if d is not None:
+        ok_query = rec.check(f"(d) query of {QUERY_ROWS:,} rows < 2 s and < 1 GiB, every row",
+                             d["wall"] < 2.0 and d["rss"] < 1 * GiB and d["rows"] == QUERY_ROWS,
+                             f"{d['wall']:.2f} s, {d['rss'] / GiB:.2f} GiB, {d['rows']:,} rows")
+        rec.add("d_query", {k: d[k] for k in ("cmd", "wall", "rss", "rows")})
+        rows.append((f"(d) query, {d['rows']:,} rows to CSV", f"{d['wall']:.2f} s",
+                     f"{d['rss'] / GiB:.2f} GiB peak RSS", f"< 2 s, < 1 GiB: {ok_query.word}"))
+    if e is not None:
+        # The run process's CPU from the start of the solve to the complete file (the engine's
+        # log), and all of it (start-up, imports, plan included: os.wait4).
+        e_ratio = e["process_cpu"] / e["threads_cpu"]
+        e_ratio_all = e["cpu"] / e["threads_cpu"]
+        ok_client = rec.check("(e) run process's CPU <= 25 % of the workers' solve CPU",
+                              e_ratio <= 0.25, f"{e_ratio:.0%}")
+        rec.add("e_distributed", {k: e[k] for k in ("cmd", "wall", "cpu", "process_cpu",
+                                                    "threads_cpu", "encode_cpu", "rss", "size",
+                                                    "tiles_during", "tiles", "after")})
+        rows += [
+            ("(e) large_5d on 2 cluster workers, end to end", f"{e['wall']:.2f} s",
+             f"{e['size'] / 1e6:.0f} MB file", f"{e['encoded']}"),
+            ("    tiles written during the solve", f"{e['tiles_during']} of {e['tiles']}", "",
+             f"the file complete {e['after']:.2f} s after the last block"),
+            ("    workers' solve CPU", f"{e['threads_cpu']:.2f} s", "", ""),
+            ("    workers' deriving and encoding CPU", f"{e['encode_cpu']:.2f} s", "", ""),
+            ("    run process's CPU, solve to file", f"{e['process_cpu']:.2f} s", "",
+             f"{e_ratio:.0%} of the workers' solve, <= 25 %: {ok_client.word}"),
+            ("    run process's CPU, all of it", f"{e['cpu']:.2f} s", "",
+             f"{e_ratio_all:.0%} of the workers' solve (start-up included)"),
+        ]
     rec.add("load", {"before": load_before, "after": load_after})
     rec.add("deflate", chunk_filters.DEFLATE)
 
     print()
     for r in (a, c, d, e):
-        print(r["cmd"])
-        print("    " + r["log"].replace("\n", "\n    "))
-    rows = [
-        ("(a) large_5d, reduced, end to end", f"{a['wall']:.2f} s", f"{reduced_pps:,.0f} points/s",
-         f"< 60 s: {ok_time.word}"),
-        ("    of which solve", f"{a['solve']:.2f} s", f"{reduced_solve_pps:,.0f} points/s",
-         f"{a['solve'] / a['wall']:.0%}"),
-        ("    of which assemble and write", f"{a['write']:.2f} s", f"{a['size'] / 1e6:.0f} MB file",
-         f"{a['write'] / a['wall']:.0%}"),
-        ("    startup, plan, store", f"{a['wall'] - a['solve'] - a['write']:.2f} s", "", ""),
-        ("(a) peak RSS", f"{a['rss'] / GiB:.2f} GiB", "", f"< 1 GiB: {ok_rss.word}"),
-        (f"(b) unreduced, {args.points:,} points, 1 worker", f"{t1:.2f} s",
-         f"{args.points / t1:,.0f} points/s", ""),
-        (f"(b) unreduced, {args.points:,} points, {args.workers} workers", f"{tw:.2f} s",
-         f"{unreduced_pps:,.0f} points/s",
-         f"{speedup:.2f}x one worker, >= 1.8x: {ok_speedup.word}"),
-        ("reduced (a) / unreduced (b), per point", "", "",
-         f"{reduced_pps / unreduced_pps:,.0f}x end to end "
-         f"({reduced_solve_pps / unreduced_pps:,.0f}x solve only)"),
-        ("(c) 10^8 points, reduced, end to end", f"{c['wall']:.2f} s",
-         f"{1e8 / c['wall']:,.0f} points/s",
-         f"{c_ratio:.2f}x the solve, <= 1.4x: {ok_overhead.word}"),
-        ("    of which solve", f"{c['solve']:.2f} s", f"{1e8 / c['solve']:,.0f} points/s",
-         f"solving threads {c['threads_cpu']:.1f} s CPU on {c['workers']}"),
-        ("    of which assemble and write", f"{c['write']:.2f} s", f"{c['size'] / 1e6:.0f} MB file",
-         f"{overhead:.0%} of solve"),
-        ("    tiles derived and encoded", f"{c['encode_cpu']:.2f} s", "CPU",
-         f"{c['encoded']}"),
-        ("(c) peak RSS", f"{c['rss'] / GiB:.2f} GiB", "", f"< 2 GiB: {ok_huge_rss.word}"),
-        (f"(d) query, {d['rows']:,} rows to CSV", f"{d['wall']:.2f} s",
-         f"{d['rss'] / GiB:.2f} GiB peak RSS", f"< 2 s, < 1 GiB: {ok_query.word}"),
-        ("(e) large_5d on 2 cluster workers, end to end", f"{e['wall']:.2f} s",
-         f"{e['size'] / 1e6:.0f} MB file", f"{e['encoded']}"),
-        ("    workers' solve CPU", f"{e['threads_cpu']:.2f} s", "", ""),
-        ("    workers' deriving and encoding CPU", f"{e['encode_cpu']:.2f} s", "", ""),
-        ("    run process's CPU, solve to file", f"{e['process_cpu']:.2f} s", "",
-         f"{e_ratio:.0%} of the workers' solve, <= 25 %: {ok_client.word}"),
-        ("    run process's CPU, all of it", f"{e['cpu']:.2f} s", "",
-         f"{e_ratio_all:.0%} of the workers' solve (start-up included)"),
-    ]
-    w0 = max(len(r[0]) for r in rows)
+        if r is not None:
+            print(r["cmd"])
+            print("    " + r["log"].replace("\n", "\n    "))
+    w0 = max(len(r[0]) for r in rows) if rows else 10
     print()
+    print(f"sections run: {', '.join(only)}")
     print(f"deflate of the encoded chunks: {chunk_filters.DEFLATE}")
     print(f"load average before {load_before[0]:.2f} {load_before[1]:.2f} {load_before[2]:.2f}, "
           f"after {load_after[0]:.2f} {load_after[1]:.2f} {load_after[2]:.2f} "

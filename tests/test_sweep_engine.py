@@ -151,6 +151,21 @@ def test_block_plan_is_the_snake_deal():
 
 
 @pytest.mark.parametrize("reduce", [True, False])
+def test_packed_inputs_unpack_to_the_plans_inputs(reduce):
+    """What a worker is sent (each triple's eps values and the K axis) unpacks to the very
+    inputs the plan gives, byte for byte, for eta values shared by several (eps, L) pairs."""
+    spec = load_sweep(sweep(SHARED))
+    plan = Plan(spec.coords(), reduce=reduce, block_size=5)
+    assert reduce is False or plan.eta_u.size < plan.shape[0] * plan.shape[1]  # shared products
+    for k in range(len(plan.blocks)):
+        want, got = plan.inputs(k), plan.packed_inputs(k).unpack()
+        for field in ("eta", "A", "N", "eps_K", "offsets"):
+            a, b = getattr(want, field), getattr(got, field)
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), (k, field)
+        assert got.flat.size == 0
+
+
+@pytest.mark.parametrize("reduce", [True, False])
 def test_a_plan_takes_what_plan_memory_says(monkeypatch, reduce):
     """The plan of a grid with one long axis (every eps its own integration) peaks within
     plan_memory: 146 bytes per integration before its per-integration work went slice by slice

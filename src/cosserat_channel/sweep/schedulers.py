@@ -283,11 +283,10 @@ def _submit_and_store(plan, todo, store, args, client, progress: BlockCount, wri
                 raise ForeignWorker(f"{foreign}; its block was not used")
             del out["sources"], out["worker"]
             seconds = out.pop("cpu")
-            digest = out.pop(DIGEST, None)
             if cpu is not None:
                 cpu.append(seconds)
             out["triples"] = plan.blocks[k]
-            store.put(k, out, digest)
+            store.put(k, out)  # with the digest the worker computed
             progress()
             if writer is not None:
                 writer.add(k, out)

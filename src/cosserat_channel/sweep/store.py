@@ -336,15 +336,15 @@ class WorkStore:
             finished.add(k)
         return finished
 
-    def put(self, k: int, result: dict, digest: str | None = None) -> None:
-        """Keep block ``k``'s result (atomically on disk, with its digest: ``digest`` when the
-        process that solved the block computed it, :func:`block_digest` under :meth:`identity`,
-        else computed here)."""
+    def put(self, k: int, result: dict) -> None:
+        """Keep block ``k``'s result (atomically on disk, with its digest: ``result["digest"]``
+        when the process that solved the block computed it, :func:`block_digest` under
+        :meth:`identity`, else computed here)."""
         if self.directory is None:
             self._memory[k] = result
             return
         arrays = {f: v for f, v in result.items() if f != DIGEST}
-        arrays[DIGEST] = np.array(digest or block_digest(self.manifest, k, arrays))
+        arrays[DIGEST] = np.array(result.get(DIGEST) or block_digest(self.manifest, k, arrays))
         write_npz(self._block_path(k), arrays, stream=False)
 
     def identity(self) -> dict | None:

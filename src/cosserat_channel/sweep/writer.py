@@ -142,14 +142,14 @@ class Buckets:
     def _path(self, i: int) -> str:
         return os.path.join(self.directory, f"tile_{i:06d}.bin")
 
-    def add(self, flat: np.ndarray, values: np.ndarray) -> None:
-        """Append the values at grid indices ``flat`` to the buckets of their tiles."""
-        tile, local = self.tiles.locate(flat)
+    def add(self, tile: np.ndarray, local: np.ndarray, values: np.ndarray) -> None:
+        """Append ``values`` to the buckets of their tiles: ``(tile, local)`` of each value as
+        :meth:`Tiles.locate` gives them."""
         # A small integer key sorts by radix (linear time) and stably.
         key = tile.astype(np.uint16) if self.tiles.count <= 1 << 16 else tile
         order = np.argsort(key, kind="stable")
         tile = tile[order]
-        rec = np.empty(flat.size, dtype=BUCKET)
+        rec = np.empty(tile.size, dtype=BUCKET)
         rec["local"] = local[order]
         rec["value"] = values[order]
         bounds = np.flatnonzero(np.diff(tile)) + 1
@@ -532,7 +532,7 @@ class StreamWriter:
             buckets = Buckets(os.path.join(self.store.directory, SCRATCH), self.tiles)
 
             def gather(k):
-                buckets.add(self.plan.inputs(k).flat, self._block_one_minus(k))
+                buckets.add(*self._tile_local(k), self._block_one_minus(k))
 
             # Reading, checking and sorting a block is numpy and hashlib work that leaves the GIL.
             with ThreadPoolExecutor(2, thread_name_prefix="cc-gather") as pool:

@@ -430,3 +430,47 @@ def test_a_point_compiles_only_the_integrators_it_marches_with(tmp_path, monkeyp
                           after_stiff, first.status.name, again.to_dict() == first.to_dict()]))
     """
     assert json.loads(run_python(code)) == ["explicit", "stiff", [0, 1, 0], [0, 1, 1], "ok", True]
+
+
+# The stiff path where the wall sits at the end of the slow manifold (N = 1, small eta): the
+# outputs read N - delta, which is ~eta^(1/3) of delta there (stage1.TURN_KAPPA).
+STIFFEST = [(eta, A, N) for eta in (1e-6, 6e-6, 3e-5) for A, N in ((1 / 3, 1.0), (-0.5, 1.0))] + [
+    (6e-6, 1.0, 1.0),  # A = 1
+    (1e-4, 1 / 3, 1.003),  # N just above 1: a smaller amplification, the turn still inside the layer
+]
+
+
+@pytest.mark.parametrize("eta, A, N", STIFFEST, ids=[str(p) for p in STIFFEST])
+@pytest.mark.parametrize("rtol", [1e-5, 1e-6])
+def test_stiffest_points_every_output_within_100_rtol(eta, A, N, rtol):
+    """At loose rtol every output of the stiffest points is within 100 rtol of scipy's Radau at
+    rtol 1e-12 (before the turn was marched again, Delta was up to ~1000 rtol off at rtol 1e-6)."""
+    L, K = 10.0, 0.5
+    eps = eta / L
+    ours = solve_point(eps, L, K, A, N, rtol=rtol)
+    ref = reference(eps, L, K, A, N, method="Radau")
+    assert ours.ok and ref["status"] == "ok"
+    for name in ("Delta", "xi_p", "slip", "u_axis", "m_wall", "sigma_yx_wall"):
+        assert getattr(ours, name) == pytest.approx(ref[name], rel=100 * rtol), name
+
+
+A_MINUS_ONE_GRID = [(eta, N) for eta in (1e-12, 1e-11, 5.6e-10, 1e-8) for N in (1.0, 1e3, 1e4, 1e6)]
+
+
+@pytest.mark.parametrize("eta, N", A_MINUS_ONE_GRID, ids=[str(p) for p in A_MINUS_ONE_GRID])
+def test_A_minus_one_at_any_exponent_is_the_closed_form(eta, N):
+    """A = -1 is always solvable: up to c = 2N/eta = 2e18, where omega_hat = xi^c falls within
+    1e-18 of the wall, solve_point gives Appendix A's closed form (it gave integration_failed
+    for N >= 1e3 at eta <= 5.6e-10). K = 0 has a shear layer of 3/c, K = 0.5 a plug up to the
+    wall wherever eps K > 19 J(0)."""
+    L = 1.0
+    eps = eta / L
+    for K in (0.0, 0.5):
+        r = solve_point(eps, L, K, -1.0, N)
+        cf = asymptotics.a_minus_one_outputs(eps, L, K, N)
+        assert r.status == st.Status.ok, (K, r.status)
+        assert r.Delta == pytest.approx(cf.Delta, rel=1e-6, abs=0.0)
+        assert r.xi_p == pytest.approx(cf.xi_p, rel=1e-12)
+        assert r.u_axis == pytest.approx(cf.u_axis, rel=1e-6)
+        assert r.slip == pytest.approx(cf.slip, rel=1e-6, abs=1e-300)
+        assert r.m_wall == pytest.approx(-N * L) and r.sigma_yx_wall == -1.0

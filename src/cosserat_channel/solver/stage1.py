@@ -67,6 +67,20 @@ STIFF_LAMBDA = 20.0
 # far from its edge, and without the N factor next to it.
 STIFF_LAMBDA_DOP853 = 4.0
 STIFF_N_MARGIN = 5e-3
+# Where the wall sits at the end of the slow manifold delta = N - sqrt(N^2 - xi^2) (N close to 1,
+# small eta), the outputs read N - delta, not delta: m_wall = L (delta - N), and stage 2's spin
+# rate B ~ N - delta. There the stiff path's error in w, controlled relative to w, is amplified
+# by kappa = |delta(1)| / |delta(1) - N| (up to ~500), and on top RODAS4P2's embedded estimate
+# misses the local error up to ~10x in the last steps of the turn, where h |df/dw| falls through
+# 10..4 and the manifold's sqrt(N^2 - xi^2) singularity is within a step: at rtol 1e-6 Delta came
+# out 80-2000 rtol off from eta = 1e-8 to 1e-4 (A = 1/3, N = 1). Where kappa exceeds TURN_KAPPA,
+# the turn (the steps where |N - delta| is below TURN_SPAN times its wall value) is marched again
+# at rtol1 * TURN_COND / kappa; errors made before it are damped on the stiff manifold
+# (benchmarks/probes/probe_turn.py: worst output 14 rtol from 2000, at 1.4x the stage-1 steps
+# of the points it applies to).
+TURN_KAPPA = 8.0
+TURN_SPAN = 3.0
+TURN_COND = 4.0
 
 
 
@@ -233,6 +247,28 @@ def _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1
 def _march_rodas(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1):
     return rosenbrock.rodas4(_stage1_rhs, _stage1_jac, _stage1_event, xi0, y0, xi_end, args1,
                              rtol, atol1, h0, h_max, T1, Q1, stats1)
+
+
+@njit(**_JIT)
+def _turn_remarch(args1, rtol1, rtol, atol, T1, Q1, n1, kappa, mu_wall, stats1):
+    """The stiff path's turn onto the wall marched again (see ``TURN_KAPPA``): from the last
+    step start where ``|N - delta|`` is at least ``TURN_SPAN`` times ``mu_wall = |delta(1) - N|``,
+    at ``rtol1 * TURN_COND / kappa``, into the same dense output. Returns what
+    :func:`_stage1_pass` does."""
+    N = args1[2]
+    k0 = n1 - 1
+    while k0 > 0 and abs(N - T1[k0] * T1[k0] * Q1[k0, 0, 0]) < TURN_SPAN * mu_wall:
+        k0 -= 1
+    rtol_leg = max(STAGE1_RTOL_FLOOR, rtol1 * TURN_COND / kappa)
+    atol_leg = np.empty(1)
+    atol_leg[0] = atol * min(1.0, rtol_leg / rtol)
+    y0 = np.empty(1)
+    y0[0] = Q1[k0, 0, 0]
+    stats_r = np.zeros_like(stats1)
+    s, nb, t = _march_rodas(T1[k0], y0, 1.0, 0.0, 0.0, args1, rtol_leg, atol_leg, T1[k0:],
+                            Q1[k0:], stats_r)
+    _add_stats(stats1, stats_r)
+    return s, k0 + nb, t
 
 
 @njit(**_JIT_INLINE)
@@ -529,6 +565,16 @@ def solve_stage1_with(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1, stats1
             atol1[0] = atol * min(1.0, rtol1 / rtol)
             s1, n1, t1 = _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1,
                                              Q1, stats1, res, EDGE_MAX_STEP)
+            if s1 == stepping.SUCCESS:
+                delta_wall = _delta_wall(T1, Q1, n1, buf)
+                D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
+                sensitivity = _wall_D_sensitivity(A, N, delta_wall)
+    if explicit is None and stiff and s1 == stepping.SUCCESS and rtol1 > STAGE1_RTOL_FLOOR:
+        mu_wall = abs(delta_wall - N)
+        kappa = abs(delta_wall) / mu_wall if mu_wall > 0.0 else math.inf
+        if kappa > TURN_KAPPA:
+            s1, n1, t1 = _turn_remarch(args1, rtol1, rtol, atol, T1, Q1, n1, kappa, mu_wall,
+                                       stats1)
             if s1 == stepping.SUCCESS:
                 delta_wall = _delta_wall(T1, Q1, n1, buf)
                 D_wall = model.yield_D(1.0, delta_wall, A, N, ax)

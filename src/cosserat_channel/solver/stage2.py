@@ -143,9 +143,14 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     # First try: the whole last stage-1 step, or less where omega_hat falls fast at the wall
     # (log omega_hat changes by xi B over a unit of t).
     length = -math.log(T1[k]) if k >= 0 else 1.0
-    if A != -1.0:
-        B1 = model.spin_rate_B(delta1, 1.0 / math.sqrt(D1), eta, A, N)
-        length = min(length, FIRST_PANEL / abs(B1))
+    # (A = -1: xi B = c = 2N/eta exactly, up to ~1e18, and omega_hat = xi^c falls by e within 1/c
+    # of the wall; a panel shrinking from 1 to that gave up after 22 rejections.)
+    B1 = (model.a_minus_one_xi_B(eta, N) if A == -1.0
+          else model.spin_rate_B(delta1, 1.0 / math.sqrt(D1), eta, A, N))
+    length = min(length, FIRST_PANEL / abs(B1))
+    # A march whose panels shrink this far gives up: in t, below 1e-15 of the wall's scale 1/c
+    # at A = -1 (the layer can be far thinner than 1e-15), below 1e-15 otherwise.
+    min_length = 1e-15 * length if A == -1.0 else 1e-15
     lo = math.log(T1[k]) if k >= 0 and not free else t_end
     T2[0] = 0.0
     # int64 from the start: Numba types the calls below with a literal 0 first and compiled
@@ -183,7 +188,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
             stats2[stepping.STAT_REJECTED] += 1
             length = (b - a) * (min(0.5, panels.panel_error_factor(err, 1.0))
                                 if math.isfinite(err) else 0.25)
-            if length < 1e-15:
+            if length < min_length:
                 res[R_N2] = p
                 res[R_STATUS] = st.INTEGRATION_FAILED
                 return st.INTEGRATION_FAILED

@@ -192,3 +192,16 @@ def test_partial_rows_of_other_settings_are_not_taken(tmp_path):
     assert stability.kept(tmp_path, True, 1) == 0
     path.write_text("not json")
     assert stability.kept(tmp_path, True, 1) == 0
+
+
+def test_stiff_set_at_rtol_1e_6_within_100_rtol():
+    """The stiff rows of the quick report solved at rtol 1e-6 (``rtol=``): every ok row away from
+    the path edge within 100 rtol of its reference in Delta and m_wall (was 350 and 80 rtol at
+    eta = 1e-6 before the stiff path's turn onto the wall was marched again)."""
+    rep = stability.build_report(quick=True, repeats=1, rtol=1e-6)
+    assert rep.rtol == 1e-6
+    stiff = [r for r in rep.rows if r["case"] == "sweep" and r["eta"] <= 1e-6]
+    assert {r["eta"] for r in stiff} == {1e-8, 1e-6} and all(r["path"] == "stiff" for r in stiff)
+    for r in stiff:
+        assert r["err_Delta"] < 100 * 1e-6 and r["err_m_wall"] < 100 * 1e-6, r
+    assert rep.verdict["max_err_over_rtol"] < 100

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
+from ..parameters import TOLERANCES, ParameterError
 from .common import (
     EXIT_FAILURE,
     EXIT_OK,
@@ -14,6 +15,7 @@ from .common import (
     error,
     interrupted,
     interruptible,
+    number,
     register,
 )
 
@@ -31,6 +33,9 @@ def _stability_arguments(p: argparse.ArgumentParser) -> None:
                    help="a small version (one (A, N) series, few points, one timing repeat)")
     p.add_argument("--repeats", type=int, default=5, metavar="R",
                    help="timing repeats per point, the best is reported (default 5)")
+    p.add_argument("--rtol", type=number, default=None, metavar="RTOL",
+                   help="the relative tolerance every row is solved at, in "
+                   f"{TOLERANCES['rtol'].interval} (default {TOLERANCES['rtol'].default:g})")
 
 
 @register("stability", "report steps, cost and error of one point from eps L = 1e-8 to the "
@@ -38,6 +43,11 @@ def _stability_arguments(p: argparse.ArgumentParser) -> None:
 def _stability(args: argparse.Namespace) -> int:
     if args.repeats < 1:
         raise CliError(f"--repeats must be a positive integer; got {args.repeats}")
+    rtol = TOLERANCES["rtol"].default if args.rtol is None else args.rtol
+    try:
+        rtol = TOLERANCES["rtol"].check(rtol)
+    except ParameterError as exc:
+        raise CliError(f"--rtol: {exc}") from None
     from ..measure.stability import directory_problem, write_report
 
     problem = directory_problem(args.output_dir)
@@ -48,11 +58,11 @@ def _stability(args: argparse.Namespace) -> int:
     try:
         with interruptible(), Progress("stability", "finding the edges of the series") as bar:
             rep = write_report(args.output_dir, quick=args.quick, repeats=repeats,
-                               progress=bar.report)
+                               progress=bar.report, rtol=rtol)
     except KeyboardInterrupt as exc:
         from ..measure.stability import PARTIAL_NAME, kept
 
-        n = kept(args.output_dir, args.quick, repeats)
+        n = kept(args.output_dir, args.quick, repeats, rtol)
         return interrupted(exc, f"the {n} rows measured so far are kept in "
                            f"{os.path.join(args.output_dir, PARTIAL_NAME)}: run the same command "
                            "again to continue from them" if n else "no row was finished")

@@ -99,9 +99,9 @@ def feasible_eta_max(A, N, ws=None, eta_cap=ETA_CAP):
     return lo, st.Status(_status(ws, hi, A, N)).name
 
 
-def _time_us(ws, eta, A, N, repeats):
+def _time_us(ws, eta, A, N, repeats, rtol=RTOL):
     """Best-of-``repeats`` kernel time per point in microseconds (each timing at least 2 ms)."""
-    return 1e6 * best_of(lambda: ws.run(eta, A, N, RTOL, ATOL), repeats, min_seconds=2e-3,
+    return 1e6 * best_of(lambda: ws.run(eta, A, N, rtol, ATOL), repeats, min_seconds=2e-3,
                          max_inner=200).seconds
 
 
@@ -124,21 +124,22 @@ def _rel_err(x, ref):
     return abs(x / ref - 1.0)
 
 
-def measure(case, eta, A, N, ws, repeats=5, with_reference=True):
-    """One row of the report for ``(eta, A, N)`` at ``eps = eta/L``, ``K = K_REPORT``.
+def measure(case, eta, A, N, ws, repeats=5, with_reference=True, rtol=RTOL):
+    """One row of the report for ``(eta, A, N)`` at ``eps = eta/L``, ``K = K_REPORT``, solved at
+    ``rtol`` (the reference is always at 1e-12).
 
     ``D_wall = (sigma_yx(1) - A)^2``: the outputs' condition number near the path edge is ~1/D_wall
     (tests/test_domain.py), so a large error next to that edge is the problem's, not the solver's.
     """
     L = report_L(eta)
     eps = eta / L
-    r = sv.solve_point(eps, L, K_REPORT, A, N, workspace=ws)
+    r = sv.solve_point(eps, L, K_REPORT, A, N, rtol=rtol, workspace=ws)
     c = r.counters
     row = {
         "case": case, "A": A, "N": N, "eta": eta, "status": r.status.name, "path": c["stage1_path"],
         "s1_acc": c["stage1_accepted"], "s1_rej": c["stage1_rejected"],
         "s2_acc": c["stage2_accepted"], "s2_rej": c["stage2_rejected"],
-        "fev": c["stage1_fev"] + c["stage2_fev"], "us": _time_us(ws, eta, A, N, repeats),
+        "fev": c["stage1_fev"] + c["stage2_fev"], "us": _time_us(ws, eta, A, N, repeats, rtol),
         "D_wall": (r.sigma_yx_wall - A) ** 2 if (r.ok and A != -1.0) else math.nan,
         "err_Delta": math.nan, "err_m_wall": math.nan, "ref": "-",
     }
@@ -167,10 +168,10 @@ def eta_grid(eta_max, quick):
 PARTIAL_NAME = "stability.partial.json"
 
 
-def _run_key(quick, repeats) -> dict:
+def _run_key(quick, repeats, rtol=RTOL) -> dict:
     """What a row depends on besides its point: the sources, the settings, the tolerances."""
     return {"sources": machine.source_digest(), "quick": bool(quick), "repeats": int(repeats),
-            "rtol": RTOL, "atol": ATOL}
+            "rtol": rtol, "atol": ATOL}
 
 
 def _row_key(case, eta, A, N):
@@ -189,19 +190,20 @@ def _read_partial(path, key) -> dict:
         return {}
 
 
-def kept(directory, quick=False, repeats=5) -> int:
+def kept(directory, quick=False, repeats=5, rtol=RTOL) -> int:
     """How many rows an interrupted run left in ``directory`` for a run with these settings."""
-    return len(_read_partial(os.path.join(directory, PARTIAL_NAME), _run_key(quick, repeats)))
+    return len(_read_partial(os.path.join(directory, PARTIAL_NAME), _run_key(quick, repeats, rtol)))
 
 
-def build_report(quick=False, repeats=5, progress=None, partial=None) -> Report:
+def build_report(quick=False, repeats=5, progress=None, partial=None, rtol=RTOL) -> Report:
     """Measure every row; ``progress(done, total, text)`` (the package's progress protocol) is
     called after each, ``text`` naming the row just measured (optional).
 
     ``partial``: a path where the rows are kept as they are measured, and read back from: rows
     of a run with the same sources and settings are taken from it instead of measured again.
+    ``rtol``: the tolerance every row is solved at (the edges are found at the default).
     """
-    key = _run_key(quick, repeats)
+    key = _run_key(quick, repeats, rtol)
     done = _read_partial(partial, key) if partial is not None else {}
     ws = sv.Workspace()
     plan = []
@@ -223,11 +225,11 @@ def build_report(quick=False, repeats=5, progress=None, partial=None) -> Report:
         plan.append(("A = -1 + 1e-4", 5e-7, -1 + 1e-4, 1.0))
         plan.append(("A = 1 - 2N^2 + 1e-6", 0.1, 1 - 2 * 0.7**2 + 1e-6, 0.7))
         plan.append(("N = 10", 5e-8, 1 / 3, 10.0))
-    rep = Report(rtol=RTOL, quick=quick)
+    rep = Report(rtol=rtol, quick=quick)
     for i, (case, eta, A, N) in enumerate(plan):
         row = done.get(_row_key(case, eta, A, N))
         if row is None:
-            row = measure(case, eta, A, N, ws, repeats=repeats)
+            row = measure(case, eta, A, N, ws, repeats=repeats, rtol=rtol)
         else:
             rep.resumed += 1
         rep.rows.append(row)
@@ -238,17 +240,17 @@ def build_report(quick=False, repeats=5, progress=None, partial=None) -> Report:
         if progress is not None:
             progress(i + 1, len(plan), f"points; last: {row['case']} eta = {row['eta']:.3g}: "
                      f"{row['status']}, {row['path']} path")
-    rep.verdict = verdict(rep.rows)
+    rep.verdict = verdict(rep.rows, rtol)
     return rep
 
 
-def verdict(rows) -> dict:
+def verdict(rows, rtol=RTOL) -> dict:
     """Max error / rtol, max steps, the cost ratio stiffest/typical and the stiff-path slope."""
     def max_err(sel):
         errs = [max(r["err_Delta"], r["err_m_wall"]) for r in sel
                 if r["status"] == "ok" and math.isfinite(r["err_Delta"])
                 and math.isfinite(r["err_m_wall"])]
-        return (max(errs) / RTOL) if errs else math.nan
+        return (max(errs) / rtol) if errs else math.nan
 
     well = [r for r in rows if not (math.isfinite(r["D_wall"]) and r["D_wall"] < 1e-2)]
     out = {
@@ -346,13 +348,14 @@ def directory_problem(directory) -> str | None:
     return None
 
 
-def write_report(directory, quick=False, repeats=5, progress=None) -> Report:
+def write_report(directory, quick=False, repeats=5, progress=None, rtol=RTOL) -> Report:
     """Build the report and write ``directory/stability.md`` and ``directory/stability.png``;
     the rows are kept in ``directory/stability.partial.json`` until both are written."""
     from ..plot.stability import stability_figure
 
     partial = os.path.join(directory, PARTIAL_NAME)
-    rep = build_report(quick=quick, repeats=repeats, progress=progress, partial=partial)
+    rep = build_report(quick=quick, repeats=repeats, progress=progress, partial=partial,
+                       rtol=rtol)
     write_text(os.path.join(directory, "stability.md"), markdown(rep))
     stability_figure(rep, os.path.join(directory, "stability.png"))
     os.unlink(partial)

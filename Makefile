@@ -20,14 +20,20 @@ demo: $(STAMP)
 	$(VENV)/bin/cosserat-channel point --eps 0.0333333333333 --L 10 --K 0.5 --A 0.3333333333333 --N 1 --plot demo/point_fig2.png
 	@echo "demo outputs are in demo/"
 
+# The tests run in TEST_WORKERS processes (pytest-xdist; CI's machine has 2 cores), the slow ones
+# first (tests/conftest.py).
+# TEST_WORKERS=0 runs them in this process alone.
+TEST_WORKERS ?= 2
+PYTEST := $(PY) -m pytest -q -n $(TEST_WORKERS)
+
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
-	$(PY) -m pytest -q --durations=20
+	$(PYTEST) --durations=20
 
 # Daily work: everything but the tests marked slow (`make test` and CI run them all).
 test-quick: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
-	$(PY) -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"
 
 # Installs JupyterLab into .venv (the `notebooks` extra) and opens notebooks/ in the browser.
 # Jupyter refuses to start as root without --allow-root (a container, a CI machine).

@@ -305,13 +305,15 @@ def _reference_outputs(p):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(2))
 def test_random_domain_against_reference_differences(seed):
     """Richardson-extrapolated central differences of the reference (scipy at rtol 1e-12) with
     steps h, 2h, 4h: the difference of the extrapolations from (h, 2h) and (2h, 4h) bounds the
     first's truncation error, and the reference's own error (100 x its rtol, relative) divided
     by h its rounding. Each derivative is within 100 rtol of the output over the parameter,
-    plus that bound."""
+    plus that bound. The two draws cover both stage-1 paths and both reference methods: seed 0
+    eps L ~ 1e-6 with A < 0 (stiff path, Radau), seed 1 eps L ~ 0.05 at rtol ~ 1e-11 (explicit
+    path, DOP853); further draws land on the stiff path again."""
     from cosserat_channel.physics.reference import RTOL as RTOL_REF
 
     rng = np.random.default_rng(900 + seed)

@@ -231,9 +231,10 @@ def _panel_nodes(a, b, r, k, eta, A, N, ax, T1, Q1, C, delta1, D1, xs, P):
     """The nodes of the panel ``[a, b]`` in ``t = ln xi`` (half-width ``r``) on stage 1's step
     ``k``: ``xi`` into ``xs`` and the rates' partials (:func:`dv.rate_partials`) into ``P``.
     False at the first node outside the admissible region (``D <= 0`` or NaN)."""
-    last = panels.N_NODES - 1
+    nn = panels.N_NODES
+    last = nn - 1
     mid = 0.5 * (a + b)
-    for j in range(panels.N_NODES):
+    for j in range(nn):
         t = b if j == 0 else (a if j == last else mid + r * panels.X[j])
         xi, s = xi_of_log(t)
         xs[j] = xi
@@ -250,15 +251,16 @@ def _omega_J(xs, P, r, y_b, J_b, w, Jn, v, cum):
     xi B``, ``dJ/dt = -xi h omega_hat``), from ``y_b`` and ``J_b`` at its upper end: ``omega_hat``
     into ``w`` and ``J`` into ``Jn`` at the nodes. Returns both quadratures' errors and the fall
     of ``log omega_hat`` across the panel."""
-    for j in range(xs.size):
+    nn = panels.N_NODES
+    for j in range(nn):
         v[j] = xs[j] * P[dv.Q_B, j]
     _, err_y = panels.cumulative(v, r, cum)
-    y_drop = cum[xs.size - 1]
-    for j in range(xs.size):
+    y_drop = cum[nn - 1]
+    for j in range(nn):
         w[j] = math.exp(y_b - cum[j])
         v[j] = xs[j] * P[dv.Q_H, j] * w[j]
     _, err_J = panels.cumulative(v, r, cum)
-    for j in range(xs.size):
+    for j in range(nn):
         Jn[j] = J_b + cum[j]
     return err_y, err_J, y_drop
 
@@ -270,7 +272,8 @@ def _adjoints(err, xs, P, w, Jn, r, J0, J_b, beta, h_axis, qtol, above, target, 
     (constant at ``psip_b`` unless the panel lies ``above`` the plug edge), each from its value
     at the panel's upper end, and ``I = J(0) - J`` into ``I0``. Returns ``err`` raised to their
     quadratures' errors."""
-    last = xs.size - 1
+    nn = panels.N_NODES
+    last = nn - 1
     # I = J(0) - J(xi), which is rounding noise once it falls below a few hundred ulps
     # of J(0) (deep in the tail, where what is left of every integral is below 1e-13),
     # and the difference of two quadratures (stage 2's J(0), this march's J) once what
@@ -280,26 +283,26 @@ def _adjoints(err, xs, P, w, Jn, r, J0, J_b, beta, h_axis, qtol, above, target, 
     # bound towards the axis while the tail test waits for it to fall).
     asym = (J0 - J_b < I_NOISE * _EPS * J0
             or xs[0] * P[dv.Q_H, 0] * w[0] < qtol * J0 * (beta + 1.0))
-    for j in range(xs.size):
+    for j in range(nn):
         I0[j] = xs[j] * h_axis * w[j] / (beta + 1.0) if asym else J0 - Jn[j]
-    for j in range(xs.size):
+    for j in range(nn):
         v[j] = xs[j] * (P[dv.Q_H_DELTA, j] - I0[j] / w[j] * P[dv.Q_B_DELTA, j])
     # an error in psi enters the integrals below weighted by omega_hat, which falls
     # towards the axis (I/omega_hat, and its rounding, grows there)
     fall = w[last]
     tot, e = panels.cumulative(v, r, cum)
     err = max(err, e * fall / (qtol * (abs(psi0_b) + abs(tot)) + 1e-300))
-    for j in range(xs.size):
+    for j in range(nn):
         psi0[j] = psi0_b + cum[j]
     if above:
-        for j in range(xs.size):
+        for j in range(nn):
             v[j] = xs[j] * (P[dv.Q_H_DELTA, j] - (target - Jn[j]) / w[j] * P[dv.Q_B_DELTA, j])
         tot, e = panels.cumulative(v, r, cum)
         err = max(err, e * fall / (qtol * (abs(psip_b) + abs(tot)) + 1e-300))
-        for j in range(xs.size):
+        for j in range(nn):
             psip[j] = psip_b + cum[j]
     else:
-        for j in range(xs.size):
+        for j in range(nn):
             psip[j] = psip_b
     return err
 
@@ -311,11 +314,12 @@ def _derivative_integrals(xs, P, w, Jn, I0, psi0, psip, r, h_axis, qtol, above, 
     into ``pan``, their errors into ``pan_err``, magnitudes into ``pan_abs`` and bounds on what is
     left of each below the panel into ``low``; each parameter's largest error relative to
     ``qtol`` (and to the integral's magnitude so far, ``acc_abs``) into ``row_err``."""
-    last = xs.size - 1
+    nn = panels.N_NODES
+    last = nn - 1
     for c in range(_N_ACC):
         row = c % 3
         kind = c // 3
-        for j in range(xs.size):
+        for j in range(nn):
             wf = w[j] * P[dv.Q_F + row, j]
             if kind == 0:
                 g = wf
@@ -337,9 +341,9 @@ def _derivative_integrals(xs, P, w, Jn, I0, psi0, psip, r, h_axis, qtol, above, 
                 abs(P[dv.Q_HP + row, last]) + xs[last] * h_max * abs(P[dv.Q_BP + row, last])
                 + abs(psi0[last] * P[dv.Q_F + row, last]))
         size = 0.0
-        for j in range(xs.size):
+        for j in range(nn):
             size += abs(v[j])
-        pan_abs[c] = 2.0 * r * size / xs.size
+        pan_abs[c] = 2.0 * r * size / nn
         scale = acc_abs[c] + pan_abs[c]
         if scale > 0.0:
             row_err[row] = max(row_err[row], pan_err[c] / (qtol * scale))
@@ -352,17 +356,18 @@ def _profile_panel(xs, P, w, r, a, b, F0, pan, t_pro, todo, Fb, Lb, dJb, slope, 
     points ``t_pro`` on it (their ``todo`` cleared), and the running values at its upper end moved
     to its lower end: ``Fb`` (the integral of ``omega_hat df/dp`` from the wall), ``Lb`` (``d log
     omega_hat/dp``), ``dJb`` and ``slope`` (that of ``d log omega_hat/dp`` in ``ln xi``)."""
-    last = xs.size - 1
+    nn = panels.N_NODES
+    last = nn - 1
     vF, vB, vJ = fwd[0], fwd[1], fwd[2]
     for row in range(3):
-        for j in range(xs.size):
+        for j in range(nn):
             vF[row, j] = xs[j] * (w[j] * P[dv.Q_F + row, j])
         panels.cumulative(vF[row], r, cum)
-        for j in range(xs.size):
+        for j in range(nn):
             Sn[j] = (F0[row] - (Fb[row] + cum[j])) / w[j]
             vB[row, j] = xs[j] * (P[dv.Q_BP + row, j] + P[dv.Q_B_DELTA, j] * Sn[j])
         panels.cumulative(vB[row], r, cum)
-        for j in range(xs.size):
+        for j in range(nn):
             vJ[row, j] = xs[j] * w[j] * (P[dv.Q_HP + row, j] + P[dv.Q_H_DELTA, j] * Sn[j]
                                          + P[dv.Q_H, j] * (Lb[row] - cum[j]))
         L_end = Lb[row] - cum[last]
@@ -449,7 +454,7 @@ def _log_points(xis):
 def _tail_reached(xs, P, w, h_axis, tail_tol, J_b, low, acc_abs):
     """Whether what is left below the last panel's lower end, of ``J`` (bounded as stage 2 bounds
     it) and of each integral (``low``), is below ``tail_tol`` of what they add up to."""
-    last = xs.size - 1
+    last = panels.N_NODES - 1
     tail = 2.0 * max(xs[last] * P[dv.Q_H, last] * w[last],
                      h_axis * xs[last] * w[last]) < tail_tol * J_b
     for c in range(_N_ACC):

@@ -97,13 +97,23 @@ class Problem:
         None where the row needs none), or ``(None, message)`` where it is outside the model's
         domain or lacks an input."""
         v = self.inputs(theta)
-        rows = []
-        for i in range(self._n):
+        # Rows with the same inputs (values, which of them the row gives, whether it needs a
+        # material) have the same point: each distinct row is made once (repeated measurements,
+        # a profile's rows), so the time is numpy's over the rows plus Python's per distinct
+        # row. A message names the first row of its kind (the first bad row is one).
+        # Only the table's own columns vary by row; the rest hold one value for every row.
+        keys = np.column_stack([v[k] for k in self._columns] + [self._given[k] for k in
+                                                                self._columns]
+                               + [self.needs_material]).astype(np.float64)
+        rows = np.ascontiguousarray(keys).view(np.dtype((np.void, 8 * keys.shape[1]))).ravel()
+        _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+        made = []
+        for i in first:
             try:
-                rows.append(self._point(v, i))
+                made.append(self._point(v, int(i)))
             except ParameterError as exc:
-                rows.append((None, str(exc)))
-        return rows
+                made.append((None, str(exc)))
+        return [made[k] for k in inverse.ravel()]
 
     def _point(self, v: dict, i: int):
         data = self.data
@@ -159,7 +169,7 @@ class Problem:
                 if point is None:
                     outside[(k, i)] = material
                 elif self.profile_rows[i]:
-                    profile_jobs.setdefault(point, []).append((k, i))
+                    profile_jobs.setdefault(point, []).append(k * n + i)  # an int, not a tuple
                 else:
                     key = None if material is None else tuple(material.items())
                     scalar_jobs.setdefault(key, []).append((k, i, point))
@@ -185,13 +195,15 @@ class Problem:
             from ..solver.point import solve_point
 
             for point, jobs in profile_jobs.items():
-                where = np.array([xi[i] for _, i in jobs])
-                r = solve_point(*point, rtol=self.rtol, atol=self.atol, profile=where, outputs=[])
+                ks, rows = np.divmod(np.array(jobs, dtype=np.int64), n)
+                r = solve_point(*point, rtol=self.rtol, atol=self.atol, profile=xi[rows],
+                                outputs=[])
                 self.n_solves += 1
-                for j, (k, i) in enumerate(jobs):
-                    status[k, i] = int(r.status)
-                    if r.profile is not None:
-                        pred[k, i] = r.profile[quantity[i]][j]
+                status[ks, rows] = int(r.status)
+                if r.profile is not None:
+                    for q in np.unique(quantity[rows]):
+                        at = np.flatnonzero(quantity[rows] == q)
+                        pred[ks[at], rows[at]] = np.asarray(r.profile[q])[at]
         status[(status == 0) & ~np.isfinite(pred)] = NO_VALUE
         return pred, status, outside
 
@@ -293,10 +305,18 @@ def _analytic(problem: Problem, theta):
         rp, rm = problem.points(tp), problem.points(tm)
         if any(pt is None for pt, _ in rp + rm):
             return None, None
-        dinputs.append([_row_derivative(a, b, 2 * h) for a, b in zip(rp, rm)])
+        # Rows of the same inputs share their point objects (Problem.points): one derivative
+        # each, shared, not one dict per row.
+        made: dict = {}
+        dinputs.append([made.get((id(a), id(b))) or made.setdefault(
+            (id(a), id(b)), _row_derivative(a, b, 2 * h)) for a, b in zip(rp, rm)])
     J = np.zeros((len(data), p))
-    keys = [(pt, None if mat is None else tuple(mat.items()), bool(problem.profile_rows[i]))
-            for i, (pt, mat) in enumerate(rows)]
+    shared: dict = {}  # one key object per distinct (point, material, kind), as above
+    keys = [shared.get((id(row), bool(problem.profile_rows[i]))) or shared.setdefault(
+        (id(row), bool(problem.profile_rows[i])),
+        (row[0], None if row[1] is None else tuple(row[1].items()),
+         bool(problem.profile_rows[i])))
+        for i, row in enumerate(rows)]
     groups: dict = {}  # the rows of each key, in order: one pass over the rows, not one per row
     for i, key in enumerate(keys):
         groups.setdefault(key, []).append(i)

@@ -760,15 +760,16 @@ def test_every_worker_and_nanny_killed_ends_in_one_line(tmp_path, sweep_file, re
         orig(self, k, result)
         if not killed:
             cluster.kill_workers()
-            killed.append(k)
+            killed.append(time.perf_counter())
 
     monkeypatch.setattr(engine.WorkStore, "put", put)
     out = tmp_path / "out.nc"
-    t0 = time.perf_counter()
     code = cli.main(["run", str(sweep_file), "-o", str(out), "--scheduler", cluster.address,
                      "--no-workers-timeout", "3", "--workers", "1", "--block-size", "1"])
     assert code == 1 and killed
-    assert time.perf_counter() - t0 < 60
+    # from the kill, not from the start: the workers' first compile of the kernels comes before
+    # the first block and takes minutes on a busy machine; a hang never ends at all
+    assert time.perf_counter() - killed[0] < 60
     line = one_line_error(capsys.readouterr().err)
     assert "has had no worker for 3 s" in line and "rerun the same command to resume" in line
     kept = len(list(Path(partial_dir(out)).glob("block_*.npz")))

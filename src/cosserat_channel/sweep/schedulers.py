@@ -34,9 +34,10 @@ CONNECT_TIMEOUT = 5.0
 # for a nanny or a batch system to bring lost workers back, short enough not to look hung.
 NO_WORKERS_TIMEOUT = 120.0
 _ADDRESS = re.compile(r"^(?:[a-z][a-z0-9+.-]*://)?\S+$")
-# Seconds between looks at a future's state while it runs, and the longest wait for the result of
-# a finished one (longer: its worker was lost meanwhile, and the task runs again).
+# Seconds between looks at a future's state while it runs, and the first and the longest wait
+# for the result of a finished one (longer: its worker may be lost, and the cluster is looked at).
 POLL = 0.02
+FETCH_FIRST = 5.0
 FETCH_TIMEOUT = 60.0
 
 
@@ -307,6 +308,7 @@ def _result(fut, watch: _WorkerWatch | None):
     """
     from dask.distributed import CancelledError
 
+    patience = FETCH_FIRST
     while True:
         status = fut.status
         if status == "cancelled":
@@ -317,9 +319,15 @@ def _result(fut, watch: _WorkerWatch | None):
             time.sleep(POLL)
             continue
         try:
-            return fut.result(timeout=FETCH_TIMEOUT)
+            return fut.result(timeout=patience)
         except TimeoutError:  # dask.distributed's is the built-in one
-            continue  # its worker was lost while the result was fetched: it runs again
+            # A slow transfer or a lost worker: the cluster is looked at (a lost worker's task
+            # runs again, a cluster without workers ends the run), and the fetch begins again
+            # with twice the patience, so a large result on a slow link still comes home.
+            patience = min(2 * patience, FETCH_TIMEOUT)
+            if watch is not None:
+                watch.check()
+            continue
         except (OSError, KeyboardInterrupt):
             raise
         except Exception:

@@ -122,16 +122,11 @@ def integrate_panel(f, g, y_b, J_b, r, Q, p, y_nodes):
         (``err_J`` adds what the error of ``y`` does to ``J``).
     """
     n = N_NODES
-    # Loops ordered so that the inner one runs over independent sums (no chain of dependent
-    # additions, which would cost the latency of each).
+    # y's increments from the upper end, r int f, and their error estimate: the same sums, in the
+    # same order, as every other integral over the panel
+    _, err_y = cumulative(f, r, y_nodes)
     for j in range(n):
-        y_nodes[j] = 0.0
-    for i in range(n):
-        fi = f[i]
-        for j in range(n):
-            y_nodes[j] += _INT_VAL[j, i] * fi
-    for j in range(n):
-        y_nodes[j] = y_b - r * y_nodes[j]
+        y_nodes[j] = y_b - y_nodes[j]
         g[j] *= math.exp(y_nodes[j])
     for k in range(N_COEF):
         Q[p, k, 0] = 0.0
@@ -147,7 +142,6 @@ def integrate_panel(f, g, y_b, J_b, r, Q, p, y_nodes):
         Q[p, k, 1] *= r
     Q[p, TOP, 0] = y_b
     Q[p, TOP, 1] = J_b
-    err_y = r * _tail_estimate(f)
     eg = _tail_estimate(g)
     # J at the lower end minus J_b is the panel's increment; an error e in y is e * that in J
     dJ = 0.0
@@ -162,6 +156,8 @@ def cumulative(v, r, out):
     of :func:`integrate_panel`, without a dense output). Returns ``(out[DEGREE], err)``: the
     whole panel's integral and its error estimate, ``r`` times the tail of ``v``'s Chebyshev series."""
     n = N_NODES
+    # Loops ordered so that the inner one runs over independent sums (no chain of dependent
+    # additions, which would cost the latency of each).
     for j in range(n):
         out[j] = 0.0
     for i in range(n):

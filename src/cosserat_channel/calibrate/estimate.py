@@ -9,6 +9,7 @@ and it is reported, not folded into the covariance.
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -169,34 +170,58 @@ class FitResult:
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (NaN and inf as None)."""
+        head, tail = self._json_parts()
+        return {**head, "rows": list(self._json_rows()), **tail}
 
-        def clean(x):
-            x = float(x)
-            return x if math.isfinite(x) else None
+    def json_chunks(self, rows_per_chunk: int = 10_000):
+        """``json.dumps(self.to_dict(), allow_nan=False)`` piece by piece: the rows are encoded
+        ``rows_per_chunk`` at a time, so writing a fit of a million rows holds a few of them,
+        not a dict of each."""
+        head, tail = self._json_parts()
+        # "rows" stands between head and tail in to_dict: the text is head's without its "}",
+        # the rows, and tail's without its "{".
+        yield json.dumps(head, allow_nan=False)[:-1] + ', "rows": ['
+        chunk = []
+        first = True
+        for row in self._json_rows():
+            chunk.append(json.dumps(row, allow_nan=False))
+            if len(chunk) == rows_per_chunk:
+                yield ("" if first else ", ") + ", ".join(chunk)
+                first, chunk = False, []
+        if chunk:
+            yield ("" if first else ", ") + ", ".join(chunk)
+        yield "], " + json.dumps(tail, allow_nan=False)[1:]
 
-        return {
+    def _json_parts(self) -> tuple[dict, dict]:
+        """What :meth:`to_dict` holds before its rows and after them."""
+        head = {
             "free": list(self.names),
-            "estimates": {k: clean(v) for k, v in self.params.items()},
-            "std_errors": {k: clean(v) for k, v in self.errors.items()},
-            "covariance": [[clean(v) for v in row] for row in self.covariance],
-            "correlation": [[clean(v) for v in row] for row in self.correlation],
-            "chi2": clean(self.chi2), "dof": self.dof, "chi2_dof": clean(self.chi2_dof),
-            "condition_number": clean(self.condition_number),
-            "fixed": {k: clean(v) for k, v in self.fixed.items()},
-            "bounds": {k: [clean(lo), clean(hi)] for k, (lo, hi) in self.bounds.items()},
-            "start": dict(zip(self.names, (clean(v) for v in self.start))),
-            "rows": [{"quantity": str(q), "value": clean(v), "std_error": clean(e),
-                      **({"xi": clean(x)} if math.isfinite(x) else {}),
-                      "prediction": clean(p), "residual": clean(r), "status": s}
-                     for q, v, e, x, p, r, s in zip(self.data.quantity, self.data.value,
-                                                    self.data.std_error, self.data.xi,
-                                                    self.predictions, self.residuals,
-                                                    self.status)],
+            "estimates": {k: _clean(v) for k, v in self.params.items()},
+            "std_errors": {k: _clean(v) for k, v in self.errors.items()},
+            "covariance": [[_clean(v) for v in row] for row in self.covariance],
+            "correlation": [[_clean(v) for v in row] for row in self.correlation],
+            "chi2": _clean(self.chi2), "dof": self.dof, "chi2_dof": _clean(self.chi2_dof),
+            "condition_number": _clean(self.condition_number),
+            "fixed": {k: _clean(v) for k, v in self.fixed.items()},
+            "bounds": {k: [_clean(lo), _clean(hi)] for k, (lo, hi) in self.bounds.items()},
+            "start": dict(zip(self.names, (_clean(v) for v in self.start))),
+        }
+        tail = {
             "jacobian_method": self.jacobian_method,
             "success": bool(self.success), "message": self.message,
             "n_evaluations": self.n_evaluations, "n_solves": self.n_solves,
             "warnings": list(self.warnings),
         }
+        return head, tail
+
+    def _json_rows(self):
+        """Each row of :meth:`to_dict`'s ``rows``, one at a time."""
+        for q, v, e, x, p, r, s in zip(self.data.quantity, self.data.value, self.data.std_error,
+                                       self.data.xi, self.predictions, self.residuals,
+                                       self.status):
+            yield {"quantity": str(q), "value": _clean(v), "std_error": _clean(e),
+                   **({"xi": _clean(x)} if math.isfinite(x) else {}),
+                   "prediction": _clean(p), "residual": _clean(r), "status": s}
 
     def summary(self) -> str:
         """The estimates, their errors and correlations, and the fit's statistics, as text."""
@@ -220,6 +245,12 @@ class FitResult:
 
     def __str__(self) -> str:
         return self.summary()
+
+
+def _clean(x) -> float | None:
+    """A float for JSON: None for NaN and inf."""
+    x = float(x)
+    return x if math.isfinite(x) else None
 
 
 def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
@@ -276,10 +307,13 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     lo, hi = _bounds(bounds, names)
     x0 = _start(start, names, lo, hi, bounds or {})
     problem = Problem(data, names, fixed, rtol=rtol, atol=atol, workers=workers)
-    for i, (pt, why) in enumerate(problem.points(x0)):
+    made = problem.points(x0)
+    for g in np.argsort(problem.first_row, kind="stable"):  # the first bad row is named
+        pt, why = made[g]
         if pt is None:
+            i = int(problem.first_row[g])
             raise DataError(why if data.source in why else f"{data.where(i)}: {why}")
-    f0, s0, _ = problem.evaluate(x0[None, :])
+    f0, s0 = problem.evaluate(x0[None, :])
     bad = np.flatnonzero(s0[0] != st.OK)
     if bad.size:
         i = int(bad[0])
@@ -299,19 +333,26 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     # A row without a solution counts this much: more than any residual near the start, so
     # the trust region shrinks back into the solvable region.
     penalty = 1e3 * max(1.0, float(np.max(np.abs(r_start))))
-    memo: dict = {}
+    # The optimiser asks for the Jacobian at the point it last evaluated, and ends at the last
+    # point it took a Jacobian at: those two evaluations are kept (two rows' worth each), not
+    # every trial's.
+    memo: dict = {"last": None, "jac": None}
     met: dict = {}
 
-    def evaluate(x):
+    def evaluate(x, for_jacobian=False):
         key = x.tobytes()
-        if key not in memo:
-            if len(memo) > 64:
-                memo.clear()
-            pred, status, _ = problem.evaluate(x[None, :])
-            memo[key] = (pred[0], status[0])
-            for code in status[0][status[0] != st.OK]:
-                met[int(code)] = met.get(int(code), 0) + 1
-        return memo[key]
+        hit = next((e for e in (memo["last"], memo["jac"]) if e is not None and e[0] == key),
+                   None)
+        if hit is None:
+            pred, status = problem.evaluate(x[None, :])
+            hit = (key, pred[0], status[0])
+            codes, counts = np.unique(status[0][status[0] != st.OK], return_counts=True)
+            for code, count in zip(codes.tolist(), counts.tolist()):
+                met[code] = met.get(code, 0) + count
+        memo["last"] = hit
+        if for_jacobian:
+            memo["jac"] = hit
+        return hit[1], hit[2]
 
     def residuals(x):
         pred, status = evaluate(x)
@@ -324,15 +365,16 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     last_info: dict = {}
 
     def jac(x):
-        pred, status = evaluate(x)
+        pred, status = evaluate(x, for_jacobian=True)
         J, info = jacobian(problem, x, (pred, status))
         last_info.clear()
         last_info.update(info)
         with np.errstate(over="ignore", invalid="ignore"):
-            J = J / sigma[:, None]
+            J /= sigma[:, None]  # in place: J is the Jacobian's own new array
         # A row whose derivative is not finite (next to the small-eps-L end of the domain)
         # steers nothing: the optimiser needs finite entries.
-        return np.where(np.isfinite(J), J, 0.0)
+        J[~np.isfinite(J)] = 0.0
+        return J
 
     n_eval = [0]
 
@@ -352,11 +394,13 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     r = (pred - data.value) / sigma
     J, info = jacobian(problem, x, (pred, status))
     with np.errstate(over="ignore", invalid="ignore"):
-        J = J / sigma[:, None]
+        J /= sigma[:, None]
     # A row without a finite derivative at the estimate (no solution there, or next to the
     # small-eps-L end of the domain) gives the covariance nothing; said below.
-    unsteered = int((~np.isfinite(J).all(axis=1) & (status == st.OK)).sum())
-    J = np.where(np.isfinite(J), J, 0.0)
+    finite = np.isfinite(J)
+    unsteered = int((~finite.all(axis=1) & (status == st.OK)).sum())
+    J[~finite] = 0.0
+    del finite
     try:
         cov, cond, null = _covariance(J)
     except (ValueError, np.linalg.LinAlgError) as exc:
@@ -375,7 +419,7 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     result = FitResult(
         names=names, estimates=x.copy(), std_errors=se, covariance=cov, correlation=corr,
         chi2=chi2, dof=len(data) - len(names), residuals=r, predictions=pred,
-        status=[_status_name(int(c)) for c in status], data=data, fixed=fixed,
+        status=_status_names(status), data=data, fixed=fixed,
         bounds={n: (float(a), float(b)) for n, a, b in zip(names, lo, hi)}, start=x0,
         condition_number=cond, jacobian=J, jacobian_method=info["method"],
         success=bool(opt.success), message=opt.message, n_evaluations=n_eval[0],
@@ -526,6 +570,14 @@ _OWN_STATUS = {OUTSIDE: ("outside_domain", "the point is outside the parameters'
 
 def _status_name(code: int) -> str:
     return _OWN_STATUS[code][0] if code in _OWN_STATUS else st.Status(code).name
+
+
+def _status_names(codes: np.ndarray) -> list:
+    """The status name of each code, one string object per distinct code (a list of a million
+    rows holds a million references, not a million strings)."""
+    distinct, inverse = np.unique(codes, return_inverse=True)
+    names = np.array([_status_name(int(c)) for c in distinct] or [""], dtype=object)
+    return names[inverse.ravel()].tolist()
 
 
 def _status_text(code: int) -> str:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from ..parameters import ParameterError, TOLERANCES, parse_number
@@ -134,16 +133,24 @@ def _fit(args: argparse.Namespace) -> int:
             print(f"{PROG}: warning: {one_line(str(w.message))}", file=sys.stderr)
     if args.plot is not None:
         publish_figure(result.plot(), args.plot, "--plot", overwrite=args.overwrite)
-    text = json.dumps(result.to_dict(), allow_nan=False)
     if args.output is not None:
         from ..files import OutputAppeared, write_text
 
+        def write(f):
+            # piece by piece: a million rows' JSON is never one string nor one dict
+            f.writelines(result.json_chunks())
+            f.write("\n")
+
         try:
-            write_text(args.output, text + "\n", replace=args.overwrite)
+            write_text(args.output, write, replace=args.overwrite)
         except OutputAppeared as exc:
             raise CliError(f"-o: {exc}", EXIT_FAILURE) from None
         except OSError as exc:
             raise CliError(f"-o: cannot write {args.output!r}: {exc.strerror or exc}",
                            EXIT_FAILURE) from None
-    print(text if args.json else result.summary())
+    if args.json:
+        sys.stdout.writelines(result.json_chunks())
+        sys.stdout.write("\n")
+    else:
+        print(result.summary())
     return EXIT_OK

@@ -333,7 +333,7 @@ def _check_row(data: Measurements, i: int, scalar, profile) -> None:
     if q in profile:
         if not 0.0 <= data.xi[i] <= 1.0:  # False for NaN
             raise DataError(f"{data.where(i, XI)}: the profile {q} needs xi in [0, 1]; got "
-                            f"{'nothing' if math.isnan(data.xi[i]) else repr(data.xi[i])}")
+                            f"{'nothing' if math.isnan(data.xi[i]) else repr(float(data.xi[i]))}")
     elif not math.isnan(data.xi[i]):
         raise DataError(f"{data.where(i, XI)}: xi is for profile quantities "
                         f"({', '.join(profile)}); {q} is a scalar output")

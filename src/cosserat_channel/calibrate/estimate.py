@@ -30,6 +30,9 @@ DEFAULT_RTOL = 1e-10
 # Above this condition number of the column-scaled Jacobian a parameter combination is not
 # determined by the data: a relative change of 1/COND_MAX in the data moves it by O(1).
 COND_MAX = 1e6
+# Above this chi2/dof the model is nowhere near the data (residuals of 100 standard errors a row
+# on average): rather a unit (%, kPa) than the model, said in a warning.
+CHI2_DOF_FAR = 1e4
 # A free input's start when none is given: the paper's reference point (docs/model.md, "Defaults
 # throughout"), or the input's own default (the closure constants).
 START = {"eps": 1.0 / 30.0, "L": 10.0, "K": 0.5, "A": 1.0 / 3.0, "N": 1.0}
@@ -412,7 +415,7 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
         corr = cov / np.outer(se, se)
     chi2 = float(np.sum(np.where(status == st.OK, r, np.nan) ** 2))
     notes = _warnings(names, x, lo, hi, bounds or {}, opt, status, met, info, J, cond, null, cov,
-                      data)
+                      data, chi2)
     if unsteered:
         notes.append(f"{unsteered} rows have no finite derivative at the estimate: the "
                      "standard errors leave them out")
@@ -590,7 +593,7 @@ def _at(names, x) -> str:
 
 
 def _warnings(names, x, lo, hi, given_bounds, opt, status, met, info, J, cond, null, cov,
-              data) -> list:
+              data, chi2) -> list:
     notes = []
     for j, n in enumerate(names):
         for side, bound in (("lower", lo[j]), ("upper", hi[j])):
@@ -631,4 +634,9 @@ def _warnings(names, x, lo, hi, given_bounds, opt, status, met, info, J, cond, n
                      "underdetermined")
     if not opt.success or opt.status == 0:
         notes.append(f"the optimiser stopped without converging: {opt.message}")
+    dof = len(data) - len(names)
+    if dof > 0 and chi2 > CHI2_DOF_FAR * dof:
+        notes.append(f"chi2/dof = {chi2 / dof:.3g}: the model is far from these data at the "
+                     f"estimates (over {math.sqrt(CHI2_DOF_FAR):g} standard errors a row); check "
+                     "the units of value and std_error (e.g. % where the quantity is a fraction)")
     return notes

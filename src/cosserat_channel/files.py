@@ -26,6 +26,8 @@ NEW, FILE, STREAM = "new", "file", "stream"
 # Bytes of an output's name kept in its temporary name: with the pid and a random tag that stays
 # far below NAME_MAX (255 on every common file system), however long the output's own name.
 TMP_STEM = 64
+# The tool's name in its temporary names: what makes a leftover recognisably its own.
+TMP_TOOL = "cosserat-channel"
 # The file that marks a directory as a sweep's working store (see sweep.store): the run that
 # made it deletes it with all it holds, so no output may be written inside one.
 STORE_MARKER = "cosserat-channel-store"
@@ -155,12 +157,67 @@ def name_problem(path) -> str | None:
     return None
 
 
+def _temp_prefix(path) -> str:
+    """What every temporary name of ``path`` begins with: a dot, the first :data:`TMP_STEM`
+    bytes of its name, the tool's name and this machine's tag (``.out.nc.cosserat-channel.
+    1a2b3c.``); the writer's pid, a random tag and ``.tmp`` follow."""
+    import hashlib
+    import socket
+
+    name = os.fsencode(os.path.basename(os.path.abspath(os.fspath(path))))
+    host = hashlib.sha256(socket.gethostname().encode(errors="replace")).hexdigest()[:6]
+    return f".{os.fsdecode(name[:TMP_STEM])}.{TMP_TOOL}.{host}."
+
+
 def temp_path(directory, path) -> str:
     """A fresh temporary name in ``directory`` for a file that becomes ``path``: a hidden name
-    ending in ``.tmp``, short enough for any file system whatever the length of ``path``'s."""
-    name = os.fsencode(os.path.basename(os.path.abspath(os.fspath(path))))
-    stem = os.fsdecode(name[:TMP_STEM])
-    return os.path.join(directory, f".{stem}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    ending in ``.tmp`` that says which tool, machine and process writes it, short enough for
+    any file system whatever the length of ``path``'s."""
+    return os.path.join(directory,
+                        f"{_temp_prefix(path)}{os.getpid()}.{secrets.token_hex(4)}.tmp")
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this machine (another user's counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return True  # someone else's, or beyond what a pid can be: not ours to judge dead
+    return True
+
+
+def remove_stale_temporaries(directory, path) -> list[str]:
+    """Remove the temporary files of ``path`` in ``directory`` that a killed writer left: only
+    regular files of this user whose whole name is one :func:`temp_path` gives for ``path`` on
+    this machine and whose process is gone. Anything else (another output's, a live process's,
+    a FIFO or directory of that name, another user's) is left alone. Returns the names removed.
+    """
+    import re
+
+    prefix = _temp_prefix(path)
+    pattern = re.compile(re.escape(prefix) + r"([0-9]{1,10})\.[0-9a-f]{8}\.tmp")
+    removed = []
+    try:
+        entries = [e.name for e in os.scandir(directory) if e.name.startswith(prefix)]
+    except OSError:
+        return removed
+    for name in entries:
+        match = pattern.fullmatch(name)
+        if match is None or int(match[1]) == os.getpid() or _alive(int(match[1])):
+            continue
+        full = os.path.join(directory, name)
+        try:
+            info = os.lstat(full)
+            if not stat.S_ISREG(info.st_mode) or (hasattr(os, "getuid")
+                                                  and info.st_uid != os.getuid()):
+                continue
+            os.unlink(full)
+        except OSError:
+            continue
+        removed.append(name)
+    return removed
 
 
 def working_store_around(path) -> str | None:
@@ -222,7 +279,10 @@ def atomic_output(path, write: Callable[[str], None], tmp_dir=None, stream: bool
         return
     if kind not in (NEW, FILE):
         raise WriteError(_not_a_file(path, kind))
-    tmp = temp_path(tmp_dir or os.path.dirname(os.path.abspath(path)), path)
+    directory = tmp_dir or os.path.dirname(os.path.abspath(path))
+    # What a writer of this output killed before (SIGKILL, out of memory) left beside it.
+    remove_stale_temporaries(directory, path)
+    tmp = temp_path(directory, path)
     try:
         write(tmp)
         if replace:

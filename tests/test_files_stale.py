@@ -1,0 +1,93 @@
+"""A writer killed inside a save (SIGKILL, out of memory) leaves its temporary file beside the
+output; the next save of that output removes it, and nothing else: not another output's, not a
+live process's, not a FIFO, directory or link that bears such a name."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from cosserat_channel import files
+
+# A child that starts writing OUT and is killed (SIGKILL) before the rename.
+KILLED_IN_A_SAVE = textwrap.dedent("""
+    import os, signal, sys
+    from cosserat_channel import files
+
+    def write(f):
+        f.write("half")
+        f.flush()
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    files.write_text(sys.argv[1], write)
+""")
+
+
+def _dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+def test_the_next_save_removes_what_a_killed_save_left_and_nothing_else(tmp_path):
+    out = tmp_path / "fit.json"
+    proc = subprocess.run([sys.executable, "-c", KILLED_IN_A_SAVE, str(out)], timeout=120)
+    assert proc.returncode == -signal.SIGKILL
+    left = [p.name for p in tmp_path.iterdir()]
+    assert len(left) == 1 and not out.exists()
+    # The leftover says what it is: the output's name, the tool's, its writer's pid.
+    assert left[0].startswith(".fit.json.cosserat-channel.") and left[0].endswith(".tmp")
+    assert (tmp_path / left[0]).read_text() == "half"
+
+    # Beside it, what must stay: another output's leftover, a live process's temporary file,
+    # names of a dead writer that are a FIFO, a directory and a link, a file of the pattern
+    # with a word for the tag, and a file of the former pattern (no tool, no machine).
+    dead = _dead_pid()
+    prefix = files._temp_prefix(out)
+    keep = {
+        files.temp_path(tmp_path, tmp_path / "other.json").replace(
+            f".{os.getpid()}.", f".{dead}."): "file",
+        os.path.basename(files.temp_path(tmp_path, out)): "file",  # this process: alive
+        f"{prefix}{dead}.0123abcd.tmp.bak": "file",
+        f"{prefix}{dead}.fifo0000.tmp": "file",
+        f"{prefix}{dead}.aaaaaaaa.tmp": "fifo",
+        f"{prefix}{dead}.bbbbbbbb.tmp": "dir",
+        f"{prefix}{dead}.cccccccc.tmp": "link",
+        f".fit.json.{dead}.dddddddd.tmp": "file",
+    }
+    target = tmp_path / "target"
+    target.write_text("the link's target")
+    for name, kind in keep.items():
+        p = tmp_path / os.path.basename(name)
+        if kind == "file":
+            p.write_text("keep")
+        elif kind == "fifo":
+            os.mkfifo(p)
+        elif kind == "dir":
+            p.mkdir()
+        else:
+            p.symlink_to(target)
+    stale_too = tmp_path / f"{prefix}{dead}.0123abcd.tmp"
+    stale_too.write_text("also left by a dead writer")
+    before = sorted(p.name for p in tmp_path.iterdir())
+
+    files.write_text(out, "{}\n", replace=False)
+    assert out.read_text() == "{}\n"
+    after = sorted(p.name for p in tmp_path.iterdir())
+    assert set(before) - set(after) == {left[0], stale_too.name}
+    assert set(after) - set(before) == {"fit.json"}
+    assert target.read_text() == "the link's target"
+
+
+@pytest.mark.parametrize("pid", [os.getpid(), 9_999_999_999])
+def test_a_temporary_of_a_live_or_impossible_pid_is_left_alone(tmp_path, pid):
+    out = tmp_path / "a.nc"
+    tmp = tmp_path / f"{files._temp_prefix(out)}{pid}.0123abcd.tmp"
+    tmp.write_text("x")
+    assert files.remove_stale_temporaries(tmp_path, out) == []
+    assert tmp.read_text() == "x"

@@ -31,26 +31,73 @@ KINDS = ("result", "boundary", "atlas")
 CHECK_BYTES = 1 << 30
 
 
+# The variables that make each kind (the first one of a result and a boundary a CF flag).
+KIND_VARIABLES = {"result": ("status",), "boundary": ("eta_max", "edge_kind"),
+                  "atlas": ("leaf_coefficients", "sample_A")}
+_FLAGGED = {"result": "status", "boundary": "edge_kind"}
+
+
+def _is_kind(ds: xr.Dataset, kind: str) -> bool:
+    flag = _FLAGGED.get(kind)
+    return (all(v in ds.data_vars for v in KIND_VARIABLES[kind])
+            and (flag is None or _is_flag(ds[flag])))
+
+
 def file_kind(ds: xr.Dataset) -> str | None:
     """``"result"``, ``"boundary"`` or ``"atlas"`` by the variables of ``ds``; None for any
     other file."""
     if is_result(ds):
         return "result"
-    if "eta_max" in ds.data_vars and "edge_kind" in ds.data_vars and _is_flag(ds["edge_kind"]):
-        return "boundary"
-    if "leaf_coefficients" in ds.data_vars and "sample_A" in ds.data_vars:
-        return "atlas"
-    return None
+    return next((k for k in ("boundary", "atlas") if _is_kind(ds, k)), None)
 
 
 def open_described(path) -> xr.Dataset:
-    """Open any file the tool writes (:data:`KINDS`) lazily; QueryError (one line) for others."""
+    """Open any file the tool writes (:data:`KINDS`) lazily; QueryError (one line) for others,
+    saying what the file is and why it is refused (:func:`unrecognised`)."""
     ds = open_netcdf(path)
     if file_kind(ds) is None:
-        ds.close()
+        try:
+            text = unrecognised(ds)
+        finally:
+            ds.close()
         raise QueryError(f"{os.fspath(path)}: not a cosserat-channel result file (nor a "
-                         "boundary or atlas file of the tool)")
+                         f"boundary or atlas file of the tool): {text}")
     return flags_checked(ds, path)  # the counts it reports need usable flags
+
+
+def unrecognised(ds: xr.Dataset, shown: int = 6) -> str:
+    """What a NetCDF file that is none of :data:`KINDS` is (its title, dimensions and
+    variables) and why it is none of them: what it lacks of the kinds it comes near (a
+    variable of theirs, or their name in its title), else that it has none of theirs."""
+    title = ds.attrs.get("title")
+    dims = [f"{printable(k)} ({v:,})" for k, v in ds.sizes.items()]
+    names = [printable(v) for v in ds.data_vars]
+
+    def listed(items):
+        more = f" and {len(items) - shown} more" if len(items) > shown else ""
+        return ", ".join(items[:shown]) + more
+
+    titled = "" if title is None else f" titled '{printable(title)}'"
+    what = (f"a NetCDF file{titled} "
+            f"with {'dimensions ' + listed(dims) if dims else 'no dimensions'} and "
+            f"{'variables ' + listed(names) if names else 'no variables'}")
+    heading = str(title or "").lower()
+    near = [k for k, need in KIND_VARIABLES.items()
+            if any(v in ds.data_vars for v in need) or k in heading]
+    why = []
+    for kind in near:
+        missing = [v for v in KIND_VARIABLES[kind] if v not in ds.data_vars]
+        if missing:
+            why.append(f"as {'an' if kind[0] in 'aeiou' else 'a'} {kind} it lacks "
+                       f"{' and '.join(missing)}")
+        elif kind in _FLAGGED:
+            why.append(f"its {_FLAGGED[kind]} is not a flag variable (flag_values and "
+                       "flag_meanings)")
+    if not why:
+        kinds = [f"{'an' if k[0] in 'aeiou' else 'a'} {k} ({', '.join(v)})"
+                 for k, v in KIND_VARIABLES.items()]
+        why.append(f"it has none of the variables of {', '.join(kinds[:-1])} or {kinds[-1]}")
+    return f"{what}; {'; '.join(why)} (damaged, or not written by the tool)"
 
 
 # ---------------------------------------------------------------------------------------------

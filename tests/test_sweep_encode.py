@@ -72,6 +72,50 @@ def test_shuffle_groups_bytes_by_significance():
     assert chunk_filters.shuffle(data, 1) is data
 
 
+FLETCHER, SHUFFLE8, DEFLATE1 = ((3, ()), (2, (8,)), (1, (1,)))
+
+
+@pytest.mark.parametrize("pipeline", [(FLETCHER, SHUFFLE8, DEFLATE1), (FLETCHER, SHUFFLE8),
+                                      (FLETCHER,), (FLETCHER, (2, ()), DEFLATE1)])
+@pytest.mark.parametrize("shape", [(1, 1, 1, 1, 1), (2, 3, 5, 3, 4), (3, 1, 97, 1, 2)])
+def test_a_chunk_encoded_from_its_place_in_the_tile_is_the_padded_chunk_encoded(shape, pipeline):
+    """encode_part, which reads a chunk's values where they lie in the tile (strided, broadcast
+    along an axis, an edge chunk's smaller box), gives the bytes of the padded chunk copied out
+    and encoded filter by filter: random bits (NaN included), all-0xff bytes (checksum sums that
+    fold to 0xffff), 8-byte floats and integers, and 1- and 4-byte integers."""
+    rng = np.random.default_rng(sum(shape))
+    edge = tuple(max(1, n - 1) for n in shape)
+    for dtype, fill in ((np.float64, np.nan), (np.int64, 0), (np.int8, -1), (np.int32, 7)):
+        size = np.dtype(dtype).itemsize
+        tiles = {"random": rng.integers(0, 256, (2,) + shape + (size,), dtype=np.uint8),
+                 "0xff": np.full((2,) + shape + (size,), 255, dtype=np.uint8)}
+        for kind, raw in tiles.items():
+            tile = raw.view(dtype)[..., 0]
+            views = {"whole": tile[0], "strided": tile.transpose(1, 2, 3, 4, 5, 0)[..., 1],
+                     "edge": tile[0][tuple(slice(0, n) for n in edge)],
+                     "broadcast": np.broadcast_to(tile[0][:, :, :1], shape)}
+            for how, part in views.items():
+                whole = np.full(shape, fill, dtype=dtype)
+                whole[tuple(slice(0, n) for n in part.shape)] = part
+                got = chunk_filters.encode_part(part, shape, fill, pipeline)
+                want = chunk_filters.encode(whole, pipeline)
+                if pipeline[-1] == DEFLATE1:
+                    got, want = zlib.decompress(got), zlib.decompress(want)
+                assert got == want, (np.dtype(dtype).name, kind, how)
+
+
+def test_deflate_is_a_zlib_stream_of_the_bytes():
+    """Random bytes, a chunk of rows that repeat (deflated again by the lazy matcher when
+    ISA-L's fast level shrinks it below REPETITIVE) and zlib's levels 0 and 6: every stream
+    decompresses with zlib to the bytes given."""
+    rng = np.random.default_rng(5)
+    rows = np.repeat(rng.normal(size=(40, 1, 15)), 50, axis=1)
+    for data in (rng.integers(0, 256, 100_000, dtype=np.uint8).tobytes(),
+                 chunk_filters.shuffle(rows.view(np.uint8).ravel(), 8).tobytes()):
+        for level in (0, 1, 6):
+            assert zlib.decompress(chunk_filters.deflate(data, level)) == data
+
+
 def _pipeline(ds):
     plist = ds.id.get_create_plist()
     return tuple((plist.get_filter(i)[0], tuple(int(v) for v in plist.get_filter(i)[2]))

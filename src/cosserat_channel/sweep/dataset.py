@@ -46,12 +46,14 @@ def build_dataset(spec, plan, per_triple: dict, one_minus: np.ndarray | None, xi
 
 
 def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=None,
-                profiles: np.ndarray | None = None) -> dict:
+                profiles: np.ndarray | None = None, spread: bool = True) -> dict:
     """``{name: (dims, values, attrs)}`` of every result variable on ``grid``.
 
     ``grid`` is the :class:`.plan.Plan` (the whole grid) or a :class:`.plan.Region` of it (one
     tile of a file written piece by piece); ``one_minus`` is then on that region. Every value is
     elementwise in the grid point, so a region's values are the whole grid's to the last bit.
+    ``spread=False``: a variable that is constant along an axis (``m_wall`` and ``status`` along
+    ``K``) is a read-only broadcast view of its values, not a copy on the whole grid.
     """
     res = per_triple["res"]
     # Per-triple values enter without their K axis (to_grid's spread=False): an output that needs
@@ -68,11 +70,13 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
         xi_stop=grid.to_grid(res[:, layout.R_XI_STOP], spread=False),
         one_minus=one_minus, material=spec.material,
     )
-    status = np.broadcast_to(status, inputs.shape).copy()
+    status = np.broadcast_to(status, inputs.shape)
+    if spread:
+        status = status.copy()
     data_vars = {}
     for name in spec.variables:  # file order = the sweep's order
         if name in out_.OUTPUTS:
-            data_vars[name] = output_variable(inputs, name, DIMS)
+            data_vars[name] = output_variable(inputs, name, DIMS, spread)
         elif name in out_.COUNTERS:
             c = out_.COUNTERS[name]
             value = grid.to_grid(per_triple["steps"][:, c.stage - 1].astype(np.int32))
@@ -83,13 +87,15 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
     return data_vars
 
 
-def output_variable(inputs, name: str, dims) -> tuple:
-    """``(dims, values, attrs)`` of output ``name`` on the whole shape of ``inputs``."""
+def output_variable(inputs, name: str, dims, spread: bool = True) -> tuple:
+    """``(dims, values, attrs)`` of output ``name`` on the whole shape of ``inputs`` (a broadcast
+    view, with ``spread=False``, of values that are constant along an axis)."""
     # derive's values, without its copy of those already on the whole grid (a tile's Delta,
     # slip, ...: one pass over the tile fewer each).
     value = inputs.get(name)
     if value.shape != inputs.shape:
-        value = out_.derive([name], inputs)[name]
+        value = (out_.derive([name], inputs)[name] if spread
+                 else np.broadcast_to(value, inputs.shape))
     return (dims, value, out_.OUTPUTS[name].attrs)
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..chunk_filters import copy_box, run_filters
+from ..chunk_filters import encode_part
 from ..parameters import DIMS
 
 
@@ -101,29 +101,34 @@ def tile_job(spec, region, per_triple: dict, one_minus, layouts: dict) -> TileJo
 
 def encode_tile(job: TileJob) -> dict:
     """``{"chunks": [(name, offset, bytes), ...], "cpu": seconds}``: every chunk of the tile,
-    encoded, ``offset`` the chunk's first grid index in the file."""
+    encoded, ``offset`` the chunk's first grid index in the file.
+
+    A variable constant along an axis (``m_wall``, ``status``: along ``K``) comes as a broadcast
+    view, read in place; its chunks that differ only in their position along that axis hold the
+    same bytes, so each is encoded once and its bytes placed at every such position.
+    """
     from .dataset import grid_values
 
     c0 = time.thread_time()
-    values = grid_values(job.spec, job.grid, job.per_triple, job.one_minus)
+    values = grid_values(job.spec, job.grid, job.per_triple, job.one_minus, spread=False)
     chunks = []
     for name, (_, value, _) in values.items():
         layout = job.layouts[name]
         value = np.asarray(value)
         shape = layout.chunks
-        n = math.prod(shape) * value.dtype.itemsize
+        constant = [s == 0 for s in value.strides]
+        encoded = {}
         for index in np.ndindex(*(-(-m // c) for m, c in zip(value.shape, shape))):
             lo = tuple(i * c for i, c in zip(index, shape))
             part = value[tuple(slice(a, a + c) for a, c in zip(lo, shape))]
-            data = np.empty(n + 4, dtype=np.uint8)
-            whole = data[:n].view(value.dtype).reshape(shape)
-            if part.shape != shape:  # an edge chunk: stored whole, padded as HDF5 pads it
-                whole[...] = layout.fill
-            copy_box(part, whole)
-            offset = tuple(o + a for o, a in zip(job.origin, lo))
-            chunks.append((name, offset, run_filters(data, n, value.dtype.itemsize,
-                                                  layout.pipeline)))
-        del value
+            # Same values, same padding (an edge chunk is stored whole, padded as HDF5 pads it):
+            # the same bytes.
+            key = (tuple(0 if z else i for z, i in zip(constant, index)), part.shape)
+            data = encoded.get(key)
+            if data is None:
+                data = encoded[key] = encode_part(part, shape, layout.fill, layout.pipeline)
+            chunks.append((name, tuple(o + a for o, a in zip(job.origin, lo)), data))
+        del value, encoded
     return {"chunks": chunks, "cpu": time.thread_time() - c0}
 
 

@@ -25,6 +25,7 @@ Kernels in Numba (no GIL), so that encoding runs in parallel threads.
 from __future__ import annotations
 
 import math
+import threading
 import zlib
 
 import numpy as np
@@ -54,57 +55,6 @@ SUPPORTED = (FILTER_DEFLATE, FILTER_SHUFFLE, FILTER_FLETCHER32)
 
 
 @njit(**JIT)
-def _fletcher32(data):
-    # HDF5's H5_checksum_fletcher32, step for step: big-endian 16-bit words, both sums folded to
-    # 16 bits every 360 words (the most that cannot overflow 32 bits), a last odd byte as the
-    # high byte of a word, and a final fold.
-    n = data.size // 2
-    sum1 = np.uint32(0)
-    sum2 = np.uint32(0)
-    i = 0
-    while n > 0:
-        t = min(n, 360)
-        n -= t
-        for _ in range(t):
-            sum1 += (np.uint32(data[i]) << np.uint32(8)) | np.uint32(data[i + 1])
-            sum2 += sum1
-            i += 2
-        sum1 = (sum1 & np.uint32(0xFFFF)) + (sum1 >> np.uint32(16))
-        sum2 = (sum2 & np.uint32(0xFFFF)) + (sum2 >> np.uint32(16))
-    if data.size % 2:
-        sum1 += np.uint32(data[i]) << np.uint32(8)
-        sum2 += sum1
-        sum1 = (sum1 & np.uint32(0xFFFF)) + (sum1 >> np.uint32(16))
-        sum2 = (sum2 & np.uint32(0xFFFF)) + (sum2 >> np.uint32(16))
-    sum1 = (sum1 & np.uint32(0xFFFF)) + (sum1 >> np.uint32(16))
-    sum2 = (sum2 & np.uint32(0xFFFF)) + (sum2 >> np.uint32(16))
-    return (sum2 << np.uint32(16)) | sum1
-
-
-@njit(**JIT)
-def _shuffle(data, itemsize, out):
-    # HDF5's shuffle: byte j of element i to j * count + i; the bytes past the last whole
-    # element stay in place. Written in runs: each output run is written in order.
-    count = data.size // itemsize
-    for j in range(itemsize):
-        base = j * count
-        for i in range(count):
-            out[base + i] = data[i * itemsize + j]
-    for k in range(count * itemsize, data.size):
-        out[k] = data[k]
-
-
-@njit(**JIT)
-def _shuffle8(words, out):
-    # _shuffle for 8-byte elements read as little-endian words: one read of each element.
-    count = words.size
-    for i in range(count):
-        w = words[i]
-        for j in range(8):
-            out[j * count + i] = np.uint8((w >> np.uint64(8 * j)) & np.uint64(0xFF))
-
-
-@njit(**JIT)
 def copy_box(src, dst):
     # dst[:a, :b, :c, :d, :e] = src (5-D, any strides): numpy's copy of a box of short rows
     # spends more on its loop than on the bytes.
@@ -118,15 +68,12 @@ def copy_box(src, dst):
 
 
 @njit(**JIT)
-def _pack8(src, shape, fill, shuffled, out):
-    # A chunk of ``shape`` whose leading box is ``src`` (8-byte elements as uint64, any strides,
-    # zero ones included) and the rest ``fill``, in C order: its bytes (little-endian) into
-    # ``out``, shuffled (HDF5's, byte j of element i at j * count + i) or not, and their
-    # Fletcher-32 returned, as _fletcher32 computes it over the unshuffled bytes.
-    c0, c1, c2, c3, c4 = shape
+def _gather(src, fill, words):
+    # words (C order) = a chunk whose leading box is src (any strides, zero ones included) and
+    # the rest fill: an edge chunk padded as HDF5 pads it.
+    c0, c1, c2, c3, c4 = words.shape
     s0, s1, s2, s3, s4 = src.shape
-    count = c0 * c1 * c2 * c3 * c4
-    words = np.empty(count, dtype=np.uint64)
+    flat = words.reshape(words.size)
     k = 0
     for i0 in range(c0):
         for i1 in range(c1):
@@ -134,34 +81,53 @@ def _pack8(src, shape, fill, shuffled, out):
                 for i3 in range(c3):
                     m = s4 if i0 < s0 and i1 < s1 and i2 < s2 and i3 < s3 else 0
                     for i4 in range(m):
-                        words[k + i4] = src[i0, i1, i2, i3, i4]
+                        flat[k + i4] = src[i0, i1, i2, i3, i4]
                     for i4 in range(m, c4):
-                        words[k + i4] = fill
+                        flat[k + i4] = fill
                     k += c4
-    # Each element is four big-endian 16-bit words (its bytes swapped in pairs: lanes of x), and
-    # HDF5's block of 360 words between folds is 90 elements. Within a block the sums are those
-    # of the word-by-word loop, added four words at a time: the same integers (a block's sums
-    # stay below 2**32, which is why HDF5 folds every 360 words), so the same checksum.
-    lanes = np.uint64(0x00FF00FF00FF00FF)
+
+
+@njit(**JIT)
+def _shuffle_bytes(raw, itemsize, out):
+    # HDF5's shuffle of whole elements (byte j of element i to j * count + i), one pass per j:
+    # loops the compiler vectorizes.
+    count = raw.size // itemsize
+    for j in range(itemsize):
+        base = j * count
+        for i in range(count):
+            out[base + i] = raw[itemsize * i + j]
+
+
+@njit(**JIT)
+def _fletcher32(half, last):
+    # HDF5's H5_checksum_fletcher32 of bytes given as their 16-bit words read little-endian
+    # (half) and, for an odd count, the last byte (last >= 0). HDF5 reads big-endian words,
+    # sum1 += w; sum2 += sum1, both folded to 16 bits every 360 words (the most that cannot
+    # overflow 32 bits), a last odd byte as the high byte of a word, and a final fold. Over a
+    # block of b words that adds a1 = sum(w) to sum1 and b * sum1 + a2, a2 = sum((b - k) w_k),
+    # to sum2: the same integers (a2 < 65535 * 360 * 361 / 2 < 2**32: 32-bit sums, which the
+    # compiler vectorizes), so the same checksum.
+    nw = half.size
     m16 = np.uint64(0xFFFF)
     sum1 = np.uint64(0)
     sum2 = np.uint64(0)
-    for start in range(0, count, 90):
-        for i in range(start, min(count, start + 90)):
-            w = words[i]
-            if shuffled:
-                for j in range(8):
-                    out[j * count + i] = np.uint8((w >> np.uint64(8 * j)) & np.uint64(0xFF))
-            else:
-                for j in range(8):
-                    out[8 * i + j] = np.uint8((w >> np.uint64(8 * j)) & np.uint64(0xFF))
-            x = ((w & lanes) << np.uint64(8)) | ((w >> np.uint64(8)) & lanes)
-            w0 = x & m16
-            w1 = (x >> np.uint64(16)) & m16
-            w2 = (x >> np.uint64(32)) & m16
-            w3 = x >> np.uint64(48)
-            sum2 += np.uint64(4) * sum1 + np.uint64(4) * w0 + np.uint64(3) * w1 + np.uint64(2) * w2 + w3
-            sum1 += w0 + w1 + w2 + w3
+    for start in range(0, nw, 360):
+        b = min(360, nw - start)
+        a1 = np.uint32(0)
+        a2 = np.uint32(0)
+        block = half[start:start + b]
+        for k in range(b):
+            v = np.uint32(block[k])
+            w = ((v & np.uint32(0xFF)) << np.uint32(8)) | (v >> np.uint32(8))
+            a1 = np.uint32(a1 + w)
+            a2 = np.uint32(a2 + np.uint32(np.uint32(b - k) * w))
+        sum2 += np.uint64(b) * sum1 + np.uint64(a2)
+        sum1 += np.uint64(a1)
+        sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
+        sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
+    if last >= 0:
+        sum1 += np.uint64(last) << np.uint64(8)
+        sum2 += sum1
         sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
         sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
     sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
@@ -171,7 +137,8 @@ def _pack8(src, shape, fill, shuffled, out):
 
 def fletcher32(data: np.ndarray) -> int:
     """HDF5's Fletcher-32 checksum of the bytes ``data`` (a contiguous uint8 array)."""
-    return int(_fletcher32(data))
+    even = data.size // 2 * 2
+    return int(_fletcher32(data[:even].view(np.uint16), int(data[even]) if even < data.size else -1))
 
 
 def shuffle(data: np.ndarray, itemsize: int) -> np.ndarray:
@@ -179,12 +146,9 @@ def shuffle(data: np.ndarray, itemsize: int) -> np.ndarray:
     if itemsize <= 1:
         return data
     out = np.empty_like(data)
-    whole = data.size // 8 * 8
-    if itemsize == 8 and data.ctypes.data % 8 == 0:
-        _shuffle8(data[:whole].view(np.uint64), out)
-        out[whole:] = data[whole:]
-    else:
-        _shuffle(data, int(itemsize), out)
+    whole = data.size // itemsize * itemsize
+    _shuffle_bytes(data, int(itemsize), out)
+    out[whole:] = data[whole:]
     return out
 
 
@@ -218,21 +182,42 @@ def encode(chunk: np.ndarray, pipeline) -> bytes:
     return run_filters(data, n, chunk.dtype.itemsize, pipeline)
 
 
+_buffers = threading.local()
+
+
+def _scratch(shape: tuple):
+    """This thread's buffers for a chunk of ``shape`` of 8-byte elements: its elements and its
+    encoded bytes (with 4 to spare). Reused chunk after chunk: fresh megabytes cost the system
+    a page fault per page, more than the copy, the shuffle and the checksum together."""
+    found = getattr(_buffers, "chunk", None)
+    if found is None or found[0].shape != shape:
+        words = np.empty(shape, dtype=np.uint64)
+        found = _buffers.chunk = (words, np.empty(words.nbytes + 4, dtype=np.uint8))
+    return found
+
+
 def encode_part(part: np.ndarray, shape: tuple, fill, pipeline) -> bytes:
     """The bytes HDF5 stores for a chunk of ``shape`` under ``pipeline`` whose leading box holds
     ``part`` (a view into a tile, any strides, broadcast ones included) and the rest ``fill`` (an
     edge chunk, padded as HDF5 pads it)."""
     n = math.prod(shape) * part.dtype.itemsize
-    data = np.empty(n + 4, dtype=np.uint8)
     rest = tuple(pipeline)
     if (part.dtype.itemsize == 8 and part.ndim == 5 and rest
             and rest[0][0] == FILTER_FLETCHER32):
         shuffled = len(rest) > 1 and rest[1][0] == FILTER_SHUFFLE and rest[1][1] in ((), (8,))
         bits = np.asarray(fill, dtype=part.dtype).reshape(1).view(np.uint64)[0]
-        total = _pack8(part.view(np.uint64), tuple(int(c) for c in shape), bits, shuffled, data)
-        data[n:] = np.frombuffer(int(total).to_bytes(4, "little"), dtype=np.uint8)
+        words, data = _scratch(tuple(int(c) for c in shape))
+        _gather(part.view(np.uint64), bits, words)
+        raw = words.reshape(-1).view(np.uint8)
+        if shuffled:
+            _shuffle_bytes(raw, 8, data)
+        else:
+            data[:n] = raw
+        total = int(_fletcher32(raw.view(np.uint16), -1))
+        data[n:] = np.frombuffer(total.to_bytes(4, "little"), dtype=np.uint8)
         rest = rest[2:] if shuffled else rest[1:]
         return _run(data, n + 4, part.dtype.itemsize, rest, None)
+    data = np.empty(n + 4, dtype=np.uint8)
     whole = data[:n].view(part.dtype).reshape(shape)
     if part.shape != tuple(shape):
         whole[...] = fill

@@ -12,14 +12,16 @@ Fletcher-32 first, then shuffle, then deflate):
   stream every reader opens, at several times zlib's speed) or, where ``isal`` cannot be imported,
   from ``zlib`` at the pipeline's level.
 
-:func:`encode_part` runs the first two in one pass over a chunk's values, read in place from the
-tile (edge chunks padded), for 8-byte elements: the checksum, the shuffle and the copy into the
-chunk's buffer are each a pass over the bytes otherwise.
+:func:`encode_part` reads a chunk's values where they lie in the tile (edge chunks padded,
+broadcast views included) into a buffer of its thread, reused chunk after chunk, and runs the
+filters there.
 
 A pipeline with any other filter (Zstandard's plugin, say) is not encoded here: :func:`supported`
 says so, and the writer lets the HDF5 library write that file.
 
-Kernels in Numba (no GIL), so that encoding runs in parallel threads.
+The kernels are Numba's (no GIL: encoding runs in parallel threads), in :mod:`._chunk_kernels`,
+imported on first use: a process that only places encoded chunks (the client of a cluster) never
+loads numba.
 """
 
 from __future__ import annotations
@@ -29,9 +31,6 @@ import threading
 import zlib
 
 import numpy as np
-from numba import njit
-
-from ._jit import JIT
 
 try:  # ISA-L's deflate (a dependency; zlib where its wheel cannot be installed or loaded)
     from isal import igzip_lib as _isal
@@ -54,89 +53,10 @@ FILTER_FLETCHER32 = 3
 SUPPORTED = (FILTER_DEFLATE, FILTER_SHUFFLE, FILTER_FLETCHER32)
 
 
-@njit(**JIT)
-def copy_box(src, dst):
-    # dst[:a, :b, :c, :d, :e] = src (5-D, any strides): numpy's copy of a box of short rows
-    # spends more on its loop than on the bytes.
-    n0, n1, n2, n3, n4 = src.shape
-    for i0 in range(n0):
-        for i1 in range(n1):
-            for i2 in range(n2):
-                for i3 in range(n3):
-                    for i4 in range(n4):
-                        dst[i0, i1, i2, i3, i4] = src[i0, i1, i2, i3, i4]
-
-
-@njit(**JIT)
-def _gather(src, fill, words):
-    # words (C order) = a chunk whose leading box is src (any strides, zero ones included) and
-    # the rest fill: an edge chunk padded as HDF5 pads it.
-    c0, c1, c2, c3, c4 = words.shape
-    s0, s1, s2, s3, s4 = src.shape
-    flat = words.reshape(words.size)
-    k = 0
-    for i0 in range(c0):
-        for i1 in range(c1):
-            for i2 in range(c2):
-                for i3 in range(c3):
-                    m = s4 if i0 < s0 and i1 < s1 and i2 < s2 and i3 < s3 else 0
-                    for i4 in range(m):
-                        flat[k + i4] = src[i0, i1, i2, i3, i4]
-                    for i4 in range(m, c4):
-                        flat[k + i4] = fill
-                    k += c4
-
-
-@njit(**JIT)
-def _shuffle_bytes(raw, itemsize, out):
-    # HDF5's shuffle of whole elements (byte j of element i to j * count + i), one pass per j:
-    # loops the compiler vectorizes.
-    count = raw.size // itemsize
-    for j in range(itemsize):
-        base = j * count
-        for i in range(count):
-            out[base + i] = raw[itemsize * i + j]
-
-
-@njit(**JIT)
-def _fletcher32(half, last):
-    # HDF5's H5_checksum_fletcher32 of bytes given as their 16-bit words read little-endian
-    # (half) and, for an odd count, the last byte (last >= 0). HDF5 reads big-endian words,
-    # sum1 += w; sum2 += sum1, both folded to 16 bits every 360 words (the most that cannot
-    # overflow 32 bits), a last odd byte as the high byte of a word, and a final fold. Over a
-    # block of b words that adds a1 = sum(w) to sum1 and b * sum1 + a2, a2 = sum((b - k) w_k),
-    # to sum2: the same integers (a2 < 65535 * 360 * 361 / 2 < 2**32: 32-bit sums, which the
-    # compiler vectorizes), so the same checksum.
-    nw = half.size
-    m16 = np.uint64(0xFFFF)
-    sum1 = np.uint64(0)
-    sum2 = np.uint64(0)
-    for start in range(0, nw, 360):
-        b = min(360, nw - start)
-        a1 = np.uint32(0)
-        a2 = np.uint32(0)
-        block = half[start:start + b]
-        for k in range(b):
-            v = np.uint32(block[k])
-            w = ((v & np.uint32(0xFF)) << np.uint32(8)) | (v >> np.uint32(8))
-            a1 = np.uint32(a1 + w)
-            a2 = np.uint32(a2 + np.uint32(np.uint32(b - k) * w))
-        sum2 += np.uint64(b) * sum1 + np.uint64(a2)
-        sum1 += np.uint64(a1)
-        sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
-        sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
-    if last >= 0:
-        sum1 += np.uint64(last) << np.uint64(8)
-        sum2 += sum1
-        sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
-        sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
-    sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
-    sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
-    return (sum2 << np.uint64(16)) | sum1
-
-
 def fletcher32(data: np.ndarray) -> int:
     """HDF5's Fletcher-32 checksum of the bytes ``data`` (a contiguous uint8 array)."""
+    from ._chunk_kernels import _fletcher32
+
     even = data.size // 2 * 2
     return int(_fletcher32(data[:even].view(np.uint16), int(data[even]) if even < data.size else -1))
 
@@ -145,6 +65,8 @@ def shuffle(data: np.ndarray, itemsize: int) -> np.ndarray:
     """HDF5's shuffle of the bytes ``data`` for elements of ``itemsize`` bytes."""
     if itemsize <= 1:
         return data
+    from ._chunk_kernels import _shuffle_bytes
+
     out = np.empty_like(data)
     whole = data.size // itemsize * itemsize
     _shuffle_bytes(data, int(itemsize), out)
@@ -200,6 +122,8 @@ def encode_part(part: np.ndarray, shape: tuple, fill, pipeline) -> bytes:
     """The bytes HDF5 stores for a chunk of ``shape`` under ``pipeline`` whose leading box holds
     ``part`` (a view into a tile, any strides, broadcast ones included) and the rest ``fill`` (an
     edge chunk, padded as HDF5 pads it)."""
+    from ._chunk_kernels import _fletcher32, _gather, _shuffle_bytes, copy_box
+
     n = math.prod(shape) * part.dtype.itemsize
     rest = tuple(pipeline)
     if (part.dtype.itemsize == 8 and part.ndim == 5 and rest

@@ -117,7 +117,8 @@ def _run_command(args: argparse.Namespace) -> int:
             run_sweep(spec, output, workers=args.workers, scheduler=args.scheduler,
                       reduce=args.reduce, block_size=args.block_size,
                       overwrite=args.overwrite, compress=args.compress,
-                      no_workers_timeout=args.no_workers_timeout, progress=bar.report).close()
+                      no_workers_timeout=args.no_workers_timeout, progress=bar.report,
+                      open_result=False)
     except SweepError as exc:
         raise CliError(str(exc)) from None
     except SchedulerLost as exc:

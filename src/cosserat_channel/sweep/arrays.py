@@ -23,6 +23,7 @@ from ..parameters import (DEFAULT_ATOL, DEFAULT_RTOL, DIMS, ETA_MAX, ETA_MIN, PA
                           ParameterError, check_eta, check_material, check_tolerances,
                           check_values)
 from ..solver import layout
+from ..results import accessor  # noqa: F401 (registers ds.cosserat on the Datasets made here)
 from ..solver.point import _check_outputs
 from . import block as block_
 from . import dataset

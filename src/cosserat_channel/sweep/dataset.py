@@ -11,12 +11,10 @@ import math
 from datetime import datetime, timezone
 
 import numpy as np
-import xarray as xr
 
 from .. import __version__
 from .. import netcdf_policy
 from .. import outputs as out_
-from ..results import accessor  # noqa: F401 (registers ds.cosserat on every result Dataset)
 from ..solver import layout
 from .. import status as st
 from ..parameters import DIMS, PARAMETERS
@@ -26,7 +24,7 @@ from ..parameters import DIMS, PARAMETERS
 CHUNK_BYTES = 1 << 20
 
 def build_dataset(spec, plan, per_triple: dict, one_minus: np.ndarray | None, xi=None,
-                  profiles: np.ndarray | None = None) -> xr.Dataset:
+                  profiles: np.ndarray | None = None):
     """The result Dataset of ``spec``, whole, in memory.
 
     Parameters
@@ -40,6 +38,12 @@ def build_dataset(spec, plan, per_triple: dict, one_minus: np.ndarray | None, xi
     xi, profiles : ndarray, optional
         Profile abscissae and per-triple profiles (n_triples, N_PROF, xi.size).
     """
+    # xarray is imported here, not by the module: the process that writes a file tile by tile
+    # (a cluster's client) never needs it.
+    import xarray as xr
+
+    from ..results import accessor  # noqa: F401 (registers ds.cosserat on every result Dataset)
+
     data_vars = grid_values(spec, plan, per_triple, one_minus, xi, profiles)
     return xr.Dataset(data_vars, coords=coordinates(spec, xi),
                       attrs=global_attrs(spec, plan.reduce))

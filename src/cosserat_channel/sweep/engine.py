@@ -32,7 +32,6 @@ from .. import outputs as out_
 from ..solver import layout
 from ..files import FILE, output_kind, space_problem
 from .dataset import build_dataset
-from .block import _block_task, warm_up
 from .budget import disk_needed, memory_needed, memory_problem
 from .plan import Plan, count_triples
 from .schedulers import (NO_WORKERS_TIMEOUT, BlockCount, ClusterEncoder, LocalEncoder,
@@ -46,7 +45,7 @@ log = logging.getLogger("cosserat_channel.sweep")
 
 def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, reduce=True,
               block_size=None, progress=None, compress=None, overwrite=False,
-              no_workers_timeout=None):
+              no_workers_timeout=None, open_result=True):
     """Solve every point of a sweep and return the labelled result (and write it to NetCDF).
 
     Parameters
@@ -83,10 +82,13 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
     no_workers_timeout : float, optional
         With ``scheduler``: seconds the cluster may have no worker before the run ends with
         :class:`SchedulerLost` (default :data:`NO_WORKERS_TIMEOUT`).
+    open_result : bool
+        With a file written: return it opened (default), or None (``cosserat-channel run``, which
+        does not read it, so that it never imports xarray for it).
 
     Returns
     -------
-    xarray.Dataset
+    xarray.Dataset or None
         Dims ``(eps, L, K, A, N)`` (plus ``xi`` with profiles), the requested variables, ``status``.
 
     Raises
@@ -143,9 +145,7 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
             # Decided under the store's lock: a run of the same output that finished meanwhile
             # put its result in place before it let the lock go.
             if store.created and not overwrite and _kept(output, spec, store):
-                import xarray as xr
-
-                return xr.open_dataset(output, chunks={})
+                return _opened(output) if open_result else None
             ds, times = _run(spec, plan, store, xi, output, client, n_workers, reduce,
                              progress, compress, no_workers_timeout,
                              given_block_size=block_size is not None)
@@ -159,10 +159,17 @@ def run_sweep(path_or_mapping, output=None, *, workers=None, scheduler=None, red
         output or "(not written)", times[0], times[1], times[2], time.perf_counter() - t_start,
     )
     if output is not None:
-        import xarray as xr
-
-        return xr.open_dataset(output, chunks={})
+        return _opened(output) if open_result else None
     return ds
+
+
+def _opened(output: str):
+    """The result file ``output``, opened lazily (dask arrays), with ``ds.cosserat``."""
+    import xarray as xr
+
+    from ..results import accessor  # noqa: F401 (registers ds.cosserat)
+
+    return xr.open_dataset(output, chunks={})
 
 
 KEPT = ("{output} is already the finished result of this sweep; kept (add --overwrite to compute "
@@ -231,6 +238,8 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     progress = BlockCount(None if progress is False else progress, len(done), len(plan.blocks))
 
     def recompute(k):
+        from .block import _block_task
+
         store.put(k, _block_task(plan, k, (spec.rtol, spec.atol, xi)))
 
     writer = encoder = None
@@ -250,6 +259,8 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
     cpu = []  # the solving threads' CPU seconds per block: inputs, kernels, storing
     if todo and client is None:
         import dask.diagnostics  # noqa: F401 (imported and the kernels loaded before the clock)
+
+        from .block import warm_up
 
         warm_up()
     t0, c0 = time.perf_counter(), time.process_time()

@@ -20,7 +20,6 @@ import time
 
 
 from . import sources
-from .block import _block_task, solve_block, warm_up
 from .plan import BlockInputs, PackedInputs
 from .spec import SweepError
 from .store import DIGEST, block_digest
@@ -74,6 +73,8 @@ class BlockCount:
 def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=None,
                  cpu=None) -> None:
     import dask
+
+    from .block import _block_task, warm_up
 
     warm_up()
 
@@ -171,6 +172,8 @@ def _solve_remote(inp: BlockInputs | PackedInputs, args, client_sources=None, k=
     that writes."""
     from dask.distributed import get_worker
 
+    from .block import solve_block
+
     out = {"worker": get_worker().address}
     # A worker of other sources says so at once, without solving (its kernels may not even be
     # compiled); the client checks the digest of every block (sources.foreign_block).
@@ -250,6 +253,9 @@ class _WorkerWatch:
 def _submit_and_store(plan, todo, store, args, client, progress: BlockCount, writer=None, cpu=None,
                       watch: _WorkerWatch | None = None) -> None:
     from dask.distributed import as_completed
+
+    # By reference: the workers import it (and the solver); this process never loads numba.
+    from .block import warm_up
 
     tag = plan.digest()[:12]  # keys unique per plan: a shared cluster may hold older runs
     # Each worker loads (or compiles, a minute of CPU on a new source tree) the kernels in a task

@@ -1,0 +1,89 @@
+"""The Numba kernels of :mod:`cosserat_channel.chunk_filters` (HDF5's chunk filters): no GIL, so
+that chunks are encoded in parallel threads. Imported on first use, by the functions there.
+"""
+
+import numpy as np
+from numba import njit
+
+from ._jit import JIT
+
+
+@njit(**JIT)
+def copy_box(src, dst):
+    # dst[:a, :b, :c, :d, :e] = src (5-D, any strides): numpy's copy of a box of short rows
+    # spends more on its loop than on the bytes.
+    n0, n1, n2, n3, n4 = src.shape
+    for i0 in range(n0):
+        for i1 in range(n1):
+            for i2 in range(n2):
+                for i3 in range(n3):
+                    for i4 in range(n4):
+                        dst[i0, i1, i2, i3, i4] = src[i0, i1, i2, i3, i4]
+
+
+@njit(**JIT)
+def _gather(src, fill, words):
+    # words (C order) = a chunk whose leading box is src (any strides, zero ones included) and
+    # the rest fill: an edge chunk padded as HDF5 pads it.
+    c0, c1, c2, c3, c4 = words.shape
+    s0, s1, s2, s3, s4 = src.shape
+    flat = words.reshape(words.size)
+    k = 0
+    for i0 in range(c0):
+        for i1 in range(c1):
+            for i2 in range(c2):
+                for i3 in range(c3):
+                    m = s4 if i0 < s0 and i1 < s1 and i2 < s2 and i3 < s3 else 0
+                    for i4 in range(m):
+                        flat[k + i4] = src[i0, i1, i2, i3, i4]
+                    for i4 in range(m, c4):
+                        flat[k + i4] = fill
+                    k += c4
+
+
+@njit(**JIT)
+def _shuffle_bytes(raw, itemsize, out):
+    # HDF5's shuffle of whole elements (byte j of element i to j * count + i), one pass per j:
+    # loops the compiler vectorizes.
+    count = raw.size // itemsize
+    for j in range(itemsize):
+        base = j * count
+        for i in range(count):
+            out[base + i] = raw[itemsize * i + j]
+
+
+@njit(**JIT)
+def _fletcher32(half, last):
+    # HDF5's H5_checksum_fletcher32 of bytes given as their 16-bit words read little-endian
+    # (half) and, for an odd count, the last byte (last >= 0). HDF5 reads big-endian words,
+    # sum1 += w; sum2 += sum1, both folded to 16 bits every 360 words (the most that cannot
+    # overflow 32 bits), a last odd byte as the high byte of a word, and a final fold. Over a
+    # block of b words that adds a1 = sum(w) to sum1 and b * sum1 + a2, a2 = sum((b - k) w_k),
+    # to sum2: the same integers (a2 < 65535 * 360 * 361 / 2 < 2**32: 32-bit sums, which the
+    # compiler vectorizes), so the same checksum.
+    nw = half.size
+    m16 = np.uint64(0xFFFF)
+    sum1 = np.uint64(0)
+    sum2 = np.uint64(0)
+    for start in range(0, nw, 360):
+        b = min(360, nw - start)
+        a1 = np.uint32(0)
+        a2 = np.uint32(0)
+        block = half[start:start + b]
+        for k in range(b):
+            v = np.uint32(block[k])
+            w = ((v & np.uint32(0xFF)) << np.uint32(8)) | (v >> np.uint32(8))
+            a1 = np.uint32(a1 + w)
+            a2 = np.uint32(a2 + np.uint32(np.uint32(b - k) * w))
+        sum2 += np.uint64(b) * sum1 + np.uint64(a2)
+        sum1 += np.uint64(a1)
+        sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
+        sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
+    if last >= 0:
+        sum1 += np.uint64(last) << np.uint64(8)
+        sum2 += sum1
+        sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
+        sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
+    sum1 = (sum1 & m16) + (sum1 >> np.uint64(16))
+    sum2 = (sum2 & m16) + (sum2 >> np.uint64(16))
+    return (sum2 << np.uint64(16)) | sum1

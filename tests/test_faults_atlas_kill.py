@@ -113,6 +113,8 @@ def test_atlas_killed_at_any_moment_resumes_to_the_file_an_uninterrupted_build_w
     assert f"resuming from the {seen} edges traced before" in err
     assert not partial.exists()
     assert out.read_bytes() == ref.read_bytes()
+    # and what the killed savings left is gone with it
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["atlas.nc", "ref"]
 
 
 def test_a_build_saves_its_traces_as_it_goes_never_over_a_file_it_did_not_make(

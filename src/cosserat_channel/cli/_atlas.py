@@ -26,7 +26,7 @@ from .common import (
     register,
 )
 
-from ..files import STREAM, output_kind
+from ..files import STREAM, output_kind, remove_stale_temporaries
 
 
 def parse_range(text: str, option: str) -> tuple:
@@ -160,6 +160,8 @@ def _atlas(args: argparse.Namespace) -> int:
         if saver.owns():  # the atlas is whole: its traces are in it
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(partial)
+        if partial is not None:  # and what a build killed while saving them left beside it
+            remove_stale_temporaries(os.path.dirname(os.path.abspath(partial)), partial)
         if args.plot is not None:
             import numpy as np
 

@@ -30,8 +30,10 @@ LAYERS = {
     "netcdf_policy": (),
     "outputs": ("physics.closure", "parameters", "status"),
     "_jit": (),
-    # HDF5's chunk filters, in Numba kernels (encoding a sweep file's chunks in parallel).
-    "chunk_filters": ("_jit",),
+    # HDF5's chunk filters (encoding a sweep file's chunks in parallel); their Numba kernels in
+    # a module of their own, imported on first use, so that a cluster's client never loads numba.
+    "chunk_filters": ("_chunk_kernels",),
+    "_chunk_kernels": ("_jit",),
     # Kernels: the integrators know nothing of the physics, the physics nothing of the
     # integrators; the solver is the only part that imports both.
     "integrate": ("_jit",),
@@ -59,7 +61,7 @@ LAYERS = {
 # Third-party modules only some parts may import: numba's kernels stay below the sweeps (reading
 # a result, an atlas or a sweep file never compiles), matplotlib stays in the figures.
 RESTRICTED = {
-    "numba": ("_jit", "chunk_filters", "integrate", "physics", "solver", "measure"),
+    "numba": ("_jit", "_chunk_kernels", "integrate", "physics", "solver", "measure"),
     "matplotlib": ("plot",),
     "dask": ("sweep", "results", "cli"),
     "distributed": ("sweep", "results", "cli"),

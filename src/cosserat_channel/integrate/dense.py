@@ -62,7 +62,7 @@ EVENT_MAX_ITER = 200
 N_DENSE = 8
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def hermite_rows(y, y_new, h, f0, f1, q, i):
     """Rows 0-3 of component `i` of a step's dense output (Hairer's ``rcont1..4``), which both
     CONTD5 and CONTD8 share: the values at the step's ends and, through ``f0 = f(t, y)`` and
@@ -133,7 +133,7 @@ def find_step_from(T, nsteps, t, k):
     return k
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def dense_eval_step(T, Q, k, t, out):
     """Evaluate the interpolant of accepted step `k` at time `t`.
 
@@ -155,7 +155,7 @@ def dense_eval_step(T, Q, k, t, out):
         out[i] = _step_polynomial(Q, k, i, theta)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _step_polynomial(Q, k, i, theta):
     # The layout of the module docstring, at theta in step k, component i.
     theta1 = 1.0 - theta

@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 
 from numba import njit
-from .._jit import JIT_INLINE as _JIT_INLINE
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 __all__ = ["find_root", "newton_root", "newton_root_d2"]
 
@@ -126,7 +126,7 @@ def find_root(f, args, a, b, fa, fb, tol, max_iter):
     return b, n_eval
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _newton_start(a, b, fa, fb, x0):
     """``(at_end, lo, hi, x, width)`` of a safeguarded Newton search: whether `a` or `b` is
     already a root (then it is `x`), the bracket's ends with ``f(lo) < 0 < f(hi)``, the first
@@ -141,13 +141,13 @@ def _newton_start(a, b, fa, fb, x0):
     return fa == 0.0 or fb == 0.0, lo, hi, x, right - left
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _narrow(x, f, lo, hi):
     # The bracket (lo, hi), f(lo) < 0 < f(hi), with the iterate x in place of the end of f's sign.
     return (x, hi) if f < 0.0 else (lo, x)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _needs_bisection(x_new, lo, hi, f, df, dx_old):
     # The Newton iterate left the bracket, or the step did not halve against the one before.
     return not (min(lo, hi) < x_new < max(lo, hi)) or abs(2.0 * f) > abs(dx_old * df)

@@ -12,7 +12,10 @@ run any of them for stage 1. What differs between them (step, error norm, step-s
 step clipping, the initial step of RODAS) stays in their modules.
 
 Kernels that receive the right-hand side are ``inline="always"``; see :mod:`.rk45` for why, and
-for why the norms are not.
+for why the norms are not. The small helpers that receive no function (:func:`begin_run`,
+:func:`step_too_small`, :func:`clip_to_end`, the stiffness test, the counters) are plain kernels:
+LLVM inlines them into the driver all the same, while every site inlined in Numba's IR is a copy
+of the callee's IR that Numba makes and types again, seconds of a first run's compilation.
 
 References
 ----------
@@ -143,7 +146,7 @@ def no_event(t, y, args):
     return 1.0
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def stiffness_ratio(h, K, k_new, dy_weights):
     """Hairer's estimate of ``|h lambda|`` for a step of an explicit RK pair [HNW93, IV.2].
 
@@ -183,7 +186,7 @@ def stiffness_ratio(h, K, k_new, dy_weights):
     return abs(h) * math.sqrt(num / den)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def count_stiffness(h_rho, threshold, iasti, nonsti, stats):
     """Hairer's stiffness test after an accepted step, on its :func:`stiffness_ratio` ``h_rho``.
 
@@ -208,7 +211,7 @@ def count_stiffness(h_rho, threshold, iasti, nonsti, stats):
     return iasti, nonsti
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def beyond_stability(h, rho, threshold):
     """Whether a step of size ``h`` that passed its error test must be rejected all the same:
     ``|h| rho`` beyond ``STABLE_FACTOR`` times ``threshold``, the pair's real stability boundary.
@@ -280,7 +283,7 @@ def all_finite(v):
     return True
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def begin_run(t0, t_end, h_max, T, stats):
     """What every driver does first: zero ``stats``, set ``T[0] = t0``, and return
     ``(direction, span, hmax)``: the sign of ``t_end - t0``, ``|t_end - t0|`` and
@@ -291,14 +294,14 @@ def begin_run(t0, t_end, h_max, T, stats):
     return (1.0 if t_end > t0 else -1.0), span, step_limit(h_max, span)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def step_too_small(habs, t):
     """Whether a step of magnitude `habs` from `t` is below the resolution of `t`: Hairer's test
     ``0.1 |h| <= uround |t|`` [HNW93, II.4]; a run then stops with ``STEP_TOO_SMALL``."""
     return habs <= 10.0 * EPS * abs(t)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def count_trial(accept, err, n_nonfinite, stats):
     """Count a trial step in ``stats`` and keep the run of non-finite ones.
 
@@ -328,14 +331,14 @@ def count_trial(accept, err, n_nonfinite, stats):
     return n_nonfinite, n_nonfinite >= NONFINITE_MAX_TRIES
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def step_limit(h_max, span):
     """The largest step magnitude of a run over ``span``: `h_max` when it lies in ``(0, span]``,
     else ``span`` (``h_max <= 0``, inf or NaN mean no limit but the interval)."""
     return span if (not (h_max > 0.0) or h_max > span) else h_max
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def clip_to_end(t, habs, t_end, direction):
     """``(h, last)``: the signed trial step from `t`, and whether it is the run's last one.
 

@@ -66,7 +66,7 @@ def _series_root(fb, consts, ax, t0):
     return x
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _plug_constants(res, ax):
     """What the plug-edge root below ``R_XI2`` needs of a triple whatever ``eps K``: ``(t2,
     log F(x2), beta + 1, the part of f(ln XI_FLOOR) that does not depend on the level, the slope
@@ -101,7 +101,7 @@ def _plug_constants(res, ax):
                      -d2_min / d1_min ** 3 * H * H, -d2_top / d1_top ** 3 * H * H)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _series_start(L, consts):
     # the quintic Hermite of t_p(log level) of _plug_constants; NaN outside its range
     L_min, inv_H, t_min, m0, m1, a0, a1 = consts[6:]

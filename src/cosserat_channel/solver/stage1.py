@@ -352,7 +352,7 @@ def _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1,
                         max_step)
 
 
-@njit(**_JIT_INLINE)
+@njit(**_JIT)
 def _add_stats(stats, more):
     for i in range(stepping.STAT_STIFF):
         stats[i] += more[i]

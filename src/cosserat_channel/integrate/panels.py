@@ -128,18 +128,16 @@ def integrate_panel(f, g, y_b, J_b, r, Q, p, y_nodes):
     for j in range(n):
         y_nodes[j] = y_b - y_nodes[j]
         g[j] *= math.exp(y_nodes[j])
+    # Each coefficient summed in a local, not in Q: the compiler cannot tell Q from f and g, so
+    # a sum in Q would be stored and loaded again at every term.
     for k in range(N_COEF):
-        Q[p, k, 0] = 0.0
-        Q[p, k, 1] = 0.0
-    for i in range(n):
-        fi = f[i]
-        gi = g[i]
-        for k in range(N_COEF):
-            Q[p, k, 0] += _INT_COEF[k, i] * fi
-            Q[p, k, 1] += _INT_COEF[k, i] * gi
-    for k in range(N_COEF):
-        Q[p, k, 0] *= -r
-        Q[p, k, 1] *= r
+        cy = 0.0
+        cJ = 0.0
+        for i in range(n):
+            cy += _INT_COEF[k, i] * f[i]
+            cJ += _INT_COEF[k, i] * g[i]
+        Q[p, k, 0] = cy * -r
+        Q[p, k, 1] = cJ * r
     Q[p, TOP, 0] = y_b
     Q[p, TOP, 1] = J_b
     eg = _tail_estimate(g)
@@ -156,16 +154,13 @@ def cumulative(v, r, out):
     of :func:`integrate_panel`, without a dense output). Returns ``(out[DEGREE], err)``: the
     whole panel's integral and its error estimate, ``r`` times the tail of ``v``'s Chebyshev series."""
     n = N_NODES
-    # Loops ordered so that the inner one runs over independent sums (no chain of dependent
-    # additions, which would cost the latency of each).
+    # Each sum in a local (as in integrate_panel): nine independent chains of additions, which
+    # the processor runs side by side.
     for j in range(n):
-        out[j] = 0.0
-    for i in range(n):
-        vi = v[i]
-        for j in range(n):
-            out[j] += _INT_VAL[j, i] * vi
-    for j in range(n):
-        out[j] *= r
+        acc = 0.0
+        for i in range(n):
+            acc += _INT_VAL[j, i] * v[i]
+        out[j] = acc * r
     return out[n - 1], r * _tail_estimate(v)
 
 

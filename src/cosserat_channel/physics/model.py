@@ -161,35 +161,44 @@ def stage2_series(eta, A, N, ax):
     ax[AX_N2] = n
     a1 = A + 1.0
     c = 2.0 * a1 / eta
+    beta = ax[AX_BETA]
     ax[AX_R] = 1.0 / ax[AX_S]
+    ax[AX_G] = 0.0
+    ax[AX_E] = 1.0
+    ax[AX_F] = a1 * (ax[AX_E] - (A - 1.0) * _convolve(ax, AX_R, AX_E, 0, 1, 0)) / (beta + 1.0)
+    # Term m of each series needs terms up to m of the ones before it: one loop over m, so that
+    # the two chains of dependent terms (1/S and exp(G)) wait on their sums side by side.
     for m in range(1, n):
         ax[AX_R + m] = -_convolve(ax, AX_S, AX_R, 1, m + 1, m) * ax[AX_R]
-    ax[AX_G] = 0.0
-    for m in range(1, n):
         p = N * ax[AX_R + m] - _convolve(ax, AX_W - 1, AX_R, 1, m + 1, m)
         ax[AX_G + m] = c * p / (2.0 * m)
-    # exp(G): m E_m = sum_k (k g_k) E_(m-k); k g_k waits in the F slots, filled last.
-    ax[AX_F] = 0.0
-    for k in range(1, n):
-        ax[AX_F + k] = k * ax[AX_G + k]
-    ax[AX_E] = 1.0
-    for m in range(1, n):
-        ax[AX_E + m] = _convolve(ax, AX_F, AX_E, 1, m + 1, m) / m
-    beta = ax[AX_BETA]
-    for m in range(n):
+        # exp(G): m E_m = sum_k (k g_k) E_(m-k)
+        ax[AX_E + m] = _convolve(ax, AX_G, AX_E, 1, m + 1, m, True) / m
         conv = _convolve(ax, AX_R, AX_E, 0, m + 1, m)
         ax[AX_F + m] = a1 * (ax[AX_E + m] - (A - 1.0) * conv) / (beta + 1.0 + 2.0 * m)
 
 
 @njit(**_JIT_INLINE)
-def _convolve(ax, a, b, j0, j1, m):
+def _convolve(ax, a, b, j0, j1, m, weighted=False):
     """``sum_{j0 <= j < j1} ax[a + j] ax[b + m - j]``, in four independent sums (the latency of
-    one chain of additions, not the arithmetic, is what a Cauchy product of 40 terms waits on)."""
+    one chain of additions, not the arithmetic, is what a Cauchy product of 40 terms waits on);
+    ``weighted``: with ``j ax[a + j]`` for ``ax[a + j]``."""
     s0 = 0.0
     s1 = 0.0
     s2 = 0.0
     s3 = 0.0
     j = j0
+    if weighted:
+        while j + 3 < j1:
+            s0 += (j * ax[a + j]) * ax[b + m - j]
+            s1 += ((j + 1) * ax[a + j + 1]) * ax[b + m - j - 1]
+            s2 += ((j + 2) * ax[a + j + 2]) * ax[b + m - j - 2]
+            s3 += ((j + 3) * ax[a + j + 3]) * ax[b + m - j - 3]
+            j += 4
+        while j < j1:
+            s0 += (j * ax[a + j]) * ax[b + m - j]
+            j += 1
+        return (s0 + s1) + (s2 + s3)
     while j + 3 < j1:
         s0 += ax[a + j] * ax[b + m - j]
         s1 += ax[a + j + 1] * ax[b + m - j - 1]
@@ -325,9 +334,28 @@ def _terms_needed(ax, start, n, x, tol):
 
 @njit(**_JIT)
 def _positive(ax, start, n, x_end):
-    """The series in slots ``start...`` is positive at 16 points of ``(0, x_end]``."""
-    for i in range(1, 17):
-        if not _horner(ax, start, n, x_end * i / 16.0) > 0.0:
+    """The series in slots ``start...`` is positive at 16 points of ``(0, x_end]``.
+
+    Horner's sums at four points at a time: each is a chain of dependent multiply-adds, and four
+    independent chains run in the latency of one (the same sums, so the same verdict).
+    """
+    for i in range(1, 17, 4):
+        x0 = x_end * i / 16.0
+        x1 = x_end * (i + 1) / 16.0
+        x2 = x_end * (i + 2) / 16.0
+        x3 = x_end * (i + 3) / 16.0
+        top = ax[start + n - 1]
+        a0 = top
+        a1 = top
+        a2 = top
+        a3 = top
+        for k in range(n - 2, -1, -1):
+            c = ax[start + k]
+            a0 = a0 * x0 + c
+            a1 = a1 * x1 + c
+            a2 = a2 * x2 + c
+            a3 = a3 * x3 + c
+        if not (a0 > 0.0 and a1 > 0.0 and a2 > 0.0 and a3 > 0.0):
             return False
     return True
 

@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
+from .._jit import EPS as _EPS, JIT as _JIT, JIT_INLINE as _JIT_INLINE
 from ..integrate import panels, roots
 from ..physics import model
 from ..physics.model import AX_BETA
@@ -48,9 +48,9 @@ def _series_plug_level(t, packed):
 @njit(**_JIT)
 def _series_root(fb, consts, ax, t0):
     # the root of _series_plug_level for log I(xi2) - log(level) = fb > 0, from t0; consts are
-    # the first six of _plug_constants. A kernel, not inlined: its two callers share one compiled
+    # the first seven of _plug_constants. A kernel, not inlined: its two callers share one compiled
     # Newton search, half of the plug edge's compilation (the root costs ~1 % more, bench_plug_edge).
-    t2, log_F2, slope, fa0, slope2, quiet = consts
+    t2, log_F2, slope, fa0, slope2, quiet, noise_log_F = consts
     c = fb - log_F2  # c + log F(x2) = log I(xi2): c + slope (t - t2) + log F(x) is log I - log(level)
     fa = c + fa0
     a = math.log(XI_FLOOR)
@@ -61,23 +61,45 @@ def _series_root(fb, consts, ax, t0):
         if not t0 > a:
             t0 = t2 - fb / slope
     # 1 - xi_p = -expm1(t) to ~1e-16 relative: dt <= 1e-16 (1 - xi)/xi, and (1 - xi)/xi >= -t
+    tol = -1e-16 * t0
+    if not quiet:
+        # Without the curvature test the search stops on a step below tol; where the level's
+        # rounding noise (log F's, and that of its O(fb) terms) is above tol in t, the steps are
+        # that noise and never get there: the bracket was bisected down to 1e-16, 25 evaluations
+        # on average and 60 at worst. Steps below the noise end the search instead.
+        tol = max(tol, (noise_log_F + _EPS * (abs(c) + abs(fb) + abs(log_F2)))
+                  / max(slope, slope2))
     x, _ = roots.newton_root_d2(_series_plug_level, (c, t2, slope, ax), a, t2, fa, fb, t0,
-                                -1e-16 * t0, ROOT_MAX_ITER, quiet)
+                                tol, ROOT_MAX_ITER, quiet)
     return x
+
+
+@njit(**_JIT)
+def _no_plug_constants():
+    """:func:`_plug_constants` where there is no closed form below the panels (all NaN)."""
+    nan = math.nan
+    return nan, nan, nan, nan, nan, False, nan, nan, nan, nan, nan, nan, nan, nan
+
+
+@njit(**_JIT)
+def needs_series_root(eps_K, res):
+    """Whether the plug edge for ``eps_K`` lies below ``R_XI2``, on stage 2's closed form (the
+    root that needs :func:`_plug_constants`): its level is above ``J`` there."""
+    return model.plug_target(res[R_J_AXIS], eps_K) > res[R_J2]
 
 
 @njit(**_JIT)
 def _plug_constants(res, ax):
     """What the plug-edge root below ``R_XI2`` needs of a triple whatever ``eps K``: ``(t2,
     log F(x2), beta + 1, the part of f(ln XI_FLOOR) that does not depend on the level, the slope
-    at t2)``, then the quintic Hermite of ``t_p`` as a function of ``log(level)`` between the
+    at t2, whether F's terms cancel little (the Newton search's curvature test holds), the
+    rounding noise of log F)``, then the quintic Hermite of ``t_p`` as a function of ``log(level)`` between the
     levels of ``eps K = 0`` (``J(0)/20``, a root found here) and of ``xi2``: ``(log level there,
     1/range, t_p there, dt/d(log level) at both ends times the range, second derivatives at both
     ends times the range squared)``. NaN without a closed form below the panels."""
-    nan = math.nan
     xi2 = res[R_XI2]
     if not xi2 > 0.0:
-        return nan, nan, nan, nan, nan, False, nan, nan, nan, nan, nan, nan, nan
+        return _no_plug_constants()
     t2 = math.log(xi2)
     slope = ax[AX_BETA] + 1.0
     x2 = xi2 * xi2
@@ -90,11 +112,16 @@ def _plug_constants(res, ax):
     for k in range(n - 1, -1, -1):
         size = size * x2 + abs(ax[model.AX_F + k])
     consts = (t2, log_F2, slope, slope * (math.log(XI_FLOOR) - t2) + math.log(ax[model.AX_F]),
-              slope + 2.0 * x2 * dF2 / F2, size <= SERIES_QUIET * abs(F2))
+              slope + 2.0 * x2 * dF2 / F2, size <= SERIES_QUIET * abs(F2), _EPS * size / abs(F2))
     _, d1_top, d2_top = _series_plug_level(t2, (-log_F2, t2, slope, ax))
     L_min = math.log(0.05 * res[R_J_AXIS])
     H = res[R_LOGI2] - L_min
-    t_min = _series_root(H, consts, ax, nan)
+    if not H > 0.0:
+        # eps K = 0's edge lies on the panels: the Hermite's range is empty (eq:13's levels are
+        # all at least J(0)/20, above log I(xi2), and a root needs one below)
+        nan = math.nan
+        return consts + (nan, nan, nan, nan, nan, nan, nan)
+    t_min = _series_root(H, consts, ax, math.nan)
     _, d1_min, d2_min = _series_plug_level(t_min, (H - log_F2, t2, slope, ax))
     # t(L) has t' = 1/f' and t'' = -f''/f'^3 (f = log I - L in t)
     return consts + (L_min, 1.0 / H, t_min, H / d1_min, H / d1_top,
@@ -104,7 +131,7 @@ def _plug_constants(res, ax):
 @njit(**_JIT)
 def _series_start(L, consts):
     # the quintic Hermite of t_p(log level) of _plug_constants; NaN outside its range
-    L_min, inv_H, t_min, m0, m1, a0, a1 = consts[6:]
+    L_min, inv_H, t_min, m0, m1, a0, a1 = consts[7:]
     s = (L - L_min) * inv_H
     if not 0.0 <= s <= 1.0:
         return math.nan
@@ -133,7 +160,7 @@ def _series_plug_edge(target, res, ax, consts):
     fb = res[R_LOGI2] - L
     if not fb > 0.0:
         return consts[0]
-    return _series_root(fb, consts[:6], ax, _series_start(L, consts))
+    return _series_root(fb, consts[:7], ax, _series_start(L, consts))
 
 
 # T_k(1 - u) - 1 and its u-derivative at the panel's ends u = 0 and u = 2, for k < N_COEF
@@ -191,7 +218,7 @@ def _one_minus_xi_p(eps_K, res, ax, T2, Q2, consts):
     target = model.plug_target(res[R_J_AXIS], eps_K)
     if target <= 0.0:
         return 0.0
-    if target > res[R_J2]:  # False when R_J2 is NaN: no closed form below the panels
+    if needs_series_root(eps_K, res):  # False when R_J2 is NaN: no closed form below the panels
         return -math.expm1(_series_plug_edge(target, res, ax, consts))
     return _panel_plug_edge(target, T2, Q2, int(res[R_N2]))
 
@@ -206,7 +233,8 @@ def one_minus_xi_p(eps_K, res, ax, T2, Q2):
     when the shear layer is a tiny fraction of the channel. :func:`solve_batch` computes the
     triple's constants once for all its ``eps K`` (same bits).
     """
-    return _one_minus_xi_p(eps_K, res, ax, T2, Q2, _plug_constants(res, ax))
+    consts = _plug_constants(res, ax) if needs_series_root(eps_K, res) else _no_plug_constants()
+    return _one_minus_xi_p(eps_K, res, ax, T2, Q2, consts)
 
 
 @njit(**_JIT_INLINE)

@@ -467,6 +467,15 @@ def _wall_D_sensitivity(A, N, delta_wall):
     return 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
 
 
+@njit(**_JIT)
+def _wall_values(T1, Q1, n1, A, N, ax, buf):
+    """``(delta(1), D(1), sensitivity)`` of a march that reached the wall: what decides its
+    status and its conditioning (``sensitivity``: :func:`_wall_D_sensitivity`)."""
+    delta_wall = _delta_wall(T1, Q1, n1, buf)
+    return (delta_wall, model.yield_D(1.0, delta_wall, A, N, ax),
+            _wall_D_sensitivity(A, N, delta_wall))
+
+
 @njit(**_JIT_INLINE)
 def solve_stage1(eta, A, N, rtol, atol, ax, T1, Q1, stats1, res, method=METHOD_AUTO):
     """Stage 1 for one ``(eta, A, N)``: the regime, the march from the axis and the wall values.
@@ -551,9 +560,7 @@ def solve_stage1_with(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1, stats1
         s1, n1, t1 = _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1,
                                          stats1, res, 0.0)
     if s1 == stepping.SUCCESS:
-        delta_wall = _delta_wall(T1, Q1, n1, buf)
-        D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
-        sensitivity = _wall_D_sensitivity(A, N, delta_wall)
+        delta_wall, D_wall, sensitivity = _wall_values(T1, Q1, n1, A, N, ax, buf)
         # Near the path edge D(1) is small and Delta, sigma_yx(1) and stage 2 (B ~ 1/sqrt(D))
         # depend on D(1) with condition ~ sensitivity / D(1): an error rtol1 in delta is an error
         # rtol1 * sensitivity in D. March stage 1 once more at rtol * D(1)/sensitivity so that
@@ -566,9 +573,7 @@ def solve_stage1_with(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1, stats1
             s1, n1, t1 = _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1,
                                              Q1, stats1, res, EDGE_MAX_STEP)
             if s1 == stepping.SUCCESS:
-                delta_wall = _delta_wall(T1, Q1, n1, buf)
-                D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
-                sensitivity = _wall_D_sensitivity(A, N, delta_wall)
+                delta_wall, D_wall, sensitivity = _wall_values(T1, Q1, n1, A, N, ax, buf)
     if explicit is None and stiff and s1 == stepping.SUCCESS and rtol1 > STAGE1_RTOL_FLOOR:
         mu_wall = abs(delta_wall - N)
         kappa = abs(delta_wall) / mu_wall if mu_wall > 0.0 else math.inf
@@ -576,9 +581,7 @@ def solve_stage1_with(tight, explicit, eta, A, N, rtol, atol, ax, T1, Q1, stats1
             s1, n1, t1 = _turn_remarch(args1, rtol1, rtol, atol, T1, Q1, n1, kappa, mu_wall,
                                        stats1)
             if s1 == stepping.SUCCESS:
-                delta_wall = _delta_wall(T1, Q1, n1, buf)
-                D_wall = model.yield_D(1.0, delta_wall, A, N, ax)
-                sensitivity = _wall_D_sensitivity(A, N, delta_wall)
+                delta_wall, D_wall, sensitivity = _wall_values(T1, Q1, n1, A, N, ax, buf)
     res[R_N1] = n1
     if s1 == stepping.EVENT:
         res[R_STATUS] = st.EPS_TOO_LARGE_PATH

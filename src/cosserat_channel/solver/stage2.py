@@ -122,15 +122,17 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         xi2, t_end = _stage2_series_start(eta, A, N, ax, rtol, xi1)
     atol_J = atol * min(1.0, eta)
     C = _wall_increments(T1, Q1, n1)
+    # the integrands at the nodes, their rounding, y there; one allocation
+    work = np.empty((4, panels.N_NODES))
+    f = work[0]
+    g = work[1]
+    rel_noise = work[2]
+    y_nodes = work[3]
     delta1 = math.nan
     D1 = math.nan
     if A != -1.0:
-        delta1 = _delta_wall(T1, Q1, n1, np.empty(1))
+        delta1 = _delta_wall(T1, Q1, n1, y_nodes)
         D1 = model.yield_D(1.0, delta1, A, N, ax)
-    f = np.empty(panels.N_NODES)
-    g = np.empty(panels.N_NODES)
-    rel_noise = np.empty(panels.N_NODES)
-    y_nodes = np.empty(panels.N_NODES)
     X = panels.X
     last = panels.N_NODES - 1
     h_axis = _h_axis(A, ax)
@@ -157,6 +159,12 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     # integrate_panel and panel_value once more for it.
     p = np.int64(0)
     tail = False
+    # The rates at the panels' upper end b, shared by every panel tried from b and by the panel
+    # above (its lower end): computed once while b stays inside one stage-1 step.
+    have_b = False
+    f_b = 0.0
+    g_b = 0.0
+    noise_b = 0.0
     while b > t_end:
         a = b - length
         if a < lo + 0.25 * length:
@@ -165,13 +173,27 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         mid = 0.5 * (a + b)
         noise_y = 0.0
         for j in range(panels.N_NODES):
-            t = b if j == 0 else (a if j == last else mid + r * X[j])
-            xi, s = xi_of_log(t)
-            if free:
-                k = dense.find_step_from(T1, n1, xi, k) if xi > xi1 else -1
-            f[j], g[j], rel_noise[j] = _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C, delta1, D1)
+            if j == 0 and have_b:
+                # (in free mode k is already the step holding e^b: find_step_from from its own
+                # answer returns it)
+                f[0] = f_b
+                g[0] = g_b
+                rel_noise[0] = noise_b
+            else:
+                t = b if j == 0 else (a if j == last else mid + r * X[j])
+                xi, s = xi_of_log(t)
+                if free:
+                    k = dense.find_step_from(T1, n1, xi, k) if xi > xi1 else -1
+                f[j], g[j], rel_noise[j] = _node_rates(xi, s, k, eta, A, N, ax, T1, Q1, C,
+                                                       delta1, D1)
+                stats2[stepping.STAT_FEV] += 1
             noise_y = max(noise_y, abs(f[j]) * rel_noise[j])
-        stats2[stepping.STAT_FEV] += panels.N_NODES
+        if not have_b:
+            f_b = f[0]
+            g_b = g[0]
+            noise_b = rel_noise[0]
+            have_b = True
+        g_a = g[last]  # before integrate_panel weights g by omega_hat
         err_y, err_J = panels.integrate_panel(f, g, y_b, J_b, r, Q2, p, y_nodes)
         noise_J = 0.0
         for j in range(panels.N_NODES):
@@ -199,6 +221,9 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
         b = a
         y_b = y_nodes[last]
         J_b = J_a
+        f_b = f[last]
+        g_b = g_a
+        noise_b = rel_noise[last]
         if p >= max_panels:
             res[R_N2] = p
             res[R_STATUS] = st.INTEGRATION_FAILED
@@ -211,6 +236,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
             break
         length = 2.0 * r * panels.panel_error_factor(err, 1.0)
         if a == lo and k >= 0 and not free:
+            have_b = False  # e^b ends step k: the next panels read step k - 1
             k -= 1
             if k < 0:
                 xi2, t_end = _stage2_series_start(eta, A, N, ax, rtol, xi1)

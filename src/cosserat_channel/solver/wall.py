@@ -66,9 +66,7 @@ def wall_scalar_kernel(etas, A, N, atol, ax, T1, Q1, stats1, res, status, G, sen
         G[i] = math.nan
         sens[i] = math.nan
         if n1 > 0 and (code == st.OK or xs == 1.0):
-            d = stress_path._delta_wall(T1, Q1, n1, buf)
-            G[i] = model.yield_D(1.0, d, A, N, ax)
-            sens[i] = stage1._wall_D_sensitivity(A, N, d)
+            _, G[i], sens[i] = stage1._wall_values(T1, Q1, n1, A, N, ax, buf)
         elif code == st.EPS_TOO_LARGE_PATH and n1 > 0 and xs < 1.0:
             work[0] = 0.0
             d = stress_path._delta_at(xs, res[layout.R_XI1], ax, T1, Q1, n1, buf, work)

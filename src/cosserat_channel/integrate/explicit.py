@@ -96,7 +96,9 @@ def explicit_rk(trial, control, dense, n_rows, k_new, order, memory0, stiff_dy, 
     # `accept` holds the last trial's verdict: the controller must not grow a step after a
     # rejection.
     t, memory, accept = t0, memory0, True
-    nsteps = n_nonfinite = iasti = nonsti = 0
+    # Counters start as int64, not the literal 0: Numba would compile the counter helpers once
+    # for the literal and once for int64.
+    nsteps = n_nonfinite = iasti = nonsti = np.int64(0)
     rho = rho0  # |lambda| at the start of the next step (0: unknown)
     while True:
         if nsteps >= Q.shape[0]:

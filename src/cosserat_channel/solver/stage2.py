@@ -124,10 +124,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     C = _wall_increments(T1, Q1, n1)
     # the integrands at the nodes, their rounding, y there; one allocation
     work = np.empty((4, panels.N_NODES))
-    f = work[0]
-    g = work[1]
-    rel_noise = work[2]
-    y_nodes = work[3]
+    f, g, rel_noise, y_nodes = work[0], work[1], work[2], work[3]
     delta1 = math.nan
     D1 = math.nan
     if A != -1.0:

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -316,12 +317,9 @@ class Plan:
     def packed_inputs(self, k: int):
         """Block ``k``'s inputs to send to a worker: :class:`PackedInputs` (reduced), or its
         :class:`BlockInputs` without ``flat`` (unreduced: one entry per triple, nothing to pack)."""
-        t = self.blocks[k]
         if not self.reduce:
-            e, _, kk, _, _ = np.unravel_index(t, self.shape)
-            eta, A, N = self.triple_params(t)
-            return BlockInputs(eta, A, N, self.eps[e] * self.K[kk],
-                               np.arange(t.size + 1, dtype=np.int64), np.empty(0, dtype=np.int64))
+            return dataclasses.replace(self.inputs(k), flat=np.empty(0, dtype=np.int64))
+        t = self.blocks[k]
         eta, A, N = self.triple_params(t)
         u = t // (self.shape[3] * self.shape[4])
         pairs = self.pair_start[u + 1] - self.pair_start[u]

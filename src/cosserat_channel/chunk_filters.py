@@ -61,13 +61,14 @@ def fletcher32(data: np.ndarray) -> int:
     return int(_fletcher32(data[:even].view(np.uint16), int(data[even]) if even < data.size else -1))
 
 
-def shuffle(data: np.ndarray, itemsize: int) -> np.ndarray:
-    """HDF5's shuffle of the bytes ``data`` for elements of ``itemsize`` bytes."""
+def shuffle(data: np.ndarray, itemsize: int, out: np.ndarray | None = None) -> np.ndarray:
+    """HDF5's shuffle of the bytes ``data`` for elements of ``itemsize`` bytes (into the first
+    ``data.size`` bytes of ``out`` when given)."""
     if itemsize <= 1:
         return data
     from ._chunk_kernels import _shuffle_bytes
 
-    out = np.empty_like(data)
+    out = np.empty_like(data) if out is None else out[:data.size]
     whole = data.size // itemsize * itemsize
     _shuffle_bytes(data, int(itemsize), out)
     out[whole:] = data[whole:]
@@ -108,13 +109,16 @@ _buffers = threading.local()
 
 
 def _scratch(shape: tuple):
-    """This thread's buffers for a chunk of ``shape`` of 8-byte elements: its elements and its
-    encoded bytes (with 4 to spare). Reused chunk after chunk: fresh megabytes cost the system
-    a page fault per page, more than the copy, the shuffle and the checksum together."""
+    """This thread's buffers for a chunk of ``shape`` of 8-byte elements: its bytes with 4 to
+    spare for the checksum (and its elements, a view of them), and as many for the shuffle's
+    output. Reused chunk after chunk: fresh megabytes cost the system a page fault per page, more
+    than the copy, the shuffle and the checksum together."""
     found = getattr(_buffers, "chunk", None)
     if found is None or found[0].shape != shape:
-        words = np.empty(shape, dtype=np.uint64)
-        found = _buffers.chunk = (words, np.empty(words.nbytes + 4, dtype=np.uint8))
+        n = math.prod(shape) * 8
+        raw = np.empty(n + 4, dtype=np.uint8)
+        found = _buffers.chunk = (raw[:n].view(np.uint64).reshape(shape), raw,
+                                  np.empty(n + 4, dtype=np.uint8))
     return found
 
 
@@ -122,25 +126,14 @@ def encode_part(part: np.ndarray, shape: tuple, fill, pipeline) -> bytes:
     """The bytes HDF5 stores for a chunk of ``shape`` under ``pipeline`` whose leading box holds
     ``part`` (a view into a tile, any strides, broadcast ones included) and the rest ``fill`` (an
     edge chunk, padded as HDF5 pads it)."""
-    from ._chunk_kernels import _fletcher32, _gather, _shuffle_bytes, copy_box
+    from ._chunk_kernels import _gather, copy_box
 
     n = math.prod(shape) * part.dtype.itemsize
-    rest = tuple(pipeline)
-    if (part.dtype.itemsize == 8 and part.ndim == 5 and rest
-            and rest[0][0] == FILTER_FLETCHER32):
-        shuffled = len(rest) > 1 and rest[1][0] == FILTER_SHUFFLE and rest[1][1] in ((), (8,))
+    if part.dtype.itemsize == 8 and part.ndim == 5:
         bits = np.asarray(fill, dtype=part.dtype).reshape(1).view(np.uint64)[0]
-        words, data = _scratch(tuple(int(c) for c in shape))
+        words, raw, spare = _scratch(tuple(int(c) for c in shape))
         _gather(part.view(np.uint64), bits, words)
-        raw = words.reshape(-1).view(np.uint8)
-        if shuffled:
-            _shuffle_bytes(raw, 8, data)
-        else:
-            data[:n] = raw
-        total = int(_fletcher32(raw.view(np.uint16), -1))
-        data[n:] = np.frombuffer(total.to_bytes(4, "little"), dtype=np.uint8)
-        rest = rest[2:] if shuffled else rest[1:]
-        return _run(data, n + 4, part.dtype.itemsize, rest, None)
+        return _run(raw, n, 8, pipeline, raw, spare)
     data = np.empty(n + 4, dtype=np.uint8)
     whole = data[:n].view(part.dtype).reshape(shape)
     if part.shape != tuple(shape):
@@ -154,7 +147,9 @@ def run_filters(buf: np.ndarray, n: int, itemsize: int, pipeline) -> bytes:
     return _run(buf, n, itemsize, pipeline, buf)
 
 
-def _run(buf, n, itemsize, pipeline, room) -> bytes:
+def _run(buf, n, itemsize, pipeline, room, spare=None) -> bytes:
+    # room: buf itself while the data is still its first n bytes, for the checksum to append
+    # to; spare: where the shuffle may write (a thread's reused buffer), else a fresh array.
     data = buf[:n]
     for f, values in pipeline:
         if f == FILTER_FLETCHER32:
@@ -166,7 +161,8 @@ def _run(buf, n, itemsize, pipeline, room) -> bytes:
                                                   dtype=np.uint8)
             data = room[:total]
         elif f == FILTER_SHUFFLE:
-            data = shuffle(data, values[0] if values else itemsize)
+            data = shuffle(data, values[0] if values else itemsize, spare)
+            spare = None  # it holds the data now
         elif f == FILTER_DEFLATE:
             data = deflate(data, values[0] if values else 6)
         else:

@@ -1005,3 +1005,24 @@ def test_python_m_runs_the_command_and_importing_main_runs_nothing():
     imported = subprocess.run([sys.executable, "-c", "import cosserat_channel.cli.__main__; "
                                "print('imported')", "html"], capture_output=True, text=True)
     assert imported.returncode == 0 and imported.stdout == "imported\n", imported.stderr
+
+
+def test_ctrl_c_inside_llvm_callbacks_waits_until_they_return():
+    """Ctrl-C while LLVM calls llvmlite back (Numba loading a kernel) is raised once the main
+    thread is out of llvmlite, not inside the callback, where it would be lost and LLVM crash."""
+    import time
+
+    inside = {"__name__": "llvmlite.binding.callback", "signal": signal, "time": time}
+    exec("def callback():\n"
+         "    signal.raise_signal(signal.SIGINT)\n"
+         "    end = time.monotonic() + 0.3\n"
+         "    while time.monotonic() < end:\n"
+         "        pass\n"
+         "    return 'returned'\n", inside)
+    returned = []
+    with pytest.raises(KeyboardInterrupt):
+        with cli.common.interruptible(term=False):
+            returned.append(inside["callback"]())
+            time.sleep(5)
+    assert returned == ["returned"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -28,7 +28,8 @@ import re
 import sys
 
 from . import _point, _sweeps, _regimes, _atlas, _reports, _paper, _fit, _explore
-from .common import COMMANDS, EXIT_FAILURE, EXIT_USAGE, PROG, CliError, error, interrupted
+from .common import (COMMANDS, EXIT_FAILURE, EXIT_USAGE, PROG, CliError, error, interruptible,
+                     interrupted)
 
 # The commands register themselves on import (common.register); --help lists them in this order.
 COMMAND_MODULES = (_point, _sweeps, _regimes, _atlas, _reports, _paper, _fit, _explore)
@@ -150,7 +151,8 @@ def main(argv=None) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
     try:
         args = build_parser(command).parse_args(argv)
-        code = args._run(args)
+        with interruptible(term=False):  # Ctrl-C while Numba loads a kernel: see interruptible
+            code = args._run(args)
         sys.stdout.flush()  # a reader gone (``| head -1``) shows here, not at the interpreter's exit
         return code
     except _ParserExit as exc:

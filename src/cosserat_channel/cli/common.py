@@ -98,10 +98,26 @@ class Terminated(KeyboardInterrupt):
     :func:`interruptible`)."""
 
 
+def _inside_llvm(frame) -> bool:
+    """Whether ``frame`` or a caller of it is llvmlite's Python code, which LLVM calls back from
+    C while Numba loads or compiles a kernel: an exception raised there is lost in the callback
+    and leaves LLVM with a buffer it never got, and the process dies of SIGSEGV."""
+    while frame is not None:
+        if frame.f_globals.get("__name__", "").startswith("llvmlite"):
+            return True
+        frame = frame.f_back
+    return False
+
+
 @contextlib.contextmanager
-def interruptible():
-    """Inside, SIGTERM raises :class:`Terminated`, so that one ``except KeyboardInterrupt`` keeps
-    what is finished after Ctrl-C and after a ``kill`` alike; :func:`interrupted` reports it."""
+def interruptible(term: bool = True):
+    """Inside, SIGTERM raises :class:`Terminated` (with ``term``), so that one ``except
+    KeyboardInterrupt`` keeps what is finished after Ctrl-C and after a ``kill`` alike;
+    :func:`interrupted` reports it.
+
+    A signal that arrives while LLVM runs llvmlite's callbacks is raised again 50 ms later, until
+    the main thread is out of them (see :func:`_inside_llvm`)."""
+    import os
     import signal
     import threading
 
@@ -109,14 +125,26 @@ def interruptible():
         yield
         return
 
-    def terminate(signum, frame):
-        raise Terminated
+    def handler(stop):
+        def stopped(signum, frame):
+            if _inside_llvm(frame):
+                again = threading.Timer(0.05, os.kill, (os.getpid(), signum))
+                again.daemon = True
+                again.start()
+                return
+            raise stop
 
-    previous = signal.signal(signal.SIGTERM, terminate)
+        return stopped
+
+    handled = {signal.SIGTERM: handler(Terminated)} if term else {}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        handled[signal.SIGINT] = handler(KeyboardInterrupt)
+    previous = {signum: signal.signal(signum, h) for signum, h in handled.items()}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for signum, h in previous.items():
+            signal.signal(signum, h)
 
 
 def interrupted(exc: KeyboardInterrupt, kept: str) -> int:

@@ -77,6 +77,9 @@ def unrecognised(ds: xr.Dataset, shown: int = 6) -> str:
         more = f" and {len(items) - shown} more" if len(items) > shown else ""
         return ", ".join(items[:shown]) + more
 
+    def article(kind):
+        return f"{'an' if kind[0] in 'aeiou' else 'a'} {kind}"
+
     titled = "" if title is None else f" titled '{printable(title)}'"
     what = (f"a NetCDF file{titled} "
             f"with {'dimensions ' + listed(dims) if dims else 'no dimensions'} and "
@@ -88,13 +91,13 @@ def unrecognised(ds: xr.Dataset, shown: int = 6) -> str:
     for kind in near:
         missing = [v for v in KIND_VARIABLES[kind] if v not in ds.data_vars]
         if missing:
-            why.append(f"as {'an' if kind[0] in 'aeiou' else 'a'} {kind} it lacks "
+            why.append(f"as {article(kind)} it lacks "
                        f"{' and '.join(missing)}")
         elif kind in _FLAGGED:
             why.append(f"its {_FLAGGED[kind]} is not a flag variable (flag_values and "
                        "flag_meanings)")
     if not why:
-        kinds = [f"{'an' if k[0] in 'aeiou' else 'a'} {k} ({', '.join(v)})"
+        kinds = [f"{article(k)} ({', '.join(v)})"
                  for k, v in KIND_VARIABLES.items()]
         why.append(f"it has none of the variables of {', '.join(kinds[:-1])} or {kinds[-1]}")
     return f"{what}; {'; '.join(why)} (damaged, or not written by the tool)"

@@ -5,6 +5,8 @@ live process's, not a FIFO, directory or link that bears such a name."""
 from __future__ import annotations
 
 import os
+import pathlib
+import stat
 import signal
 import subprocess
 import sys
@@ -93,3 +95,70 @@ def test_a_temporary_of_a_live_or_impossible_pid_is_left_alone(tmp_path, pid):
     tmp.write_text("x")
     assert files.remove_stale_temporaries(tmp_path, out) == []
     assert tmp.read_text() == "x"
+
+
+# A child that streams OUT (a FIFO) through a private directory in TMP and is killed (SIGKILL)
+# while it writes there, before anything reaches the FIFO.
+KILLED_IN_A_STREAM = textwrap.dedent("""
+    import os, signal, sys
+    from cosserat_channel import files
+
+    def write(tmp):
+        with open(tmp, "w") as f:
+            f.write("half")
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    files.atomic_output(sys.argv[1], write, tmp_dir=sys.argv[2])
+""")
+
+
+def _read_fifo(path, got):
+    import threading
+
+    def read():
+        with open(path, "rb") as f:
+            got.append(f.read())
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    return reader
+
+
+def test_the_next_stream_removes_the_private_directory_a_killed_stream_left_and_nothing_else(
+        tmp_path):
+    fifo, tmp = tmp_path / "out.nc", tmp_path / "tmp"
+    os.mkfifo(fifo)
+    tmp.mkdir()
+    proc = subprocess.run([sys.executable, "-c", KILLED_IN_A_STREAM, str(fifo), str(tmp)],
+                          timeout=120)
+    assert proc.returncode == -signal.SIGKILL
+    left = [p.name for p in tmp.iterdir()]
+    assert len(left) == 1 and left[0].startswith(files._temp_prefix(fifo))
+    assert [p.read_text() for p in (tmp / left[0]).iterdir()] == ["half"]
+
+    # Beside it, what must stay: a live process's private directory, a dead writer's that holds
+    # a directory or a link (not what the tool leaves), another output's, and a plain file.
+    dead, prefix = _dead_pid(), files._temp_prefix(fifo)
+    live = tmp / os.path.basename(files.temp_path(tmp, fifo))
+    nested = tmp / f"{prefix}{dead}.0000aaaa.tmp"
+    linked = tmp / f"{prefix}{dead}.0000bbbb.tmp"
+    other = tmp / os.path.basename(files.temp_path(tmp, tmp_path / "other.nc")).replace(
+        f".{os.getpid()}.", f".{dead}.")
+    for d in (live, nested, linked, other):
+        d.mkdir()
+        (d / "x").write_text("keep")
+    (nested / "sub").mkdir()
+    (linked / "to").symlink_to(tmp_path / "out.nc")
+    plain = tmp / f"{prefix}{dead}.0000cccc.tmp"
+    plain.write_text("keep")
+    before = sorted(p.name for p in tmp.iterdir())
+
+    got = []
+    reader = _read_fifo(fifo, got)
+    files.atomic_output(fifo, lambda t: pathlib.Path(t).write_bytes(b"whole"), tmp_dir=tmp)
+    reader.join(60)
+    assert got == [b"whole"]
+    after = sorted(p.name for p in tmp.iterdir())
+    assert set(before) - set(after) == {left[0]} and not set(after) - set(before)
+    assert all((d / "x").read_text() == "keep" for d in (live, nested, linked, other))
+    assert plain.read_text() == "keep" and stat.S_ISFIFO(os.lstat(fifo).st_mode)

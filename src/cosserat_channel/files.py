@@ -188,11 +188,15 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_temporaries(directory, path) -> list[str]:
+def remove_stale_temporaries(directory, path, private: bool = False) -> list[str]:
     """Remove the temporary files of ``path`` in ``directory`` that a killed writer left: only
     regular files of this user whose whole name is one :func:`temp_path` gives for ``path`` on
     this machine and whose process is gone. Anything else (another output's, a live process's,
     a FIFO or directory of that name, another user's) is left alone. Returns the names removed.
+
+    With ``private``, the same for the private directories of a streamed output
+    (:func:`_stream_output`): directories of this user that hold nothing but regular files,
+    removed with them.
     """
     import re
 
@@ -209,15 +213,28 @@ def remove_stale_temporaries(directory, path) -> list[str]:
             continue
         full = os.path.join(directory, name)
         try:
-            info = os.lstat(full)
-            if not stat.S_ISREG(info.st_mode) or (hasattr(os, "getuid")
-                                                  and info.st_uid != os.getuid()):
+            if not _ours(full, stat.S_ISDIR if private else stat.S_ISREG):
                 continue
-            os.unlink(full)
+            if private:
+                inside = [os.path.join(full, n) for n in os.listdir(full)]
+                if not all(_ours(f, stat.S_ISREG) for f in inside):
+                    continue
+                for f in inside:
+                    os.unlink(f)
+                os.rmdir(full)
+            else:
+                os.unlink(full)
         except OSError:
             continue
         removed.append(name)
     return removed
+
+
+def _ours(path: str, kind: Callable[[int], bool]) -> bool:
+    """Whether ``path`` itself (a link is not followed) is of ``kind`` (``stat.S_ISREG``, ...)
+    and belongs to this user."""
+    info = os.lstat(path)
+    return kind(info.st_mode) and not (hasattr(os, "getuid") and info.st_uid != os.getuid())
 
 
 def working_store_around(path) -> str | None:
@@ -391,8 +408,13 @@ def write_text(path, text, replace: bool = True) -> None:
 
 def _stream_output(path: str, write: Callable[[str], None], tmp_dir) -> None:
     """:func:`atomic_output` into a character device or a FIFO: ``write`` a temporary file in a
-    private directory (in ``tmp_dir``, default the system's), then copy it into ``path``."""
-    work = tempfile.mkdtemp(prefix=".cosserat-channel.", suffix=".tmp", dir=tmp_dir)
+    private directory (in ``tmp_dir``, default the system's; named as :func:`temp_path` names
+    a temporary file, so that the next streamed output of ``path`` removes it if a killed
+    writer left it), then copy it into ``path``."""
+    parent = tempfile.gettempdir() if tmp_dir is None else os.fspath(tmp_dir)
+    remove_stale_temporaries(parent, path, private=True)
+    work = temp_path(parent, path)
+    os.mkdir(work, 0o700)
     try:
         tmp = os.path.join(work, os.path.basename(os.path.abspath(path)) or "output")
         write(tmp)

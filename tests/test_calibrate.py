@@ -271,6 +271,21 @@ def test_warns_when_a_parameter_does_not_matter():
     assert math.isnan(r.errors["K"]) and math.isfinite(r.errors["L"])
 
 
+def test_a_start_where_the_model_is_flat_is_named_and_another_start_suggested():
+    """Data in % (x100) from a start at eps L = 1e-6, where Delta is exactly 0 for every L near
+    it: the fit cannot move, and the warning says that L does matter elsewhere (at its usual
+    start), not that the data cannot determine it."""
+    eps = np.array([0.01, 0.02, 0.05])
+    vals = [100 * solve_point(e, 10, 0.5, 1 / 3, 1).Delta for e in eps]
+    assert solve_point(0.01, 1e-4, 0.5, 1 / 3, 1).Delta == 0.0
+    data = {"quantity": ["Delta"] * 3, "value": vals, "std_error": [1e-2] * 3, "eps": eps}
+    r, notes = _warned(data, "L", {**FIXED, "K": 0.5}, start={"L": 1e-4})
+    assert r.params["L"] == 1e-4
+    assert ("L does not change any prediction at L = 0.0001, but does at L = 10: the fit is "
+            "stuck where the model is flat; give another start") in notes
+    assert not any("cannot determine" in n for n in notes)
+
+
 def test_warns_of_a_combination_the_data_do_not_determine():
     """sigma_yx_wall depends on eps L = d_p L / W only: L and d_p are determined only as a
     product, and the warning names the combination dL/L - dd_p/d_p (up to sign)."""

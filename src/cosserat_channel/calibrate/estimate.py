@@ -414,8 +414,9 @@ def fit(data, free, fixed: Mapping | None = None, bounds: Mapping | None = None,
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(se, se)
     chi2 = float(np.sum(np.where(status == st.OK, r, np.nan) ** 2))
-    notes = _warnings(names, x, lo, hi, bounds or {}, opt, status, met, info, J, cond, null, cov,
-                      data, chi2)
+    moving = _moving_elsewhere(problem, names, x, lo, hi, pred, np.linalg.norm(J, axis=0) == 0)
+    notes = _warnings(names, x, moving, lo, hi, bounds or {}, opt, status, met, info, J, cond,
+                      null, cov, data, chi2)
     if unsteered:
         notes.append(f"{unsteered} rows have no finite derivative at the estimate: the "
                      "standard errors leave them out")
@@ -592,8 +593,30 @@ def _at(names, x) -> str:
     return ", ".join(f"{n} = {v:.6g}" for n, v in zip(names, x))
 
 
-def _warnings(names, x, lo, hi, given_bounds, opt, status, met, info, J, cond, null, cov,
-              data, chi2) -> list:
+def _moving_elsewhere(problem, names, x, lo, hi, pred, still) -> dict:
+    """For each parameter ``j`` that changes no prediction at ``x`` (``still[j]``), a value of
+    it within its bounds where the predictions differ from ``pred`` (its usual start, or x10,
+    x1/10 of its estimate), if one does: the data are flat at the estimate only, not everywhere,
+    and another start may find what they determine."""
+    found = {}
+    for j in np.flatnonzero(still):
+        tries = [START.get(names[j], INPUTS[names[j]].default), 10.0 * x[j], 0.1 * x[j]]
+        tries = [v for v in tries if v is not None and lo[j] < v < hi[j] and v != x[j]]
+        if not tries:
+            continue
+        thetas = np.repeat(x[None, :], len(tries), axis=0)
+        thetas[:, j] = tries
+        other, status = problem.evaluate(thetas)
+        ok = (status == st.OK) & np.isfinite(pred)
+        for k, v in enumerate(tries):
+            if (other[k][ok[k]] != pred[ok[k]]).any():
+                found[j] = v
+                break
+    return found
+
+
+def _warnings(names, x, moving, lo, hi, given_bounds, opt, status, met, info, J, cond, null,
+              cov, data, chi2) -> list:
     notes = []
     for j, n in enumerate(names):
         for side, bound in (("lower", lo[j]), ("upper", hi[j])):
@@ -617,7 +640,13 @@ def _warnings(names, x, lo, hi, given_bounds, opt, status, met, info, J, cond, n
                                  for c, k in sorted(met.items())) + edge)
     norms = np.linalg.norm(J, axis=0)
     for j in np.flatnonzero(norms == 0):
-        notes.append(f"{names[j]} does not change any prediction: these data cannot determine it")
+        if j in moving:
+            notes.append(f"{names[j]} does not change any prediction at {names[j]} = "
+                         f"{x[j]:.6g}, but does at {names[j]} = {moving[j]:.6g}: the fit is stuck "
+                         "where the model is flat; give another start")
+        else:
+            notes.append(f"{names[j]} does not change any prediction: these data cannot "
+                         "determine it")
     if len(names) > 1 and cond > COND_MAX and not (norms == 0).any():
         direction = null / np.where(x != 0, np.abs(x), 1.0)  # relative changes d theta/|theta|
         direction = direction / np.max(np.abs(direction))

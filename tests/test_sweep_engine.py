@@ -153,16 +153,27 @@ def test_block_plan_is_the_snake_deal():
 @pytest.mark.parametrize("reduce", [True, False])
 def test_packed_inputs_unpack_to_the_plans_inputs(reduce):
     """What a worker is sent (each triple's eps values and the K axis) unpacks to the very
-    inputs the plan gives, byte for byte, for eta values shared by several (eps, L) pairs."""
+    inputs the plan gives, byte for byte, for eta values shared by several (eps, L) pairs; and
+    every grid point is one entry, its eps * K, of a triple of its eps * L, A and N."""
     spec = load_sweep(sweep(SHARED))
     plan = Plan(spec.coords(), reduce=reduce, block_size=5)
     assert reduce is False or plan.eta_u.size < plan.shape[0] * plan.shape[1]  # shared products
+    covered = np.zeros(plan.size, dtype=int)
     for k in range(len(plan.blocks)):
         want, got = plan.inputs(k), plan.packed_inputs(k).unpack()
         for field in ("eta", "A", "N", "eps_K", "offsets"):
             a, b = getattr(want, field), getattr(got, field)
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), (k, field)
         assert got.flat.size == 0
+        assert plan.solve_inputs(k).flat.size == 0
+        # Each entry is its grid point's eps * K, of a triple with that point's eps * L, A, N.
+        e, l, kk, a, n = np.unravel_index(want.flat, plan.shape)
+        owner = np.repeat(np.arange(want.eta.size), np.diff(want.offsets))
+        assert np.array_equal(want.eps_K, plan.eps[e] * plan.K[kk]), k
+        assert np.array_equal(want.eta[owner], plan.eps[e] * plan.L[l]), k
+        assert np.array_equal(want.A[owner], plan.A[a]) and np.array_equal(want.N[owner], plan.N[n])
+        covered[want.flat] += 1
+    assert (covered == 1).all()
 
 
 @pytest.mark.parametrize("reduce", [True, False])

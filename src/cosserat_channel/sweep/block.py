@@ -71,7 +71,7 @@ def _batch(inp: BlockInputs, sl: slice, rtol, atol, xi_k, res, stats, one_minus,
 
 def _block_task(plan: Plan, k: int, args) -> dict:
     # Build the inputs inside the task: a block's eps K arrays exist only while it runs.
-    out = solve_block(plan.inputs(k), *args)
+    out = solve_block(plan.solve_inputs(k), *args)
     out["triples"] = plan.blocks[k]
     return out
 

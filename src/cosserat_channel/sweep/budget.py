@@ -50,8 +50,9 @@ def _bytes_per_point(spec: SweepSpec, n_xi: int) -> int:
 
 # What a run holds besides its plan and the writer's per-integration arrays: the tiles being
 # derived and encoded (.writer, .encode: a dozen tile-sized temporaries, near 200 MB, one per
-# worker at once and one more being placed or written) and, per worker, the block being solved
-# and stored (its eps K entries with their grid indices, owners and plug-edge values).
+# worker at once and one more being placed or written), the plug-edge values of the group being
+# written (.writer.GROUP_POINTS at most) and, per worker, the block being solved and stored (its
+# eps K entries with their grid indices, owners and plug-edge values).
 TILE_MEMORY = 200 << 20
 BLOCK_BYTES_PER_ENTRY = 64
 
@@ -68,6 +69,8 @@ def memory_needed(spec: SweepSpec, n_triples: int, xi, output, reduce: bool,
         need += held + 2 * spec.size * _bytes_per_point(spec, n_xi)
     else:  # beyond WRITER_MEMORY the writer maps its arrays onto the disk
         need += (held if held <= writer_.WRITER_MEMORY else 0) + (workers + 1) * TILE_MEMORY
+        if out_.needs_plug_edge(spec.variables):  # a group's plug-edge values, regrouped
+            need += 8 * min(spec.size, writer_.GROUP_POINTS)
     # A block holds whole integrations, about 1/DEFAULT_BLOCKS of the grid up to
     # MAX_BLOCK_ENTRIES entries (.plan), and at least one integration's entries.
     per_triple = -(-spec.size // max(1, n_triples))

@@ -137,7 +137,7 @@ class PackedInputs:
 
     def unpack(self) -> BlockInputs:
         """The block's :class:`BlockInputs` (``flat`` empty): the entries are the products
-        ``eps * K`` of :meth:`Plan.inputs`, pair after pair, ``K`` fastest, the same floats."""
+        ``eps * K``, pair after pair, ``K`` fastest (:meth:`Plan.inputs` makes them here too)."""
         eps_K = (self.pair_eps[:, None] * self.K[None, :]).ravel()
         offsets = np.concatenate(([0], np.cumsum(self.pairs * self.K.size))).astype(np.int64)
         return BlockInputs(self.eta, self.A, self.N, eps_K, offsets, np.empty(0, dtype=np.int64))
@@ -294,25 +294,26 @@ class Plan:
 
     # -- blocks -------------------------------------------------------------------------------
     def inputs(self, k: int) -> BlockInputs:
-        """Kernel inputs of block ``k``."""
+        """Kernel inputs of block ``k``, with the grid index of every entry (``flat``)."""
         t = self.blocks[k]
-        eta, A, N = self.triple_params(t)
         nE, nL, nK, nA, nN = self.shape
         if not self.reduce:
+            eta, A, N = self.triple_params(t)
             e, _, kk, _, _ = np.unravel_index(t, self.shape)
             eps_K = self.eps[e] * self.K[kk]
             offsets = np.arange(t.size + 1, dtype=np.int64)
             return BlockInputs(eta, A, N, eps_K, offsets, t.copy())
-        counts = self.entries_per_triple(t)
-        offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
-        owner = np.repeat(np.arange(t.size), counts)
-        local = np.arange(offsets[-1], dtype=np.int64) - offsets[owner]
-        u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
-        pair = self.pair_order[self.pair_start[u[owner]] + local // nK]
-        kk = local % nK
-        eps_K = self.eps[pair // nL] * self.K[kk]
-        flat = ((pair * nK + kk) * nA + a[owner]) * nN + n[owner]
-        return BlockInputs(eta, A, N, eps_K, offsets, flat)
+        # The entries come in runs of nK (one triple, one (eps, L) pair, every K): the grid index
+        # of a run's first entry, then K's stride in the grid.
+        pair, a, n = self._runs(t)
+        first = (pair * nK * nA + a) * nN + n
+        flat = (first[:, None] + (nA * nN) * np.arange(nK, dtype=np.int64)).ravel()
+        return dataclasses.replace(self.packed_inputs(k).unpack(), flat=flat)
+
+    def solve_inputs(self, k: int) -> BlockInputs:
+        """Block ``k``'s inputs as the solve takes them: :meth:`inputs` without ``flat`` (the
+        grid indices only the writing process needs), made as a worker makes them."""
+        return self.packed_inputs(k).unpack()
 
     def packed_inputs(self, k: int):
         """Block ``k``'s inputs to send to a worker: :class:`PackedInputs` (reduced), or its
@@ -323,42 +324,53 @@ class Plan:
         eta, A, N = self.triple_params(t)
         u = t // (self.shape[3] * self.shape[4])
         pairs = self.pair_start[u + 1] - self.pair_start[u]
+        pair, _, _ = self._runs(t)
+        return PackedInputs(eta, A, N, self.eps[pair // self.shape[1]], pairs, self.K)
+
+    def _runs(self, t: np.ndarray):
+        """``(pair, a, n)`` of every run of a reduced block of triples ``t``: a run is one triple
+        and one ``(eps, L)`` pair of its ``eta`` (the pair's C-order index), in pair order, triple
+        after triple; its ``nK`` entries follow each other, ``K`` fastest."""
+        nA, nN = self.shape[3:]
+        u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
+        pairs = self.pair_start[u + 1] - self.pair_start[u]
         owner = np.repeat(np.arange(t.size), pairs)
         first = np.concatenate(([0], np.cumsum(pairs)))[:-1]
         pair = self.pair_order[self.pair_start[u[owner]] + np.arange(owner.size) - first[owner]]
-        return PackedInputs(eta, A, N, self.eps[pair // self.shape[1]], pairs, self.K)
+        return pair, a[owner], n[owner]
 
-    def tile_local(self, k: int):
-        """``(tile, local)`` of block ``k``'s entries, in :meth:`inputs` order: the tile (C order
-        of the tile grid) and the C-order index inside that tile (edge tiles are smaller), or
-        None where this shortcut does not apply (unreduced, or tiles that split ``K``).
-
-        A reduced block's entries come in runs of ``nK`` (one triple, one ``(eps, L)`` pair,
-        every ``K``), so the indices are computed per run and spread: a few passes over the
-        entries instead of the dozen that unravelling their grid indices takes.
-        """
+    def tile_runs(self, k: int):
+        """``(tile, local, stride)`` of each run of block ``k``'s entries (see :meth:`_runs`): its
+        tile (C order of the tile grid), the C-order index inside that tile (edge tiles are
+        smaller) of its first entry and the stride of ``K`` there; or None where this does not
+        apply (unreduced, or tiles that split ``K``). Entry ``j`` of a run lies at
+        ``local + j * stride``."""
         nE, nL, nK, nA, nN = self.shape
         te, tl, tk, ta, tn = self.tile
         if not self.reduce or tk != nK:
             return None
-        t = self.blocks[k]
-        u, a, n = t // (nA * nN), (t // nN) % nA, t % nN
-        pairs = self.pair_start[u + 1] - self.pair_start[u]
-        owner = np.repeat(np.arange(t.size), pairs)  # one per run
-        first = np.concatenate(([0], np.cumsum(pairs)))[:-1]
-        pair = self.pair_order[self.pair_start[u[owner]] + np.arange(owner.size) - first[owner]]
+        pair, a, n = self._runs(self.blocks[k])
         e, l = pair // nL, pair % nL
-        a, n = a[owner], n[owner]
         ge, gl, _, ga, gn = self.tile_grid
         tile = (((e // te) * gl + l // tl) * ga + a // ta) * gn + n // tn
         ext_l = np.minimum(tl, nL - (l // tl) * tl)
         ext_a = np.minimum(ta, nA - (a // ta) * ta)
         ext_n = np.minimum(tn, nN - (n // tn) * tn)
         stride = ext_a * ext_n  # of K inside the tile
-        base = ((e % te) * ext_l + l % tl) * nK * stride + (a % ta) * ext_n + n % tn
-        kk = np.tile(np.arange(nK, dtype=np.int64), owner.size)
-        local = np.repeat(base, nK) + np.repeat(stride, nK) * kk
-        return np.repeat(tile, nK), local
+        local = ((e % te) * ext_l + l % tl) * nK * stride + (a % ta) * ext_n + n % tn
+        return tile, local, stride
+
+    def tile_local(self, k: int):
+        """``(tile, local)`` of block ``k``'s entries, in :meth:`inputs` order: each entry's tile
+        and C-order index inside it (:meth:`tile_runs` spread over the runs' entries), or None
+        where :meth:`tile_runs` is."""
+        runs = self.tile_runs(k)
+        if runs is None:
+            return None
+        tile, local, stride = runs
+        nK = self.shape[2]
+        kk = np.arange(nK, dtype=np.int64)
+        return np.repeat(tile, nK), (local[:, None] + stride[:, None] * kk).ravel()
 
     def to_grid(self, per_triple: np.ndarray, spread: bool = True) -> np.ndarray:
         """Spread per-triple values (leading axis ``n_triples``) onto the grid (a new array);

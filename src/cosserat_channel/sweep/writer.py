@@ -12,9 +12,9 @@ blocks are done, in a thread of its own while the other blocks are solved:
    ``1 - xi_p`` values too (as they came from the kernel: the store's copy is not read back)
    until its group is complete, or, past :data:`PENDING_BYTES`, are read back from the store
    (checked against its digest) when the group is written;
-2. the group's values are placed in its tiles (in memory; a group larger than
-   :data:`GROUP_POINTS`, e.g. one that holds every tile because ``eta`` values are shared across
-   the grid, goes through per-tile *bucket* files in ``scratch/`` instead);
+2. the group's values are placed in its tiles (in memory, one scatter per block; a group larger
+   than :data:`GROUP_POINTS`, e.g. one that holds every tile because ``eta`` values are shared
+   across the grid, goes through per-tile *bucket* files in ``scratch/`` instead);
 3. each tile's values are derived by :func:`.dataset.grid_values` (the function the in-memory
    result uses, elementwise, hence the same bits) and its chunks encoded (checksum, shuffle,
    deflate, as HDF5 would) by :func:`.encode.encode_tile`, in parallel where the blocks are
@@ -63,8 +63,9 @@ WHOLE_K_FACTOR = 2
 # Plug-edge values of finished blocks kept in memory until their group is written; beyond this,
 # a group's blocks are read back from the store (blocks finishing out of group order).
 PENDING_BYTES = 256 << 20
-# A group with more points than this is regrouped through bucket files on disk, not in memory.
-GROUP_POINTS = 4 * TILE_POINTS
+# A group with more points than this is regrouped through bucket files on disk, not in memory
+# (its plug-edge values, 8 bytes a point, are held while its tiles are written: 256 MB).
+GROUP_POINTS = 16 * TILE_POINTS
 SCRATCH = "scratch"
 BUCKET = np.dtype([("local", "<i4"), ("value", "<f8")])
 # The per-integration arrays (StreamWriter.per_triple, .profiles) beyond this many bytes are
@@ -525,44 +526,63 @@ class StreamWriter:
     def _place_one_minus(self, g: int):
         """``take(tile, shape)``: the plug-edge values of group ``g``'s tiles, regrouped from
         its blocks in memory, or through bucket files for a group above :data:`GROUP_POINTS`."""
-        tiles_g = self.plan.groups[g]
-        blocks = self._blocks_of[g]
-        sizes = {int(i): math.prod(s.stop - s.start for s in self.tiles.slices(i)) for i in tiles_g}
-        if sum(sizes.values()) > GROUP_POINTS:
+        tiles_g = [int(i) for i in self.plan.groups[g]]
+        sizes = [math.prod(s.stop - s.start for s in self.tiles.slices(i)) for i in tiles_g]
+        if sum(sizes) > GROUP_POINTS:
             buckets = Buckets(os.path.join(self.store.directory, SCRATCH), self.tiles)
-
-            def gather(k):
-                buckets.add(*self._tile_local(k), self._block_one_minus(k))
-
-            # Reading, checking and sorting a block is numpy and hashlib work that leaves the GIL.
-            with ThreadPoolExecutor(2, thread_name_prefix="cc-gather") as pool:
-                for _ in pool.map(gather, blocks):
-                    pass
+            self._gather(g, lambda k: buckets.add(*self._tile_local(k), self._block_one_minus(k)))
             return buckets.take
-        out = {i: np.empty(n) for i, n in sizes.items()}
-        count = dict.fromkeys(sizes, 0)
-        for k in blocks:
+        # The group's tiles one after the other in one array: each block's values land with one
+        # scatter, wherever its points lie.
+        start = np.full(self.tiles.count, -1, dtype=np.int64)
+        start[tiles_g] = np.cumsum([0] + sizes[:-1])
+        out = np.empty(sum(sizes))
+        count = np.zeros(self.tiles.count, dtype=np.int64)
+        lock = threading.Lock()
+
+        def gather(k):
             values = self._block_one_minus(k)
-            tile, local = self._tile_local(k)
-            if len(out) == 1:
-                (i,) = out
-                out[i][local] = values
-                count[i] += values.size
-                continue
-            for i in out:
-                m = tile == i
-                out[i][local[m]] = values[m]
-                count[i] += int(np.count_nonzero(m))
-        bad = [i for i in out if count[i] != sizes[i]]
+            where, per_tile = self._group_positions(k, start)
+            out[where] = values
+            with lock:
+                count[:] += per_tile
+
+        self._gather(g, gather)
+        bad = [(i, n) for i, n in zip(tiles_g, sizes) if count[i] != n]
         if bad:  # blocks hold disjoint points: a bug, never a user's error
-            raise RuntimeError(f"tile {bad[0]}: {count[bad[0]]} plug-edge values for "
-                               f"{sizes[bad[0]]} points")
+            raise RuntimeError(f"tile {bad[0][0]}: {count[bad[0][0]]} plug-edge values for "
+                               f"{bad[0][1]} points")
 
         def take(i, shape):
-            return out.pop(int(i)).reshape(shape)
+            i = int(i)
+            return out[start[i]:start[i] + math.prod(shape)].reshape(shape)
 
         return take
 
+    def _gather(self, g: int, gather) -> None:
+        """``gather(k)`` for every block ``k`` of group ``g``, in two threads: reading, checking
+        and placing a block is numpy and hashlib work that leaves the GIL."""
+        with ThreadPoolExecutor(2, thread_name_prefix="cc-gather") as pool:
+            for _ in pool.map(gather, self._blocks_of[g]):
+                pass
+
+    def _group_positions(self, k: int, start: np.ndarray):
+        """``(where, per_tile)``: the position of each of block ``k``'s entries in its group's
+        array, whose tile ``i`` begins at ``start[i]``, and how many entries each tile gets."""
+        runs = self.plan.tile_runs(k)
+        if runs is not None:
+            tile, local, stride = runs
+            nK = self.plan.shape[2]
+            first = start[tile] + local
+            where = (first[:, None] + stride[:, None] * np.arange(nK, dtype=np.int64)).ravel()
+            per_tile = np.bincount(tile, minlength=self.tiles.count) * nK
+        else:
+            tile, local = self.tiles.locate(self.plan.inputs(k).flat)
+            where = start[tile] + local
+            per_tile = np.bincount(tile, minlength=self.tiles.count)
+        if per_tile[start < 0].any():  # a block's points lie in its group: a bug otherwise
+            raise RuntimeError(f"block {k} has plug-edge values outside its group")
+        return where, per_tile
 
     def _tile_local(self, k: int):
         """``(tile, local)`` of block ``k``'s entries (:meth:`Tiles.locate` of its grid indices)."""

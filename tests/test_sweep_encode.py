@@ -106,14 +106,15 @@ def test_a_chunk_encoded_from_its_place_in_the_tile_is_the_padded_chunk_encoded(
 
 def test_deflate_is_a_zlib_stream_of_the_bytes():
     """Random bytes, a chunk of rows that repeat (deflated again by the lazy matcher when
-    ISA-L's fast level shrinks it below REPETITIVE) and zlib's levels 0 and 6: every stream
-    decompresses with zlib to the bytes given."""
+    ISA-L's fast level shrinks it below REPETITIVE, or at once when the caller says so) and
+    zlib's levels 0 and 6: every stream decompresses with zlib to the bytes given."""
     rng = np.random.default_rng(5)
     rows = np.repeat(rng.normal(size=(40, 1, 15)), 50, axis=1)
     for data in (rng.integers(0, 256, 100_000, dtype=np.uint8).tobytes(),
                  chunk_filters.shuffle(rows.view(np.uint8).ravel(), 8).tobytes()):
         for level in (0, 1, 6):
-            assert zlib.decompress(chunk_filters.deflate(data, level)) == data
+            for repeats in (False, True):
+                assert zlib.decompress(chunk_filters.deflate(data, level, repeats)) == data
 
 
 def _pipeline(ds):

@@ -75,13 +75,17 @@ def shuffle(data: np.ndarray, itemsize: int, out: np.ndarray | None = None) -> n
     return out
 
 
-def deflate(data, level: int) -> bytes:
+def deflate(data, level: int, repeats: bool = False) -> bytes:
     """A zlib stream of ``data`` for a pipeline's deflate ``level``: zlib's at that level, or,
     with ISA-L and ``level`` >= 1, ISA-L's (module constants: its size is zlib 1's, give or take
-    half a per cent, at several times the speed)."""
+    half a per cent, at several times the speed). ``repeats``: the caller knows that the data
+    holds each of its values several times over (a chunk of a variable constant along an axis),
+    so ISA-L's lazy level deflates it at once, without the fast level's try."""
     level = int(level)
     if _isal is None or level < 1:
         return zlib.compress(data, level)
+    if repeats and level == 1:
+        return _isal.compress(data, ISAL_LAZY, _isal.COMP_ZLIB)
     out = _isal.compress(data, ISAL_LEVEL if level == 1 else ISAL_LAZY, _isal.COMP_ZLIB,
                          _isal.MEM_LEVEL_SMALL)
     if level == 1 and len(out) < REPETITIVE * len(data):
@@ -122,10 +126,10 @@ def _scratch(shape: tuple):
     return found
 
 
-def encode_part(part: np.ndarray, shape: tuple, fill, pipeline) -> bytes:
+def encode_part(part: np.ndarray, shape: tuple, fill, pipeline, repeats: bool = False) -> bytes:
     """The bytes HDF5 stores for a chunk of ``shape`` under ``pipeline`` whose leading box holds
     ``part`` (a view into a tile, any strides, broadcast ones included) and the rest ``fill`` (an
-    edge chunk, padded as HDF5 pads it)."""
+    edge chunk, padded as HDF5 pads it). ``repeats``: see :func:`deflate`."""
     from ._chunk_kernels import _gather, copy_box
 
     n = math.prod(shape) * part.dtype.itemsize
@@ -133,13 +137,13 @@ def encode_part(part: np.ndarray, shape: tuple, fill, pipeline) -> bytes:
         bits = np.asarray(fill, dtype=part.dtype).reshape(1).view(np.uint64)[0]
         words, raw, spare = _scratch(tuple(int(c) for c in shape))
         _gather(part.view(np.uint64), bits, words)
-        return _run(raw, n, 8, pipeline, raw, spare)
+        return _run(raw, n, 8, pipeline, raw, spare, repeats)
     data = np.empty(n + 4, dtype=np.uint8)
     whole = data[:n].view(part.dtype).reshape(shape)
     if part.shape != tuple(shape):
         whole[...] = fill
     copy_box(part, whole)
-    return run_filters(data, n, part.dtype.itemsize, pipeline)
+    return _run(data, n, part.dtype.itemsize, pipeline, data, None, repeats)
 
 
 def run_filters(buf: np.ndarray, n: int, itemsize: int, pipeline) -> bytes:
@@ -147,7 +151,7 @@ def run_filters(buf: np.ndarray, n: int, itemsize: int, pipeline) -> bytes:
     return _run(buf, n, itemsize, pipeline, buf)
 
 
-def _run(buf, n, itemsize, pipeline, room, spare=None) -> bytes:
+def _run(buf, n, itemsize, pipeline, room, spare=None, repeats=False) -> bytes:
     # room: buf itself while the data is still its first n bytes, for the checksum to append
     # to; spare: where the shuffle may write (a thread's reused buffer), else a fresh array.
     data = buf[:n]
@@ -164,7 +168,7 @@ def _run(buf, n, itemsize, pipeline, room, spare=None) -> bytes:
             data = shuffle(data, values[0] if values else itemsize, spare)
             spare = None  # it holds the data now
         elif f == FILTER_DEFLATE:
-            data = deflate(data, values[0] if values else 6)
+            data = deflate(data, values[0] if values else 6, repeats)
         else:
             raise ValueError(f"HDF5 filter {f} is not encoded outside the library")
         room = None

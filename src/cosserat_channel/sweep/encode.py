@@ -105,7 +105,8 @@ def encode_tile(job: TileJob) -> dict:
 
     A variable constant along an axis (``m_wall``, ``status``: along ``K``) comes as a broadcast
     view, read in place; its chunks that differ only in their position along that axis hold the
-    same bytes, so each is encoded once and its bytes placed at every such position.
+    same bytes, so each is encoded once and its bytes placed at every such position, and deflated
+    as data that repeats (:func:`cosserat_channel.chunk_filters.deflate`).
     """
     from .dataset import grid_values
 
@@ -117,6 +118,8 @@ def encode_tile(job: TileJob) -> dict:
         value = np.asarray(value)
         shape = layout.chunks
         constant = [s == 0 for s in value.strides]
+        # Its chunks hold each value as many times as they span such an axis.
+        repeats = math.prod(c for c, z in zip(shape, constant) if z) > 1
         encoded = {}
         for index in np.ndindex(*(-(-m // c) for m, c in zip(value.shape, shape))):
             lo = tuple(i * c for i, c in zip(index, shape))
@@ -126,7 +129,8 @@ def encode_tile(job: TileJob) -> dict:
             key = (tuple(0 if z else i for z, i in zip(constant, index)), part.shape)
             data = encoded.get(key)
             if data is None:
-                data = encoded[key] = encode_part(part, shape, layout.fill, layout.pipeline)
+                data = encoded[key] = encode_part(part, shape, layout.fill, layout.pipeline,
+                                                  repeats)
             chunks.append((name, tuple(o + a for o, a in zip(job.origin, lo)), data))
         del value, encoded
     return {"chunks": chunks, "cpu": time.thread_time() - c0}

@@ -169,8 +169,10 @@ def stage2_series(eta, A, N, ax):
     # Term m of each series needs terms up to m of the ones before it: one loop over m, so that
     # the two chains of dependent terms (1/S and exp(G)) wait on their sums side by side.
     for m in range(1, n):
-        ax[AX_R + m] = -_convolve(ax, AX_S, AX_R, 1, m + 1, m) * ax[AX_R]
-        p = N * ax[AX_R + m] - _convolve(ax, AX_W - 1, AX_R, 1, m + 1, m)
+        # 1/S's and xi B's sums read the same terms of 1/S: one pass over them
+        sr, wr = _convolve_pair(ax, AX_S, AX_W - 1, AX_R, 1, m + 1, m)
+        ax[AX_R + m] = -sr * ax[AX_R]
+        p = N * ax[AX_R + m] - wr
         ax[AX_G + m] = c * p / (2.0 * m)
         # exp(G): m E_m = sum_k (k g_k) E_(m-k)
         ax[AX_E + m] = _convolve(ax, AX_G, AX_E, 1, m + 1, m, True) / m
@@ -209,6 +211,42 @@ def _convolve(ax, a, b, j0, j1, m, weighted=False):
         s0 += ax[a + j] * ax[b + m - j]
         j += 1
     return (s0 + s1) + (s2 + s3)
+
+
+@njit(**_JIT_INLINE)
+def _convolve_pair(ax, a, a2, b, j0, j1, m):
+    """``(_convolve(ax, a, b, j0, j1, m), _convolve(ax, a2, b, j0, j1, m))`` in one pass: each
+    term of ``b`` is loaded once for both, and each sum adds the same products in the same order
+    as :func:`_convolve` (same bits)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    t3 = 0.0
+    j = j0
+    while j + 3 < j1:
+        b0 = ax[b + m - j]
+        b1 = ax[b + m - j - 1]
+        b2 = ax[b + m - j - 2]
+        b3 = ax[b + m - j - 3]
+        s0 += ax[a + j] * b0
+        s1 += ax[a + j + 1] * b1
+        s2 += ax[a + j + 2] * b2
+        s3 += ax[a + j + 3] * b3
+        t0 += ax[a2 + j] * b0
+        t1 += ax[a2 + j + 1] * b1
+        t2 += ax[a2 + j + 2] * b2
+        t3 += ax[a2 + j + 3] * b3
+        j += 4
+    while j < j1:
+        b0 = ax[b + m - j]
+        s0 += ax[a + j] * b0
+        t0 += ax[a2 + j] * b0
+        j += 1
+    return (s0 + s1) + (s2 + s3), (t0 + t1) + (t2 + t3)
 
 
 @njit(**_JIT)
@@ -321,13 +359,18 @@ def _terms_needed(ax, start, n, x, tol):
     """The fewest leading terms of the series in slots ``start...`` whose dropped rest, summed in
     size at ``x``, is below ``tol`` times the sum."""
     total = abs(_horner(ax, start, n, x))
+    # x^k for k = n-1, n-2, ...: one power, then a division per term (a power per term cost
+    # more than the rest of the loop); either is within a few ulps of x^k, which moves the
+    # comparison below only at a tie within rounding
+    xk = x ** (n - 1)
     dropped = 0.0
     k = n - 1
     while k > 1:
-        size = abs(ax[start + k]) * x ** k
+        size = abs(ax[start + k]) * xk
         if dropped + size > tol * total:
             break
         dropped += size
+        xk /= x
         k -= 1
     return k + 1
 
@@ -338,7 +381,21 @@ def _positive(ax, start, n, x_end):
 
     Horner's sums at four points at a time: each is a chain of dependent multiply-adds, and four
     independent chains run in the latency of one (the same sums, so the same verdict).
+
+    First a test in one pass that implies that verdict: where the leading term exceeds the rest in
+    size at ``x_end``, ``c_0 - sum_(k>0) |c_k| x_end^k > 16 n EPS (c_0 + sum_(k>0) |c_k| x_end^k)``,
+    the series is positive on all of ``(0, x_end]`` with a margin above Horner's rounding
+    (``< 2 n EPS`` times the terms' sizes) and that of the test's own sums, so every one of the 16
+    sums is positive too.
     """
+    lead = ax[start]
+    rest = 0.0
+    xk = 1.0
+    for k in range(1, n):
+        xk *= x_end
+        rest += abs(ax[start + k]) * xk
+    if lead - rest > 16.0 * n * _EPS * (lead + rest):
+        return True
     for i in range(1, 17, 4):
         x0 = x_end * i / 16.0
         x1 = x_end * (i + 1) / 16.0

@@ -62,7 +62,7 @@ def _run(phase, eta, A, N, eps_K, rtol, atol, out, counts):
         consts = _plug_constants(res, ax)
         acc += consts[8]
         if phase == 4:
-            out[i] = _one_minus_xi_p(eps_K[i], res, ax, T2, Q2, consts)
+            out[i] = _one_minus_xi_p(eps_K[i], res, ax, T2, Q2, consts)[0]
     return acc
 
 

@@ -20,7 +20,7 @@ from ..physics import model
 from ..physics.model import AX_BETA, N_AX
 from .layout import (METHOD_AUTO, N_R, P_DELTA, P_J, P_OMEGA_HAT, P_SIGMA_YX, R_J_AXIS, R_LOGW2,
                      R_MU_WALL, R_N1, R_N2, R_STATUS, R_T_TAIL, R_XI1, R_XI2, R_XI_STOP)
-from .plug_edge import _no_plug_constants, _one_minus_xi_p, _plug_constants, needs_series_root
+from .plug_edge import _no_plug_constants, _one_minus_xi_p
 from .stage1 import (DOP853_RTOL, STIFF_NOT_COMPILED, solve_stage1, solve_stage1_with,
                      stage1_arrays)
 from .stage2 import _march_stage2, _series_I, stage2_arrays
@@ -155,9 +155,7 @@ def solve_batch(eta, A, N, eps_K, offsets, rtol, atol, max_steps_stage1, max_ste
             # the constants of the closed-form root once per triple, if one of its eps K needs it
             consts = _no_plug_constants()
             for j in range(offsets[i], offsets[i + 1]):
-                if math.isnan(consts[0]) and needs_series_root(eps_K[j], r):
-                    consts = _plug_constants(r, ax)
-                one_minus[j] = _one_minus_xi_p(eps_K[j], r, ax, T2, Q2, consts)
+                one_minus[j], consts = _one_minus_xi_p(eps_K[j], r, ax, T2, Q2, consts)
         else:
             one_minus[offsets[i]:offsets[i + 1]] = math.nan
         if xi_profile.size > 0:

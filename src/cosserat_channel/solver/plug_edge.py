@@ -215,12 +215,17 @@ def _panel_plug_edge(target, T2, Q2, n2):
 
 @njit(**_JIT_INLINE)
 def _one_minus_xi_p(eps_K, res, ax, T2, Q2, consts):
+    """``(1 - xi_p, consts)``: :func:`one_minus_xi_p` with the triple's :func:`_plug_constants`,
+    computed here the first time a root needs them (``consts[0]`` NaN until then) and handed back,
+    so that a run of ``eps K`` of one triple computes them at most once (:func:`solve_batch`)."""
     target = model.plug_target(res[R_J_AXIS], eps_K)
     if target <= 0.0:
-        return 0.0
+        return 0.0, consts
     if needs_series_root(eps_K, res):  # False when R_J2 is NaN: no closed form below the panels
-        return -math.expm1(_series_plug_edge(target, res, ax, consts))
-    return _panel_plug_edge(target, T2, Q2, int(res[R_N2]))
+        if math.isnan(consts[0]):
+            consts = _plug_constants(res, ax)
+        return -math.expm1(_series_plug_edge(target, res, ax, consts)), consts
+    return _panel_plug_edge(target, T2, Q2, int(res[R_N2])), consts
 
 
 @njit(**_JIT)
@@ -233,8 +238,7 @@ def one_minus_xi_p(eps_K, res, ax, T2, Q2):
     when the shear layer is a tiny fraction of the channel. :func:`solve_batch` computes the
     triple's constants once for all its ``eps K`` (same bits).
     """
-    consts = _plug_constants(res, ax) if needs_series_root(eps_K, res) else _no_plug_constants()
-    return _one_minus_xi_p(eps_K, res, ax, T2, Q2, consts)
+    return _one_minus_xi_p(eps_K, res, ax, T2, Q2, _no_plug_constants())[0]
 
 
 @njit(**_JIT_INLINE)

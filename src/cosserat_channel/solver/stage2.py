@@ -227,8 +227,10 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
             return st.INTEGRATION_FAILED
         # The rest of J, from xi down to the axis, is at most xi max(h) omega_hat(xi) (omega_hat
         # increases with xi near the axis, B > 0 there): stop once that is negligible.
-        # (g[last] is xi h omega_hat at xi = e^a)
-        if 2.0 * max(g[last], h_axis * math.exp(a + y_b)) < tail_tol * J_b:
+        # (g[last] is xi h omega_hat at xi = e^a; the bound's second term, an exponential, only
+        # where the first leaves the test open: 2 max(u, v) < c is 2u < c and 2v < c)
+        limit = tail_tol * J_b
+        if 2.0 * g[last] < limit and 2.0 * (h_axis * math.exp(a + y_b)) < limit:
             tail = True
             break
         length = 2.0 * r * panels.panel_error_factor(err, 1.0)

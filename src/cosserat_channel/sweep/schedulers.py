@@ -73,6 +73,7 @@ class BlockCount:
 def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=None,
                  cpu=None) -> None:
     import dask
+    import dask.threaded
 
     from .block import _block_task, warm_up
 
@@ -104,7 +105,9 @@ def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=
     n = len(todo)
     tasks = [dask.delayed(task, pure=False)(k, dask_key_name=f"block-{n - 1 - i:09d}-{k}")
              for i, k in enumerate(todo)]
-    dask.compute(*tasks, scheduler="threads", num_workers=workers)
+    # The threaded scheduler's function itself: named by its string, dask imports
+    # dask.distributed (a quarter to half a second before the first block) to look for a client.
+    dask.compute(*tasks, scheduler=dask.threaded.get, num_workers=workers)
     if failure:
         raise failure[0]
 

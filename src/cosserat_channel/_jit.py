@@ -6,6 +6,9 @@ non-finite trial step, instead of a branch and a Python exception around every d
 cacheable that way (see :mod:`cosserat_channel.integrate.rk45`), and small helpers that pass arrays
 avoid the reference-count updates of a call (see :mod:`cosserat_channel.solver.stress_path`). An
 inlined kernel is compiled with the error model of the caller it is inlined into.
+``no_cfunc_wrapper``: Numba otherwise builds, optimises and compiles a C-ABI wrapper beside every
+kernel, used only where a kernel is passed as a first-class function (a ``cfunc`` address), which
+the package never does; it was about a tenth of a first run's compilation.
 ``cache`` is off only where no directory keyed on the sources is writable (see
 :func:`cosserat_channel._numba_cache_enabled`).
 
@@ -73,5 +76,5 @@ _CACHE = _numba_cache_enabled()
 if _CACHE:
     _install_locator()
 
-JIT = dict(nogil=True, cache=_CACHE, error_model="numpy")
+JIT = dict(nogil=True, cache=_CACHE, error_model="numpy", no_cfunc_wrapper=True)
 JIT_INLINE = dict(JIT, inline="always")

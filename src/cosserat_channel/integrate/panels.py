@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 from numpy.polynomial import chebyshev as _cheb
 
-from .._jit import JIT as _JIT
+from .._jit import JIT as _JIT, JIT_INLINE as _JIT_INLINE
 
 __all__ = ["DEGREE", "N_NODES", "N_COEF", "TOP", "N_ROWS", "X", "integrate_panel", "panel_value",
            "panel_value_d", "panel_value_d2", "panel_error_factor", "cumulative", "partial"]
@@ -182,7 +182,7 @@ def partial(v, r, u):
     return r * acc
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def panel_value(Q, p, comp, u):
     """Component ``comp`` of panel ``p``'s dense output at ``u = 1 - x`` (``u`` in ``[0, 2]``).
 

@@ -249,7 +249,7 @@ def _convolve_pair(ax, a, a2, b, j0, j1, m):
     return (s0 + s1) + (s2 + s3), (t0 + t1) + (t2 + t3)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _horner(ax, start, n, x):
     acc = ax[start + n - 1]
     for k in range(n - 2, -1, -1):
@@ -257,7 +257,7 @@ def _horner(ax, start, n, x):
     return acc
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _series_good(ax, start, n, x, tol, floor):
     """Whether the ``n``-term series in slots ``start...`` is good to ``tol`` at ``x``.
 
@@ -354,7 +354,7 @@ def series_reach(ax, tol, xi_max):
     return 0.0
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _terms_needed(ax, start, n, x, tol):
     """The fewest leading terms of the series in slots ``start...`` whose dropped rest, summed in
     size at ``x``, is below ``tol`` times the sum."""
@@ -375,7 +375,7 @@ def _terms_needed(ax, start, n, x, tol):
     return k + 1
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _positive(ax, start, n, x_end):
     """The series in slots ``start...`` is positive at 16 points of ``(0, x_end]``.
 

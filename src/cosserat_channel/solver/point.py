@@ -142,8 +142,10 @@ class Workspace:
 
     def __init__(self, max_steps_stage1=stage1.MAX_STEPS_STAGE1, max_steps_stage2=stage2.MAX_STEPS_STAGE2):
         self.ax = np.empty(model.N_AX)
-        self.T1, self.Q1 = stage1.stage1_arrays(max_steps_stage1)
-        self.T2, self.Q2 = stage2.stage2_arrays(max_steps_stage2)
+        # The kernels' Python originals: compiled, each would be one more kernel to compile for
+        # a first point.
+        self.T1, self.Q1 = stage1.stage1_arrays.py_func(max_steps_stage1)
+        self.T2, self.Q2 = stage2.stage2_arrays.py_func(max_steps_stage2)
         self.stats1 = np.zeros(stepping.N_STATS, dtype=np.int64)
         self.stats2 = np.zeros(stepping.N_STATS, dtype=np.int64)
         self.res = np.empty(layout.N_R)

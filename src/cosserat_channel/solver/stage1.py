@@ -118,7 +118,7 @@ def _stage1_event(xi, y, args):
 # ---------------------------------------------------------------------------------------------
 # The kernel for one (eta, A, N)
 # ---------------------------------------------------------------------------------------------
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def use_stiff_path(eta, A, N, ax, xi1, rtol1):
     """Whether stage 1 should take the stiff path (RODAS4P2, the Jacobian known in closed form).
 
@@ -157,7 +157,7 @@ def use_stiff_path(eta, A, N, ax, xi1, rtol1):
     return x > threshold
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def stage1_rtol(rtol, A, N, ax):
     """Stage 1's relative tolerance: the user's, tightened to ``rho/1000`` next to the axis edge.
 
@@ -191,7 +191,7 @@ def _march_dopri5(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1
                        T1, Q1, stats1, rho0)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _long_step_defect(xi0, xi_end, args1, rtol, atol1, T1, Q1, n):
     # (evaluations, whether a step longer than DOP853_MAX_STEP of the stretch has an
     # interpolant whose defect at its middle exceeds the tolerance): one evaluation of the
@@ -283,7 +283,7 @@ def _march_stage1(tight, explicit, stiff, xi0, y0, xi_end, h0, h_max, args1, rto
     return _march_dop853(xi0, y0, xi_end, h0, h_max, args1, rtol, atol1, T1, Q1, stats1)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def axis_crossing_xi2(eta, A, N, ax):
     """``xi^2`` where the two-term axis series ``D = c0^2 xi^2 + 2(A+1)(2Nk - y^2/4) xi^4`` vanishes.
 
@@ -352,7 +352,7 @@ def _stage1_from_series(tight, explicit, stiff, ax, args1, rtol1, atol1, T1, Q1,
                         max_step)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _add_stats(stats, more):
     for i in range(stepping.STAT_STIFF):
         stats[i] += more[i]
@@ -421,7 +421,7 @@ def _stage1_pass(tight, explicit, stiff, xi1, w1, args1, rtol1, atol1, T1, Q1, s
     return s1, n1, t1
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _path_end_bound(xi, eta, A, N):
     """An upper bound on where a stage-1 path that exists at ``xi > N`` meets ``D = 0`` (A > -1).
 
@@ -442,7 +442,7 @@ def _path_end_bound(xi, eta, A, N):
     return xi + eta * W / gap
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def path_must_end(xi, eta, A, N):
     """Whether every stage-1 path that reaches ``xi`` meets ``D = 0`` before the wall (A > -1).
 
@@ -461,13 +461,13 @@ def path_must_end(xi, eta, A, N):
     return False
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _wall_D_sensitivity(A, N, delta_wall):
     """``|dD/d delta| delta`` at the wall: what a relative error in delta does to D(1)."""
     return 4.0 * (A + 1.0) * abs(N - delta_wall) * abs(delta_wall)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _wall_values(T1, Q1, n1, A, N, ax, buf):
     """``(delta(1), D(1), sensitivity)`` of a march that reached the wall: what decides its
     status and its conditioning (``sensitivity``: :func:`_wall_D_sensitivity`)."""

@@ -136,7 +136,7 @@ def axis_series(eta, A, N, ax):
     ax[AX_NW] = n
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def w_axis_series(xi, ax):
     """``w = delta / xi^2`` from the axis series (:func:`axis_series`), by Horner in ``xi^2``."""
     return _horner(ax, AX_W, int(ax[AX_NW]), xi * xi)
@@ -417,7 +417,7 @@ def _positive(ax, start, n, x_end):
     return True
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def axis_relative_margin(A, N, ax):
     """``c0^2`` relative to the terms of ``D/xi^2`` at the axis that it is the difference of.
 
@@ -504,7 +504,7 @@ def sigma_xy(xi):
     return -xi
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def sigma_yx(xi, D, A):
     """eq:56 with the root the paper keeps: ``sigma_yx = A xi - sqrt(D)`` (scaled by nu)."""
     return A * xi - math.sqrt(max(D, 0.0))
@@ -543,13 +543,13 @@ def plug_target(J_axis, eps_K):
 # --------------------------------------------------------------------------------------------
 # A = -1 (Appendix A): closed form
 # --------------------------------------------------------------------------------------------
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def a_minus_one_xi_B(eta, N):
     """``xi B = c = 2N/eta`` for A = -1: the limit of e-60 on ``m = -N L``, where ``D = 0``."""
     return 2.0 * N / eta
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def a_minus_one_h():
     """``h = 2`` for A = -1: Appendix A's ``du/dxi = -2 omega`` (e-59 with sigma_yx = -xi)."""
     return 2.0

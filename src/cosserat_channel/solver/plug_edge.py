@@ -74,7 +74,7 @@ def _series_root(fb, consts, ax, t0):
     return x
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _no_plug_constants():
     """:func:`_plug_constants` where there is no closed form below the panels (all NaN)."""
     nan = math.nan
@@ -128,7 +128,7 @@ def _plug_constants(res, ax):
                      -d2_min / d1_min ** 3 * H * H, -d2_top / d1_top ** 3 * H * H)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _series_start(L, consts):
     # the quintic Hermite of t_p(log level) of _plug_constants; NaN outside its range
     L_min, inv_H, t_min, m0, m1, a0, a1 = consts[7:]

@@ -297,7 +297,7 @@ def axis_crossing_xi2(eta, A, N, ax):
     return c0 * (4.0 * eta * c0 + 2.0 * a1 * N) / (2.0 * a1 * y * y * eta)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def start_xi(ax):
     """Next to the axis, where two terms of the axis series are exact to round-off: the neglected
     O(xi^6) term is far below it, scaled with ``c0`` because the series' radius shrinks at the axis

@@ -47,7 +47,7 @@ def stage2_arrays(max_steps):
     return np.empty(max_steps + 1), np.empty((max_steps, panels.N_ROWS, 2))
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _h_axis(A, ax):
     # h at the axis, where sqrt(D) -> c0 xi (A = -1: h = 2 everywhere).
     if A == -1.0:
@@ -256,7 +256,7 @@ def _march_stage2(eta, A, N, rtol, atol, ax, xi1, T1, Q1, n1, T2, Q2, stats2, re
     return st.OK
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _series_log_I(xi, xi2, logw2, ax):
     """``log int_0^xi h omega_hat`` below ``xi2`` (:func:`model.stage2_series`), with
     ``log omega_hat(xi2) = logw2``: in logs, because ``(xi/xi2)^(beta+1)`` underflows for large beta."""

@@ -21,9 +21,9 @@ from ..physics.model import AX_BETA, N_AX
 from .layout import (METHOD_AUTO, N_R, P_DELTA, P_J, P_OMEGA_HAT, P_SIGMA_YX, R_J_AXIS, R_LOGW2,
                      R_MU_WALL, R_N1, R_N2, R_STATUS, R_T_TAIL, R_XI1, R_XI2, R_XI_STOP)
 from .plug_edge import _no_plug_constants, _one_minus_xi_p
-from .stage1 import (DOP853_RTOL, STIFF_NOT_COMPILED, solve_stage1, solve_stage1_with,
-                     stage1_arrays)
-from .stage2 import _march_stage2, _series_I, stage2_arrays
+from .stage1 import (DOP853_RTOL, MAX_STEPS_STAGE1, STIFF_NOT_COMPILED, solve_stage1,
+                     solve_stage1_with, stage1_arrays)
+from .stage2 import MAX_STEPS_STAGE2, _march_stage2, _series_I, stage2_arrays
 from .stress_path import _delta_at, _stage1_work
 
 @njit(**_JIT)
@@ -219,3 +219,33 @@ def new_statistics(*shape):
 def accepted_steps(stats):
     """The accepted steps in counters the batch kernels filled (their last axis read out)."""
     return stats[..., stepping.STAT_ACCEPTED].copy()
+
+
+class Workspace:
+    """Preallocated work arrays for :func:`solve_eta` (reuse one across many points)."""
+
+    def __init__(self, max_steps_stage1=MAX_STEPS_STAGE1, max_steps_stage2=MAX_STEPS_STAGE2):
+        self.ax = np.empty(N_AX)
+        # The kernels' Python originals: compiled, each would be one more kernel to compile for
+        # a first point.
+        self.T1, self.Q1 = stage1_arrays.py_func(max_steps_stage1)
+        self.T2, self.Q2 = stage2_arrays.py_func(max_steps_stage2)
+        self.stats1 = np.zeros(stepping.N_STATS, dtype=np.int64)
+        self.stats2 = np.zeros(stepping.N_STATS, dtype=np.int64)
+        self.res = np.empty(N_R)
+
+    def run(self, eta, A, N, rtol, atol, method=METHOD_AUTO, stage2=True):
+        """Both stages for one ``(eta, A, N)``; returns the status code, fills ``self.res``.
+
+        ``stage2=False``: stage 2 only where it decides the status (:func:`solve_eta`).
+        """
+        return solve_eta_auto(
+            eta, A, N, rtol, atol, self.ax, self.T1, self.Q1, self.T2, self.Q2,
+            self.stats1, self.stats2, self.res, method, stage2,
+        )
+
+    def status(self, eta, A, N, rtol, atol) -> int:
+        """The status code of ``(eta, A, N)`` by the cheapest solve that decides it as the full
+        solve does: stage 1 to the wall with the same event and edge handling, and stage 2 only
+        next to the path edge. For edge tracing, regime maps and the atlas."""
+        return self.run(eta, A, N, rtol, atol, METHOD_AUTO, False)

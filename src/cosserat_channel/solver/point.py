@@ -17,8 +17,8 @@ import numpy as np
 from .. import outputs as out_
 from .. import status as st
 from ..integrate import stepping
-from ..physics import model
-from . import batch, layout, plug_edge, stage1, stage2
+from . import batch, layout, plug_edge
+from .batch import Workspace
 from ..parameters import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
@@ -135,36 +135,6 @@ class PointResult:
                 k: {p: [clean(float(v)) for v in a] for p, a in s.items()}
                 for k, s in self.profile_sensitivities.items()}
         return d
-
-
-class Workspace:
-    """Preallocated work arrays for :func:`batch.solve_eta` (reuse one across many points)."""
-
-    def __init__(self, max_steps_stage1=stage1.MAX_STEPS_STAGE1, max_steps_stage2=stage2.MAX_STEPS_STAGE2):
-        self.ax = np.empty(model.N_AX)
-        # The kernels' Python originals: compiled, each would be one more kernel to compile for
-        # a first point.
-        self.T1, self.Q1 = stage1.stage1_arrays.py_func(max_steps_stage1)
-        self.T2, self.Q2 = stage2.stage2_arrays.py_func(max_steps_stage2)
-        self.stats1 = np.zeros(stepping.N_STATS, dtype=np.int64)
-        self.stats2 = np.zeros(stepping.N_STATS, dtype=np.int64)
-        self.res = np.empty(layout.N_R)
-
-    def run(self, eta, A, N, rtol, atol, method=layout.METHOD_AUTO, stage2=True):
-        """Both stages for one ``(eta, A, N)``; returns the status code, fills ``self.res``.
-
-        ``stage2=False``: stage 2 only where it decides the status (:func:`batch.solve_eta`).
-        """
-        return batch.solve_eta_auto(
-            eta, A, N, rtol, atol, self.ax, self.T1, self.Q1, self.T2, self.Q2,
-            self.stats1, self.stats2, self.res, method, stage2,
-        )
-
-    def status(self, eta, A, N, rtol, atol) -> int:
-        """The status code of ``(eta, A, N)`` by the cheapest solve that decides it as the full
-        solve does: stage 1 to the wall with the same event and edge handling, and stage 2 only
-        next to the path edge. For edge tracing, regime maps and the atlas."""
-        return self.run(eta, A, N, rtol, atol, layout.METHOD_AUTO, False)
 
 
 def _check_profile(profile) -> np.ndarray:

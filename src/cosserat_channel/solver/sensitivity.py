@@ -207,7 +207,7 @@ def differences(eta, A, N, eps_K, rows, want_plug, rtol, atol):
     (``FLAG_DIFFERENCES``) where that bound is below ``DIFF_ACCEPT * rtol`` of the derivative's
     scale (the quantity over the parameter), else NaN and ``FLAG_UNRESOLVED``: also where a
     neighbour has no solution."""
-    from .point import Workspace
+    from .batch import Workspace
     from .plug_edge import one_minus_xi_p
 
     ws = Workspace()

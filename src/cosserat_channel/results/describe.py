@@ -19,36 +19,23 @@ if TYPE_CHECKING:  # imported where used: a small query never imports xarray (Li
 
 from ..files import format_size
 from .render import _python, _text
-from .flags import (QueryError, _is_flag, _show, flag_counts, printable,
+from .flags import (QueryError, _show, flag_counts, printable,
                     status_counts)
-from .selection import flags_checked, is_result, open_netcdf, read_problem
+from .selection import (FLAGGED, KIND_VARIABLES, flags_checked, is_kind, open_netcdf,
+                        read_problem)
 
 SWEEP_TEXT_LINES = 12
 PROVENANCE = ("cosserat_channel_version", "created", "rtol", "atol", "sweep_sha256", "Conventions")
-KINDS = ("result", "boundary", "atlas")
+KINDS = tuple(KIND_VARIABLES)  # ("result", "boundary", "atlas")
 # Uncompressed bytes of values that info reads to verify a file (a few seconds); the variables
 # beyond it are named as not checked.
 CHECK_BYTES = 1 << 30
 
 
-# The variables that make each kind (the first one of a result and a boundary a CF flag).
-KIND_VARIABLES = {"result": ("status",), "boundary": ("eta_max", "edge_kind"),
-                  "atlas": ("leaf_coefficients", "sample_A")}
-_FLAGGED = {"result": "status", "boundary": "edge_kind"}
-
-
-def _is_kind(ds: xr.Dataset, kind: str) -> bool:
-    flag = _FLAGGED.get(kind)
-    return (all(v in ds.data_vars for v in KIND_VARIABLES[kind])
-            and (flag is None or _is_flag(ds[flag])))
-
-
 def file_kind(ds: xr.Dataset) -> str | None:
     """``"result"``, ``"boundary"`` or ``"atlas"`` by the variables of ``ds``; None for any
     other file."""
-    if is_result(ds):
-        return "result"
-    return next((k for k in ("boundary", "atlas") if _is_kind(ds, k)), None)
+    return next((k for k in KINDS if is_kind(ds, k)), None)
 
 
 def open_described(path) -> xr.Dataset:
@@ -91,14 +78,12 @@ def unrecognised(ds: xr.Dataset, shown: int = 6) -> str:
     for kind in near:
         missing = [v for v in KIND_VARIABLES[kind] if v not in ds.data_vars]
         if missing:
-            why.append(f"as {article(kind)} it lacks "
-                       f"{' and '.join(missing)}")
-        elif kind in _FLAGGED:
-            why.append(f"its {_FLAGGED[kind]} is not a flag variable (flag_values and "
+            why.append(f"as {article(kind)} it lacks {' and '.join(missing)}")
+        elif kind in FLAGGED:
+            why.append(f"its {FLAGGED[kind]} is not a flag variable (flag_values and "
                        "flag_meanings)")
     if not why:
-        kinds = [f"{article(k)} ({', '.join(v)})"
-                 for k, v in KIND_VARIABLES.items()]
+        kinds = [f"{article(k)} ({', '.join(v)})" for k, v in KIND_VARIABLES.items()]
         why.append(f"it has none of the variables of {', '.join(kinds[:-1])} or {kinds[-1]}")
     return f"{what}; {'; '.join(why)} (damaged, or not written by the tool)"
 

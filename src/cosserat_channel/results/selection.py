@@ -176,9 +176,23 @@ def flags_checked(ds, path) -> xr.Dataset:
     return ds
 
 
+# The variables that make each kind of file the tool writes, and the one of them that is a CF
+# flag (a result's status, a boundary's edge_kind).
+KIND_VARIABLES = {"result": ("status",), "boundary": ("eta_max", "edge_kind"),
+                  "atlas": ("leaf_coefficients", "sample_A")}
+FLAGGED = {"result": "status", "boundary": "edge_kind"}
+
+
+def is_kind(ds, kind: str) -> bool:
+    """Whether ``ds`` has the variables of ``kind`` (:data:`KIND_VARIABLES`), its flag a CF flag."""
+    flag = FLAGGED.get(kind)
+    return (all(v in ds.data_vars for v in KIND_VARIABLES[kind])
+            and (flag is None or _is_flag(ds[flag])))
+
+
 def is_result(ds) -> bool:
     """Whether ``ds`` is a result of ``run`` (or a subset of one): a CF flag ``status``."""
-    return "status" in ds.data_vars and _is_flag(ds["status"])
+    return is_kind(ds, "result")
 
 
 def open_results(path) -> xr.Dataset:

@@ -75,10 +75,9 @@ def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=
     import dask
     import dask.threaded
 
-    from .block import _block_task, warm_up
+    from .block import _block_task
 
-    warm_up()
-
+    # The kernels are loaded: the engine warms them up before its clock starts (engine._run).
     failure = []
 
     def task(k):

@@ -46,7 +46,11 @@ def test_notebook_runs_in_a_kernel_and_shows_every_figure(name, tmp_path, monkey
     paths = [str(ROOT / "src")] + [os.path.abspath(p) for p in
                                    os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(paths))
-    client = nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
+    # A cell's outputs may reach this process after its reply (the kernel sends them on another
+    # channel, from another thread): they are waited for as long as the cell itself, and a wait
+    # that runs out is an error. nbclient's default waits 4 s and then goes on without them.
+    client = nbclient.NotebookClient(nb, timeout=600, iopub_timeout=600,
+                                     raise_on_iopub_timeout=True, kernel_name="python3",
                                      resources={"metadata": {"path": str(tmp_path)}})
     client.execute()  # raises CellExecutionError, with the traceback, if a cell fails
 

@@ -24,6 +24,7 @@ import resource
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -673,6 +674,9 @@ def test_lost_scheduler_is_one_line_exit_1_then_rerun_resumes(tmp_path, sweep_fi
     ("tcp://127.0.0.1:9", "no dask scheduler answers"),  # the discard port: nothing listens
 ])
 def test_bad_scheduler_is_one_line_before_any_store(tmp_path, sweep_file, capsys, address, words):
+    # What is timed is the try to connect: dask.distributed is imported first, its import (a
+    # second or more, many on a loaded machine) not counted
+    pytest.importorskip("dask.distributed")
     out = tmp_path / "out.nc"
     t0 = time.perf_counter()
     assert cli.main(["run", str(sweep_file), "-o", str(out), "--scheduler", address]) == 2
@@ -686,16 +690,27 @@ def test_bad_scheduler_is_one_line_before_any_store(tmp_path, sweep_file, capsys
 def test_unusable_scheduler_address_is_one_line_and_quiet_at_exit(tmp_path, sweep_file, address):
     """tls:// without dask's TLS set-up and ucx:// without UCX raised TypeError (a traceback);
     after any failed connection the half-made client's __del__ printed another at exit, 10 s
-    later. In a process of its own: stderr is one line, at once."""
+    later. In a process of its own: stderr is one line, and the process ends at once after it
+    (timed from the line: the interpreter's start and imports, many seconds on a loaded machine,
+    are not what is asserted)."""
     script = "import sys; from cosserat_channel import cli; sys.exit(cli.main(sys.argv[1:]))"
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", script, "run", str(sweep_file), "-o",
-                           str(tmp_path / "out.nc"), "--scheduler", address],
-                          capture_output=True, text=True, timeout=120, env=package_env())
-    assert proc.returncode == 2, proc.stderr
-    assert "scheduler:" in one_line_error(proc.stderr)
-    assert proc.stderr.count("\n") == 1, proc.stderr
-    assert time.perf_counter() - t0 < schedulers.CONNECT_TIMEOUT + 15  # a loaded machine included
+    proc = subprocess.Popen([sys.executable, "-c", script, "run", str(sweep_file), "-o",
+                             str(tmp_path / "out.nc"), "--scheduler", address],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            env=package_env())
+    watchdog = threading.Timer(120, proc.kill)  # a hang ends in a failure, not in a hung test
+    watchdog.start()
+    try:
+        stderr = proc.stderr.readline()
+        t0 = time.perf_counter()  # from the command's line to its exit: the interpreter's end
+        stderr += proc.stderr.read()
+        proc.wait()
+    finally:
+        watchdog.cancel()
+    assert proc.returncode == 2, stderr
+    assert "scheduler:" in one_line_error(stderr)
+    assert stderr.count("\n") == 1, stderr
+    assert time.perf_counter() - t0 < schedulers.CONNECT_TIMEOUT  # not a wait for the client
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 

@@ -88,6 +88,16 @@ def one_error_line(stderr: str) -> str:
     return errors[0]
 
 
+def without_heartbeat(stderr: str, command: str) -> list[str]:
+    """The lines of ``stderr`` less ``command``'s progress heartbeat: with stderr not a terminal,
+    a long command prints its status as a line of its own once a minute (``Progress``), so a run
+    that takes longer than that (a cold kernel cache, a loaded machine) has such lines too."""
+    import re
+
+    beat = re.compile(rf"cosserat-channel: {re.escape(command)}: .* \(\d+:\d\d\)")
+    return [line for line in stderr.splitlines() if not beat.fullmatch(line)]
+
+
 def assert_legend_lines_show_their_curves(fig):
     """Every line entry of every legend of ``fig`` is drawn as its curve is: a dashed or dash-dot
     handle at least one period of its pattern long (shorter, it shows a solid dash), and an

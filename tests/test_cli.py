@@ -3,7 +3,6 @@
 import json
 import math
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -13,7 +12,7 @@ import pytest
 
 from cosserat_channel import cli
 from cosserat_channel.solver.point import solve_point
-from support import SMALL_SWEEP, one_error_line, start_python, wait_until
+from support import SMALL_SWEEP, one_error_line, start_python, wait_until, without_heartbeat
 
 # Paper figure 2: eps = 1/30, L = 10, K = 0.5, A = 1/3, N = 1. str() of a float round-trips, so
 # the command line sees exactly the floats the API call below gets.
@@ -763,8 +762,7 @@ def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):
     code = cli.main(["boundary", "--A", "0,0.5", "--N", "1", "--coarse", "8", "--trace",
                      "-o", str(tmp_path / "b.nc")])
     assert code == 0
-    heartbeat = re.compile(r"cosserat-channel: boundary: .* \(\d+:\d\d\)")
-    assert all(heartbeat.fullmatch(line) for line in capsys.readouterr().err.splitlines())
+    assert without_heartbeat(capsys.readouterr().err, "boundary") == []
     assert seen == ["1/2 edges traced", "2/2 edges traced"]
 
 

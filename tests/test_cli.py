@@ -3,6 +3,7 @@
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -703,26 +704,42 @@ class _Terminal:
         pass
 
 
+class _Clock:
+    """Seconds since it was made, for the elapsed time a status line may show: a machine that
+    keeps the test from running for a second (a loaded CI host) shows 0:01, not 0:00."""
+
+    def __init__(self):
+        import time
+
+        self.t0, self.monotonic = time.monotonic(), time.monotonic
+
+    def shows(self, status: str, text: str) -> bool:
+        """Whether ``text`` holds ``status (m:ss)`` with m:ss within the time since then."""
+        elapsed = self.monotonic() - self.t0
+        return any(60 * int(m) + int(s) <= elapsed
+                   for m, s in re.findall(re.escape(status) + r" \((\d+):(\d\d)\)", text))
+
+
 def test_progress_draws_on_a_terminal_and_clears_its_line():
     """update() redraws one line in place with the elapsed time; exit clears it; line() prints."""
-    term = _Terminal()
+    term, clock = _Terminal(), _Clock()
     with cli.common.Progress("boundary", "tracing", stream=term) as bar:
         bar.update("3/8 edges traced")
         bar.line("a permanent line")
-    assert "\r\x1b[Kcosserat-channel: boundary: 3/8 edges traced (0:00)" in term.text
+    assert clock.shows("\r\x1b[Kcosserat-channel: boundary: 3/8 edges traced", term.text)
     assert "a permanent line\n" in term.text
     assert term.text.endswith("\r\x1b[K")  # the status line is gone at the end
 
 
 def test_progress_report_is_the_one_progress_protocol():
     """report(done, total, text): the line every long command shows, from any library callback."""
-    term = _Terminal()
+    term, clock = _Terminal(), _Clock()
     with cli.common.Progress("paper", "solving", stream=term) as bar:
         bar.report(3, 13, "figure5")
         assert bar.text == "3/13 figure5"
         bar.report(7, None, "cells traced")
         assert bar.text == "7 cells traced"
-    assert "cosserat-channel: paper: 3/13 figure5 (0:00)" in term.text
+    assert clock.shows("cosserat-channel: paper: 3/13 figure5", term.text)
 
 
 def test_progress_is_silent_when_not_a_terminal_or_before_its_delay():
@@ -743,13 +760,23 @@ def test_progress_prints_a_heartbeat_line_when_not_a_terminal():
     heartbeat, with the text of the latest update and no terminal control codes."""
     import time
 
-    pipe = _Terminal(tty=False)
+    pipe, clock = _Terminal(tty=False), _Clock()
+    done = "cosserat-channel: atlas: 3 cells done"
     with cli.common.Progress("atlas", "tracing", stream=pipe, heartbeat=0.05) as bar:
         bar.update("3 cells done")
-        time.sleep(0.3)
+        # Two beats after the update, however long the machine keeps the beating thread waiting
+        # (a fixed sleep counts on it running within the sleep).
+        deadline = time.monotonic() + 600
+        while pipe.text.count(done) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
     lines = pipe.text.splitlines()
-    assert len(lines) >= 2 and "\x1b" not in pipe.text
-    assert all(line.startswith("cosserat-channel: atlas: 3 cells done (0:00)") for line in lines)
+    assert pipe.text.count(done) >= 2 and "\x1b" not in pipe.text
+    # A beat before the update (this thread held back past the first beat) shows the text
+    # before it; every beat after it shows the update.
+    texts = [line.rsplit(" (", 1)[0] for line in lines]
+    first = texts.index(done)
+    assert set(texts[:first]) <= {"cosserat-channel: atlas: tracing"} and set(texts[first:]) == {done}
+    assert all(clock.shows(text, line) for text, line in zip(texts, lines)), lines
 
 
 def test_long_commands_report_progress(capsys, tmp_path, monkeypatch):

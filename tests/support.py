@@ -9,6 +9,12 @@ import sys
 import numpy as np
 import xarray as xr
 
+# A dask scheduler's HTTP endpoints (its metrics, served with the dashboard off too) on a free
+# port of the loopback interface: by default they take port 8787 on every interface, which the
+# other test process, or anything else on the machine, may hold (dask then warns and moves).
+LOCAL_CLUSTER = dict(dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+SCHEDULER_HTTP = ["--no-dashboard", "--dashboard-address", "127.0.0.1:0"]  # ``dask scheduler``'s
+
 # Eight points, solved in well under a second once the kernels are loaded.
 SMALL_SWEEP = """\
 [grid]

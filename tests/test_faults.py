@@ -39,7 +39,7 @@ from cosserat_channel.sweep import budget, engine, run_sweep, schedulers
 from cosserat_channel.sweep.plan import Plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import partial_dir
-from support import assert_identical
+from support import LOCAL_CLUSTER, SCHEDULER_HTTP, assert_identical
 
 # 72 points, 28 integrations (eps L products repeat); with --block-size 4, 7 blocks. About a second.
 SWEEP = """\
@@ -614,7 +614,7 @@ def test_every_worker_lost_gives_identical_result(tmp_path, sweep_file, referenc
     ones, the tasks (which carry their own inputs) run again there, the result is identical."""
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
+                                  **LOCAL_CLUSTER) as cluster, \
             distributed.Client(cluster) as client:
         pids = set(client.run(os.getpid).values())
         out = tmp_path / "out.nc"
@@ -643,7 +643,7 @@ def test_lost_scheduler_is_one_line_exit_1_then_rerun_resumes(tmp_path, sweep_fi
                                                               monkeypatch, capsys):
     distributed = pytest.importorskip("dask.distributed")
     cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                       dashboard_address=None)
+                                       **LOCAL_CLUSTER)
     orig = engine.WorkStore.put
 
     def put(self, k, result):  # the second block home: the scheduler (and its cluster) goes
@@ -726,7 +726,7 @@ class SubprocessCluster:
         quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
         self.scheduler = subprocess.Popen(
             [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-             "--port", "0", "--no-dashboard", "--scheduler-file", str(file)], **quiet)
+             "--port", "0", *SCHEDULER_HTTP, "--scheduler-file", str(file)], **quiet)
         self.nannies = []
         try:
             deadline = time.monotonic() + 60

@@ -18,6 +18,7 @@ import cosserat_channel
 from cosserat_channel import cli
 from cosserat_channel.sweep import engine, sources
 from cosserat_channel.sweep.store import partial_dir
+from support import SCHEDULER_HTTP
 from test_faults import SWEEP, one_line_error, package_env
 
 pytest.importorskip("dask.distributed")
@@ -45,7 +46,7 @@ class Cluster:
         self.procs = []
         self.scheduler = self._start(
             ["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
-             "--no-dashboard", "--scheduler-file", str(file)], package_env())
+             *SCHEDULER_HTTP, "--scheduler-file", str(file)], package_env())
         deadline = time.monotonic() + 60
         while not (file.exists() and file.stat().st_size):
             assert time.monotonic() < deadline, "the scheduler did not start"

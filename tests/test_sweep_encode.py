@@ -17,7 +17,7 @@ from cosserat_channel import netcdf_policy
 from cosserat_channel import chunk_filters
 from cosserat_channel.sweep import dataset, encode, engine, run_sweep, schedulers, writer
 from cosserat_channel.sweep.spec import load_sweep
-from support import assert_identical
+from support import LOCAL_CLUSTER, assert_identical
 
 h5py = pytest.importorskip("h5py")
 
@@ -347,7 +347,7 @@ def test_cluster_workers_encode_and_one_lost_mid_encode_changes_nothing(tmp_path
     spec = load_sweep({"grid": GRID, "output": {"variables": ["Delta", "slip", "m_wall"]}})
     out = tmp_path / "d.nc"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
+                                  **LOCAL_CLUSTER) as cluster, \
             distributed.Client(cluster) as client:
         pids = set(client.run(os.getpid).values())
         real_submit = schedulers.ClusterEncoder.submit

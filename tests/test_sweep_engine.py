@@ -17,6 +17,7 @@ from cosserat_channel import status as st
 from cosserat_channel.sweep import run_sweep
 from cosserat_channel.sweep.plan import Plan, block_plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
+from support import LOCAL_CLUSTER
 
 MATERIAL = {"d_p": 0.002, "rho_p": 2940, "phi": 25}
 # eps L = 1/3 three ways, as in model.md's similarity check, plus products of their own.
@@ -310,7 +311,7 @@ def test_distributed_scheduler_gives_identical_values(tmp_path, caplog):
     spec = load_sweep(sweep(SHARED, profile_points=3))
     out, calls = tmp_path / "d.nc", []
     with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True,
-                                  dashboard_address=None) as cluster, \
+                                  **LOCAL_CLUSTER) as cluster, \
             caplog.at_level(logging.INFO, logger="cosserat_channel.sweep"):
         ds = run_sweep(spec, out, scheduler=cluster.scheduler_address, block_size=4,
                        progress=lambda *call: calls.append(call))

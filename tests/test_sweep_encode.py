@@ -113,8 +113,38 @@ def test_deflate_is_a_zlib_stream_of_the_bytes():
     for data in (rng.integers(0, 256, 100_000, dtype=np.uint8).tobytes(),
                  chunk_filters.shuffle(rows.view(np.uint8).ravel(), 8).tobytes()):
         for level in (0, 1, 6):
-            for repeats in (False, True):
+            for repeats in (False, True, lambda: True, lambda: False):
                 assert zlib.decompress(chunk_filters.deflate(data, level, repeats)) == data
+
+
+@pytest.mark.skipif(chunk_filters.DEFLATE == "zlib", reason="one deflate level without ISA-L")
+def test_the_lazy_retry_is_for_chunks_constant_along_an_axis():
+    """A chunk that the fast level shrinks below REPETITIVE is deflated again by the lazy level
+    when it is constant along an axis (a full copy, not a broadcast view: the caller did not say
+    so), smaller than the fast level's and no larger than when the caller says so; a chunk
+    mostly of one value (NaN) that is constant along no axis keeps the fast level's bytes."""
+    rng = np.random.default_rng(3)
+    shape = (4, 3, 50, 3, 5)
+    pipeline = (FLETCHER, SHUFFLE8, DEFLATE1)
+    unfiltered = (FLETCHER, SHUFFLE8)
+
+    def fast(part):
+        return chunk_filters.deflate(chunk_filters.encode(np.ascontiguousarray(part), unfiltered),
+                                     1, lambda: False)
+
+    along_K = np.repeat(rng.normal(size=(4, 3, 1, 3, 5)), 50, axis=2)
+    assert chunk_filters.constant_along_an_axis(along_K)
+    found = chunk_filters.encode_part(along_K, shape, np.nan, pipeline)
+    told = chunk_filters.encode_part(np.broadcast_to(along_K[:, :, :1], shape), shape, np.nan,
+                                     pipeline, repeats=True)
+    assert len(found) <= len(told) < len(fast(along_K))
+    mostly_nan = np.full(shape, np.nan)
+    mostly_nan.flat[::97] = rng.normal(size=mostly_nan.flat[::97].size)
+    assert not chunk_filters.constant_along_an_axis(mostly_nan)
+    found = chunk_filters.encode_part(mostly_nan, shape, np.nan, pipeline)
+    assert len(found) < chunk_filters.REPETITIVE * mostly_nan.nbytes
+    assert found == fast(mostly_nan)
+    assert zlib.decompress(found) == zlib.decompress(chunk_filters.encode(mostly_nan, pipeline))
 
 
 def _pipeline(ds):

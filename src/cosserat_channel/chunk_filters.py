@@ -42,7 +42,8 @@ DEFLATE = "zlib" if _isal is None else "ISA-L (isal)"
 # 0.5 % of zlib 1's size on the sweeps' float chunks (its level 1 is up to 1.7 % larger) at the
 # same speed, 7x zlib's. Its fast levels miss the repeats of a chunk whose rows repeat (a variable
 # constant along K: 5x zlib's size there); a chunk they shrink below REPETITIVE of its size is
-# deflated again by its level 3, a lazy matcher, 10-15 % below zlib 1, and the smaller kept.
+# deflated again by its level 3, a lazy matcher, 10-15 % below zlib 1, and the smaller kept,
+# unless the caller can tell that it does not repeat that way (:func:`encode_part`).
 ISAL_LEVEL = 2
 ISAL_LAZY = 3
 REPETITIVE = 0.25
@@ -75,20 +76,25 @@ def shuffle(data: np.ndarray, itemsize: int, out: np.ndarray | None = None) -> n
     return out
 
 
-def deflate(data, level: int, repeats: bool = False) -> bytes:
+def deflate(data, level: int, repeats=False) -> bytes:
     """A zlib stream of ``data`` for a pipeline's deflate ``level``: zlib's at that level, or,
     with ISA-L and ``level`` >= 1, ISA-L's (module constants: its size is zlib 1's, give or take
-    half a per cent, at several times the speed). ``repeats``: the caller knows that the data
-    holds each of its values several times over (a chunk of a variable constant along an axis),
-    so ISA-L's lazy level deflates it at once, without the fast level's try."""
+    half a per cent, at several times the speed).
+
+    ``repeats``: True when the caller knows that the data holds each of its values several times
+    over (a chunk of a variable constant along an axis): ISA-L's lazy level deflates it at once,
+    without the fast level's try. False: the fast level's output is deflated again by the lazy
+    level when it is below REPETITIVE of the data, and the smaller kept. A callable: asked, only
+    then, whether the data repeats that way (the retry costs three times the fast level, and
+    wins nothing on data that shrinks for another reason, runs of one value)."""
     level = int(level)
     if _isal is None or level < 1:
         return zlib.compress(data, level)
-    if repeats and level == 1:
+    if repeats is True and level == 1:
         return _isal.compress(data, ISAL_LAZY, _isal.COMP_ZLIB)
     out = _isal.compress(data, ISAL_LEVEL if level == 1 else ISAL_LAZY, _isal.COMP_ZLIB,
                          _isal.MEM_LEVEL_SMALL)
-    if level == 1 and len(out) < REPETITIVE * len(data):
+    if level == 1 and len(out) < REPETITIVE * len(data) and (not callable(repeats) or repeats()):
         lazy = _isal.compress(data, ISAL_LAZY, _isal.COMP_ZLIB)
         if len(lazy) < len(out):
             out = lazy
@@ -129,8 +135,14 @@ def _scratch(shape: tuple):
 def encode_part(part: np.ndarray, shape: tuple, fill, pipeline, repeats: bool = False) -> bytes:
     """The bytes HDF5 stores for a chunk of ``shape`` under ``pipeline`` whose leading box holds
     ``part`` (a view into a tile, any strides, broadcast ones included) and the rest ``fill`` (an
-    edge chunk, padded as HDF5 pads it). ``repeats``: see :func:`deflate`."""
+    edge chunk, padded as HDF5 pads it). ``repeats``: see :func:`deflate`; without it, a chunk
+    that the fast level shrinks below REPETITIVE is deflated again only if ``part`` is constant
+    along an axis (:func:`constant_along_an_axis`), the repeats the fast levels miss."""
     from ._chunk_kernels import _gather, copy_box
+
+    if not repeats:
+        def repeats():
+            return constant_along_an_axis(part)
 
     n = math.prod(shape) * part.dtype.itemsize
     if part.dtype.itemsize == 8 and part.ndim == 5:
@@ -144,6 +156,18 @@ def encode_part(part: np.ndarray, shape: tuple, fill, pipeline, repeats: bool = 
         whole[...] = fill
     copy_box(part, whole)
     return _run(data, n, part.dtype.itemsize, pipeline, data, None, repeats)
+
+
+def constant_along_an_axis(part: np.ndarray) -> bool:
+    """Whether ``part`` holds the same bits at every position along one of its axes (NaN
+    included)."""
+    bits = part.view(f"u{part.dtype.itemsize}")
+    for axis, n in enumerate(bits.shape):
+        if n > 1:
+            rest = (slice(None),) * axis
+            if np.array_equal(bits[rest + (slice(1, None),)], bits[rest + (slice(0, n - 1),)]):
+                return True
+    return False
 
 
 def run_filters(buf: np.ndarray, n: int, itemsize: int, pipeline) -> bytes:

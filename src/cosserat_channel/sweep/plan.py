@@ -339,15 +339,20 @@ class Plan:
         pair = self.pair_order[self.pair_start[u[owner]] + np.arange(owner.size) - first[owner]]
         return pair, a[owner], n[owner]
 
+    @property
+    def runs_along_K(self) -> bool:
+        """Whether each block's entries come in runs along the whole ``K`` axis of a tile
+        (:meth:`tile_runs`): reduced, with tiles that span ``K``."""
+        return self.reduce and self.tile[2] == self.shape[2]
+
     def tile_runs(self, k: int):
         """``(tile, local, stride)`` of each run of block ``k``'s entries (see :meth:`_runs`): its
         tile (C order of the tile grid), the C-order index inside that tile (edge tiles are
         smaller) of its first entry and the stride of ``K`` there; or None where this does not
-        apply (unreduced, or tiles that split ``K``). Entry ``j`` of a run lies at
-        ``local + j * stride``."""
+        apply (not :attr:`runs_along_K`). Entry ``j`` of a run lies at ``local + j * stride``."""
         nE, nL, nK, nA, nN = self.shape
         te, tl, tk, ta, tn = self.tile
-        if not self.reduce or tk != nK:
+        if not self.runs_along_K:
             return None
         pair, a, n = self._runs(self.blocks[k])
         e, l = pair // nL, pair % nL

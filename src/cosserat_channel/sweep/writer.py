@@ -533,17 +533,28 @@ class StreamWriter:
             self._gather(g, lambda k: buckets.add(*self._tile_local(k), self._block_one_minus(k)))
             return buckets.take
         # The group's tiles one after the other in one array: each block's values land with one
-        # scatter, wherever its points lie.
+        # scatter, wherever its points lie. Where a block's entries come in runs along K
+        # (Plan.runs_along_K), each tile is held K innermost, (eps, L, A, N, K): a run is then
+        # a row of nK adjacent values, where in the tile's own C order its values lie nA x nN
+        # apart, each in a cache line of its own (the scatter was a miss per value); the tile is
+        # handed out as a view in (eps, L, K, A, N), whose values the derivation reads
+        # elementwise whatever their order in memory.
         start = np.full(self.tiles.count, -1, dtype=np.int64)
         start[tiles_g] = np.cumsum([0] + sizes[:-1])
         out = np.empty(sum(sizes))
         count = np.zeros(self.tiles.count, dtype=np.int64)
         lock = threading.Lock()
+        nK = self.plan.shape[2]
+        along_K = self.plan.runs_along_K
 
         def gather(k):
             values = self._block_one_minus(k)
-            where, per_tile = self._group_positions(k, start)
-            out[where] = values
+            if along_K:
+                rows, per_tile = self._group_rows(k, start)
+                out.reshape(-1, nK)[rows] = values.reshape(-1, nK)
+            else:
+                where, per_tile = self._group_positions(k, start)
+                out[where] = values
             with lock:
                 count[:] += per_tile
 
@@ -555,7 +566,11 @@ class StreamWriter:
 
         def take(i, shape):
             i = int(i)
-            return out[start[i]:start[i] + math.prod(shape)].reshape(shape)
+            values = out[start[i]:start[i] + math.prod(shape)]
+            if along_K:
+                nE, nL, _, nA, nN = shape
+                return np.moveaxis(values.reshape(nE, nL, nA, nN, nK), 4, 2)
+            return values.reshape(shape)
 
         return take
 
@@ -568,21 +583,27 @@ class StreamWriter:
 
     def _group_positions(self, k: int, start: np.ndarray):
         """``(where, per_tile)``: the position of each of block ``k``'s entries in its group's
-        array, whose tile ``i`` begins at ``start[i]``, and how many entries each tile gets."""
-        runs = self.plan.tile_runs(k)
-        if runs is not None:
-            tile, local, stride = runs
-            nK = self.plan.shape[2]
-            first = start[tile] + local
-            where = (first[:, None] + stride[:, None] * np.arange(nK, dtype=np.int64)).ravel()
-            per_tile = np.bincount(tile, minlength=self.tiles.count) * nK
-        else:
-            tile, local = self.tiles.locate(self.plan.inputs(k).flat)
-            where = start[tile] + local
-            per_tile = np.bincount(tile, minlength=self.tiles.count)
+        array, whose tile ``i`` begins at ``start[i]`` (C order), and how many entries each tile
+        gets."""
+        tile, local = self.tiles.locate(self.plan.inputs(k).flat)
+        per_tile = np.bincount(tile, minlength=self.tiles.count)
         if per_tile[start < 0].any():  # a block's points lie in its group: a bug otherwise
             raise RuntimeError(f"block {k} has plug-edge values outside its group")
-        return where, per_tile
+        return start[tile] + local, per_tile
+
+    def _group_rows(self, k: int, start: np.ndarray):
+        """``(rows, per_tile)``: the row of each run of block ``k`` (:meth:`.plan.Plan.tile_runs`)
+        in its group's array seen as rows of ``nK`` (its tiles, ``i`` from ``start[i]``, each
+        held ``(eps, L, A, N, K)``), and how many entries each tile gets."""
+        tile, local, stride = self.plan.tile_runs(k)
+        nK = self.plan.shape[2]
+        per_tile = np.bincount(tile, minlength=self.tiles.count) * nK
+        if per_tile[start < 0].any():  # a block's points lie in its group: a bug otherwise
+            raise RuntimeError(f"block {k} has plug-edge values outside its group")
+        # local is (slab * nK + K) * stride + position in (A, N), stride the A x N extent of the
+        # tile; K innermost that is row slab * stride + position in (A, N).
+        slab, within = np.divmod(local, nK * stride)
+        return start[tile] // nK + slab * stride + within, per_tile
 
     def _tile_local(self, k: int):
         """``(tile, local)`` of block ``k``'s entries (:meth:`Tiles.locate` of its grid indices)."""

@@ -15,6 +15,7 @@ import pathlib
 import nbclient  # the `test` extra installs nbclient, nbformat and ipykernel
 import nbformat
 import pytest
+from jupyter_client.manager import KernelManager
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 NOTEBOOKS = ROOT / "notebooks"
@@ -46,11 +47,15 @@ def test_notebook_runs_in_a_kernel_and_shows_every_figure(name, tmp_path, monkey
     paths = [str(ROOT / "src")] + [os.path.abspath(p) for p in
                                    os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(paths))
+    # The kernel's channels are sockets in tmp_path: over TCP, jupyter_client picks free ports by
+    # binding and releasing them, and the kernel dies at start if another process (the other
+    # test process starts clusters and servers) binds one of them first.
+    km = KernelManager(kernel_name="python3", transport="ipc", ip=str(tmp_path / "kernel"))
     # A cell's outputs may reach this process after its reply (the kernel sends them on another
     # channel, from another thread): they are waited for as long as the cell itself, and a wait
     # that runs out is an error. nbclient's default waits 4 s and then goes on without them.
-    client = nbclient.NotebookClient(nb, timeout=600, iopub_timeout=600,
-                                     raise_on_iopub_timeout=True, kernel_name="python3",
+    client = nbclient.NotebookClient(nb, km=km, timeout=600, iopub_timeout=600,
+                                     raise_on_iopub_timeout=True,
                                      resources={"metadata": {"path": str(tmp_path)}})
     client.execute()  # raises CellExecutionError, with the traceback, if a cell fails
 

@@ -134,6 +134,10 @@ def test_export_writes_a_sweep_file_that_reproduces_the_line_and_replaces_nothin
 def running(tmp_path):
     app = server.Running(directory=str(tmp_path))
     yield app
+    # The warm-up (kernels loaded, a map and a line computed: seconds) runs on after stop(), in
+    # this process: it ends here, not during the next tests (whose peak-memory measurements
+    # would count its arrays).
+    app.explorer.warm.wait(600)
     app.stop()
 
 

@@ -64,6 +64,36 @@ def _install_locator() -> None:
     locators = impl._locator_classes
     if not any(c.__name__ == "SourcesLocator" for c in locators):
         locators.insert(0, SourcesLocator)
+    _lock_saves(caching.IndexDataCacheFile)
+
+
+def _lock_saves(index_file) -> None:
+    """Numba saves a cache entry by reading the function's index, adding the entry and writing
+    the index and the data file back (each replaced at once). Two processes saving entries of
+    one function at the same time (a parallel first run's child and its parent, or a sweep's
+    workers) could both pick the same data file's name, and the index would name the other's
+    code for a signature. A save holds an exclusive lock on its directory."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: no parallel first run (solver.ahead), saves unlocked
+        return
+    save = index_file.save
+    if getattr(save, "locked", False):
+        return
+
+    def locked_save(self, key, data):
+        try:
+            fd = os.open(self._cache_path, os.O_RDONLY)
+        except OSError:
+            return save(self, key, data)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            return save(self, key, data)
+        finally:
+            os.close(fd)  # releases the lock
+
+    locked_save.locked = True
+    index_file.save = locked_save
 
 
 @lru_cache(maxsize=None)

@@ -17,7 +17,7 @@ import numpy as np
 from .. import outputs as out_
 from .. import status as st
 from ..integrate import stepping
-from . import batch, layout, plug_edge
+from . import ahead, batch, layout, plug_edge
 from .batch import Workspace
 from ..parameters import (
     DEFAULT_ATOL,
@@ -249,6 +249,8 @@ def solve_point(eps, L, K, A, N, *, rtol=DEFAULT_RTOL, atol=DEFAULT_ATOL, materi
     xi_prof = None if profile is None else _check_profile(profile)
     names, wants_plug_edge, wants_stage2 = _plan_outputs(outputs, mat)
     ws = workspace or _thread_workspace()
+    # On an empty kernel cache, a child process compiles these parts meanwhile.
+    ahead.start(("stage2",) + ("plug_edge",) * wants_plug_edge + ("profile",) * (xi_prof is not None))
     eta = eps * L
     code = ws.run(eta, A, N, rtol, atol, layout.METHOD_AUTO,
                   xi_prof is not None or wants_stage2 or sensitivities)

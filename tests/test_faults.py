@@ -39,7 +39,7 @@ from cosserat_channel.sweep import budget, engine, run_sweep, schedulers
 from cosserat_channel.sweep.plan import Plan
 from cosserat_channel.sweep.spec import SweepError, load_sweep
 from cosserat_channel.sweep.store import partial_dir
-from support import LOCAL_CLUSTER, SCHEDULER_HTTP, assert_identical
+from support import LOCAL_CLUSTER, SCHEDULER_HTTP, assert_identical, without_heartbeat
 
 # 72 points, 28 integrations (eps L products repeat); with --block-size 4, 7 blocks. About a second.
 SWEEP = """\
@@ -993,7 +993,9 @@ def test_a_reader_that_leaves_early_is_one_line_and_keeps_the_files(tmp_path, ar
     proc.wait(timeout=300)
     assert proc.returncode == 1, stderr
     assert "broken pipe" in one_line_error(stderr)
-    assert stderr.count("\n") == 1 and "Exception ignored" not in stderr, stderr
+    # one line besides the heartbeat that a run past a minute prints (a cold kernel cache)
+    assert len(without_heartbeat(stderr, argv[0])) == 1, stderr
+    assert "Exception ignored" not in stderr, stderr
     if written == "b.nc":
         with xr.open_dataset(tmp_path / written) as f:
             assert np.isfinite(f["eta_max"].values).all()

@@ -3,10 +3,13 @@
 Each round makes an empty temporary ``NUMBA_CACHE_DIR``, runs ``cosserat-channel point ...`` in a
 new Python process (the first run compiles every kernel the point needs), then the same command
 again in another new process (the kernels load from that cache). It prints the CPU model, the load
-average before each run, and each run's wall-clock and CPU time (the child's user + system): on a
-loaded machine the wall time grows with the load, the CPU time much less. ``--profile`` adds, per
+average before each run, and each run's wall-clock and CPU time (user + system of the command and
+of the process it compiles part of the kernels in, ``solver.ahead``): on a loaded machine the wall
+time grows with the load, the CPU time much less, and on two idle cores the cold run's wall time
+is below its CPU time. ``--profile`` adds, per
 compiled function, the compile time spent in it outside the functions it compiled in turn (Numba's
-compile events) and how many specialisations were compiled.
+compile events) and how many specialisations were compiled, in the command's own process (what
+the other process compiled, it loads).
 
 Run:  .venv/bin/python benchmarks/bench_first_run.py [--rounds 1] [--profile] [--json PATH]
       [-- POINT OPTIONS]

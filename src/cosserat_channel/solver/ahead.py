@@ -101,7 +101,7 @@ class _Child:
         self.done: set[str] = set()
         self.lock = threading.Lock()
         self.proc = subprocess.Popen(
-            [sys.executable, "-c", f"from {__name__} import child; child()", *self.names],
+            [sys.executable, "-P", "-c", f"from {__name__} import child; child()", *self.names],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
             env=env, close_fds=True)
         self.ended = False

@@ -7,7 +7,10 @@
     (fixed seed), run through the engine's blocks on dask's threaded scheduler with 1 and 2
     workers; and per-point throughput reduced (a) against unreduced (b). Dask's scheduling of
     the same 128 blocks without work is timed too: a fixed cost that both runs pay, which on
-    20,000 points (0.5 s of work on two workers) hid the kernel's scaling.
+    20,000 points (0.5 s of work on two workers) hid the kernel's scaling. In a fresh process
+    of its own, before the other sections: inside the process that had started (e)'s cluster and
+    waited on the children of (a) and (c), two workers measured 1.76-1.80x one, in a fresh
+    process 1.95x, with the same blocks.
 (c) A 10^8-point sweep end to end to its file, default settings, in a fresh process: eps 50
     log-spaced values in [1e-3, 0.2], L 50 in [1, 31.6], K 200 in [0.1, 100], A 10 in [-0.5, 3],
     N 20 in [0.7, 3] (50 x 50 x 200 x 10 x 20), the four outputs of large_5d: 10^8 plug-edge
@@ -40,6 +43,7 @@ Run:  .venv/bin/python benchmarks/bench_sweep.py [--only c,e] [--points 20000] [
 
 from __future__ import annotations
 
+import argparse
 import os
 import re
 import subprocess
@@ -49,13 +53,10 @@ import time
 from pathlib import Path
 
 import dask
-import dask.threaded
 import numpy as np
 
 from cosserat_channel.measure import harness
 from cosserat_channel import chunk_filters
-from cosserat_channel.sweep import block
-from cosserat_channel.sweep.plan import COST_FIXED, COST_PER_INV_ETA, BlockInputs, block_plan
 from cosserat_channel.sweep.spec import load_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -124,6 +125,8 @@ def run_distributed(tmp: Path) -> dict:
 
 def subsample(n: int, seed: int = 0):
     """``n`` random grid points of large_5d as one-point triples, dealt into blocks by cost."""
+    from cosserat_channel.sweep.plan import COST_FIXED, COST_PER_INV_ETA, BlockInputs, block_plan
+
     spec = load_sweep(LARGE)
     rng = np.random.default_rng(seed)
     flat = rng.choice(spec.size, size=n, replace=False)
@@ -141,12 +144,47 @@ def _no_work(inp, rtol, atol):
     return None
 
 
-def run_unreduced(inputs, rtol, atol, workers: int, function=block.solve_block) -> float:
-    """(b): the engine's block function on dask's threaded scheduler; seconds."""
+def run_unreduced(inputs, rtol, atol, workers: int, function=None) -> float:
+    """(b): the engine's block function (or ``function``) on dask's threaded scheduler; seconds."""
+    import dask.threaded
+
+    from cosserat_channel.sweep import block
+
+    function = block.solve_block if function is None else function
     tasks = [dask.delayed(function)(inp, rtol, atol) for inp in inputs]
     t0 = time.perf_counter()
     dask.compute(*tasks, scheduler=dask.threaded.get, num_workers=workers)  # as the engine
     return time.perf_counter() - t0
+
+
+def scaling(points: int, repeat: int, workers: int) -> dict:
+    """(b) in this process: the kernels loaded, then 1 and ``workers`` workers in alternate
+    rounds, the fastest of each (what disturbs one round, another job, is not charged to one
+    side), and dask's scheduling of the blocks without work."""
+    from cosserat_channel.sweep import block
+
+    block.warm_up()  # compile (or load) the kernels here, not inside a timing
+    spec, inputs = subsample(points)
+    run_unreduced(inputs[:2], spec.rtol, spec.atol, workers)
+    rounds = [[run_unreduced(inputs, spec.rtol, spec.atol, w) for w in (1, workers)]
+              for _ in range(repeat)]
+    t1, tw = (min(r[j] for r in rounds) for j in (0, 1))
+    t_sched = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol, workers,
+                                                    _no_work), repeat).seconds
+    return {"one_worker_s": t1, "workers_s": tw, "scheduling_s": t_sched, "blocks": len(inputs)}
+
+
+def scaling_child(points: int, repeat: int, workers: int) -> dict:
+    """:func:`scaling` in a fresh process (this script with ``--scaling``): nothing that ran
+    before in this one (children waited on, a cluster started and stopped) is in its timing."""
+    import json
+
+    cmd = [sys.executable, __file__, "--scaling", "--points", str(points), "--repeat",
+           str(repeat), "--workers", str(workers)]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed:\n{done.stderr}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 SECTIONS = "abcde"
@@ -170,19 +208,26 @@ def main() -> int:
                     help="workers for (a) and the 'N workers' of (b)")
     ap.add_argument("--only", default=SECTIONS, metavar="SECTIONS",
                     help="run only these sections, e.g. c,e (default: all; d brings c)")
+    ap.add_argument("--scaling", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.scaling:  # (b) in the fresh process scaling_child started: one JSON line
+        import json
+
+        print(json.dumps(scaling(args.points, args.repeat, args.workers)))
+        return 0
     only = sections(args.only)
 
     rec = harness.Record("bench_sweep", args.json, dask=dask.__version__, sections=only)
     load_before = os.getloadavg()
-    block.warm_up()  # compile (or load) the kernels here, not inside a timing
-    a = c = d = e = None
+    a = b = c = d = e = None
     with tempfile.TemporaryDirectory(dir=ROOT / "benchmarks") as tmp_name:
         tmp = Path(tmp_name)
         # A tiny run first so that the runs measure a warm Numba cache, as every run but the
         # first does (the chunk filters' kernels included).
         subprocess.run(cli("run", ROOT / "sweeps" / "quickstart.toml", "-o", tmp / "q.nc"),
                        check=True, capture_output=True)
+        if "b" in only:  # first: no page cache writing back (c)'s file meanwhile
+            b = scaling_child(args.points, args.repeat, args.workers)
         if "a" in only:
             a = run_sweep_child(LARGE, tmp / "large_5d.nc", args.workers, tmp)
         if "c" in only:
@@ -197,21 +242,11 @@ def main() -> int:
             e = run_distributed(tmp)
 
     rows = []
-    spec = load_sweep(LARGE)
-    n_large = spec.size
-    if "b" in only:
-        spec, inputs = subsample(args.points)
-        run_unreduced(inputs[:2], spec.rtol, spec.atol, args.workers)
-        # 1 and N workers in alternate rounds, the fastest of each: what disturbs one round
-        # (the page cache writing back (c)'s file, another job) is not charged to one side.
-        rounds = [[run_unreduced(inputs, spec.rtol, spec.atol, w) for w in (1, args.workers)]
-                  for _ in range(args.repeat)]
-        t1, tw = (min(r[j] for r in rounds) for j in (0, 1))
+    n_large = load_sweep(LARGE).size
+    if b is not None:
+        t1, tw, t_sched = b["one_worker_s"], b["workers_s"], b["scheduling_s"]
         unreduced_pps = args.points / tw
         speedup = t1 / tw
-        t_sched = harness.best_of(lambda: run_unreduced(inputs, spec.rtol, spec.atol,
-                                                        args.workers, _no_work),
-                                  args.repeat).seconds
     load_after = os.getloadavg()
     if a is not None:
         reduced_pps = n_large / a["wall"]
@@ -231,19 +266,20 @@ def main() -> int:
             ("    startup, plan, store", f"{a['wall'] - a['solve'] - a['write']:.2f} s", "", ""),
             ("(a) peak RSS", f"{a['rss'] / GiB:.2f} GiB", "", f"< 1 GiB: {ok_rss.word}"),
         ]
-    if "b" in only:
+    if b is not None:
         ok_speedup = rec.check(f"(b) {args.workers} workers >= 1.8x one worker", speedup >= 1.8,
                                f"{speedup:.2f}x")
         rec.add("b_unreduced", {"points": args.points, "one_worker_s": t1,
                                 "workers": args.workers, "workers_s": tw, "speedup": speedup,
-                                "blocks": len(inputs), "scheduling_s": t_sched})
+                                "blocks": b["blocks"], "scheduling_s": t_sched,
+                                "process": "its own, fresh"})
         rows += [
             (f"(b) unreduced, {args.points:,} points, 1 worker", f"{t1:.2f} s",
              f"{args.points / t1:,.0f} points/s", ""),
             (f"(b) unreduced, {args.points:,} points, {args.workers} workers", f"{tw:.2f} s",
              f"{unreduced_pps:,.0f} points/s",
              f"{speedup:.2f}x one worker, >= 1.8x: {ok_speedup.word}"),
-            (f"(b) dask's scheduling of the {len(inputs)} blocks, no work", f"{t_sched:.2f} s",
+            (f"(b) dask's scheduling of the {b['blocks']} blocks, no work", f"{t_sched:.2f} s",
              "", "paid by both runs"),
         ]
         if a is not None:

@@ -2,7 +2,7 @@
 
 :func:`run_sweep` is the whole pipeline; ``cosserat-channel run`` is a thin wrapper around it.
 
-The pieces: a block is solved by :mod:`.block`, the blocks run on dask's threads or a
+The pieces: a block is solved by :mod:`.block`, the blocks run on a pool of threads or a
 ``dask.distributed`` cluster (:mod:`.schedulers`), the disk and memory a run needs are checked
 first (:mod:`.budget`). The results come back to this process, which alone writes the store and
 the file (workers need no shared file system); the file's tiles are derived and their chunks
@@ -258,11 +258,9 @@ def _run(spec, plan, store, xi, output, client, n_workers, reduce, progress, com
             raise
     cpu = []  # the solving threads' CPU seconds per block: inputs, kernels, storing
     if todo and client is None:
-        import dask.diagnostics  # noqa: F401 (imported and the kernels loaded before the clock)
-
         from .block import warm_up
 
-        warm_up()
+        warm_up()  # the kernels loaded before the clock
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         if writer is not None:

@@ -1,6 +1,6 @@
-"""Where the blocks run: dask's threads on this machine, or a ``dask.distributed`` cluster.
+"""Where the blocks run: a pool of threads on this machine, or a ``dask.distributed`` cluster.
 
-Each block is one :func:`.block.solve_block` call, which holds no GIL, so the threaded scheduler
+Each block is one :func:`.block.solve_block` call, which holds no GIL, so a pool of threads
 keeps every core busy without pickling anything. On a cluster each task carries its own block's
 inputs (:meth:`.plan.Plan.inputs`), nothing scattered: a task whose worker dies is simply run
 again on another. The results come back to this process, which alone writes the store and the
@@ -72,8 +72,7 @@ class BlockCount:
 
 def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=None,
                  cpu=None) -> None:
-    import dask
-    import dask.threaded
+    from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 
     from .block import _block_task
 
@@ -98,15 +97,20 @@ def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=
             except BaseException as exc:  # noqa: BLE001 (raised below, once every task is done)
                 failure.append(exc)
 
-    # dask's threaded scheduler runs independent tasks in descending order of their keys: the
-    # keys count down so that blocks run in plan order, group after group, and each group's
-    # tiles are written soon after it starts.
-    n = len(todo)
-    tasks = [dask.delayed(task, pure=False)(k, dask_key_name=f"block-{n - 1 - i:09d}-{k}")
-             for i, k in enumerate(todo)]
-    # The threaded scheduler's function itself: named by its string, dask imports
-    # dask.distributed (a quarter to half a second before the first block) to look for a client.
-    dask.compute(*tasks, scheduler=dask.threaded.get, num_workers=workers)
+    # The blocks are independent: a pool of threads is all the scheduling they need (dask's
+    # threaded scheduler did the same, after a quarter of a second importing dask before the
+    # first block). Its queue is first in, first out: blocks run in plan order, group after
+    # group, and each group's tiles are written soon after it starts. A block that raises ends
+    # the run with its error; blocks not yet started are dropped, those in flight finish.
+    pool = ThreadPoolExecutor(workers, thread_name_prefix="cc-solve")
+    try:
+        futures = [pool.submit(task, k) for k in todo]
+        wait(futures, return_when=FIRST_EXCEPTION)
+        for fut in futures:
+            if fut.done() and not fut.cancelled() and fut.exception() is not None:
+                raise fut.exception()
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
     if failure:
         raise failure[0]
 

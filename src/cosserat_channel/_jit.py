@@ -82,9 +82,11 @@ def _lock_saves(index_file) -> None:
         return
 
     def locked_save(self, key, data):
+        # Numba's private attribute; a version without it saves unlocked, as Numba itself does.
+        path = getattr(self, "_cache_path", None)
         try:
-            fd = os.open(self._cache_path, os.O_RDONLY)
-        except OSError:
+            fd = os.open(path, os.O_RDONLY)
+        except (OSError, TypeError):
             return save(self, key, data)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)

@@ -100,8 +100,10 @@ def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=
     # The blocks are independent: a pool of threads is all the scheduling they need (dask's
     # threaded scheduler did the same, after a quarter of a second importing dask before the
     # first block). Its queue is first in, first out: blocks run in plan order, group after
-    # group, and each group's tiles are written soon after it starts. A block that raises ends
-    # the run with its error; blocks not yet started are dropped, those in flight finish.
+    # group, and each group's tiles are written soon after it starts. A block that raises (or a
+    # Ctrl-C) ends the run with its error; blocks not yet started are dropped, and those in
+    # flight finish and are stored before the error goes on, so that nothing writes into the
+    # store or the file while the caller cleans up.
     pool = ThreadPoolExecutor(workers, thread_name_prefix="cc-solve")
     try:
         futures = [pool.submit(task, k) for k in todo]
@@ -110,7 +112,7 @@ def _run_threads(plan, todo, store, args, workers, progress: BlockCount, writer=
             if fut.done() and not fut.cancelled() and fut.exception() is not None:
                 raise fut.exception()
     finally:
-        pool.shutdown(wait=False, cancel_futures=True)
+        pool.shutdown(wait=True, cancel_futures=True)
     if failure:
         raise failure[0]
 

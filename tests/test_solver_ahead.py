@@ -150,3 +150,20 @@ def test_a_cache_save_holds_its_directory_locked(tmp_path, monkeypatch):
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     finally:
         os.close(fd)
+
+
+def test_reports_that_arrive_together_are_each_seen_at_once(monkeypatch):
+    """A child that reports two parts in one write and then works on: the second report is seen
+    without waiting for the child's next one or its end."""
+    monkeypatch.setattr(ahead, "WAIT_S", 20.0)
+    code = ("import sys, time; sys.stdout.write('stage2\\nplug_edge\\n'); sys.stdout.flush(); "
+            "time.sleep(60)")
+    child = ahead._Child(["stage2", "plug_edge"], code=code)
+    try:
+        t0 = time.monotonic()
+        assert child.wait("stage2")
+        assert child.wait("plug_edge")
+        assert time.monotonic() - t0 < 15
+        assert child.proc.poll() is None  # still working: the reports were read, not its end
+    finally:
+        child.close()

@@ -92,7 +92,7 @@ def _eligible() -> bool:
 class _Child:
     """The child process compiling ``names``, and what it has reported so far."""
 
-    def __init__(self, names):
+    def __init__(self, names, code: str = f"from {__name__} import child; child()"):
         env = dict(os.environ, **{CHILD_ENV: "1"})
         # The child imports these very sources, wherever this process found them.
         env["PYTHONPATH"] = os.pathsep.join(
@@ -100,8 +100,10 @@ class _Child:
         self.names = list(names)
         self.done: set[str] = set()
         self.lock = threading.Lock()
+        # Unbuffered: a buffered reader would take several reports at once into its buffer,
+        # where select() cannot see them, and wait for the child's next report or its exit.
         self.proc = subprocess.Popen(
-            [sys.executable, "-P", "-c", f"from {__name__} import child; child()", *self.names],
+            [sys.executable, "-P", "-c", code, *self.names], bufsize=0,
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
             env=env, close_fds=True)
         self.ended = False

@@ -587,8 +587,7 @@ class StreamWriter:
         gets."""
         tile, local = self.tiles.locate(self.plan.inputs(k).flat)
         per_tile = np.bincount(tile, minlength=self.tiles.count)
-        if per_tile[start < 0].any():  # a block's points lie in its group: a bug otherwise
-            raise RuntimeError(f"block {k} has plug-edge values outside its group")
+        _within_group(k, per_tile, start)
         return start[tile] + local, per_tile
 
     def _group_rows(self, k: int, start: np.ndarray):
@@ -598,8 +597,7 @@ class StreamWriter:
         tile, local, stride = self.plan.tile_runs(k)
         nK = self.plan.shape[2]
         per_tile = np.bincount(tile, minlength=self.tiles.count) * nK
-        if per_tile[start < 0].any():  # a block's points lie in its group: a bug otherwise
-            raise RuntimeError(f"block {k} has plug-edge values outside its group")
+        _within_group(k, per_tile, start)
         # local is (slab * nK + K) * stride + position in (A, N), stride the A x N extent of the
         # tile; K innermost that is row slab * stride + position in (A, N).
         slab, within = np.divmod(local, nK * stride)
@@ -624,3 +622,10 @@ def temp_path(directory: str, output: str) -> str:
     """A fresh temporary file name for ``output`` inside ``directory`` (the store, whose opening
     deletes ``*.tmp`` leftovers of a killed run)."""
     return _temp_path(directory, output)
+
+
+def _within_group(k: int, per_tile: np.ndarray, start: np.ndarray) -> None:
+    """Raise if block ``k`` gives values to a tile outside its group (``start < 0``): a block's
+    points lie in its group, so this is a bug, not an input's fault."""
+    if per_tile[start < 0].any():
+        raise RuntimeError(f"block {k} has plug-edge values outside its group")

@@ -1045,9 +1045,19 @@ def test_ctrl_c_inside_llvm_callbacks_waits_until_they_return():
          "        pass\n"
          "    return 'returned'\n", inside)
     returned = []
-    with pytest.raises(KeyboardInterrupt):
-        with cli.common.interruptible(term=False):
-            returned.append(inside["callback"]())
-            time.sleep(5)
-    assert returned == ["returned"]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    # The disposition a command starts with (a library that ran earlier in this process may
+    # have left its own handler, under which a SIGINT raises nothing at all).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with cli.common.interruptible(term=False):
+                returned.append(inside["callback"]())
+                # Python code that runs, so that the main thread handles the signal sent again
+                # as soon as it comes, whichever thread of the process received it.
+                end = time.monotonic() + 30
+                while time.monotonic() < end:
+                    time.sleep(0.01)
+        assert returned == ["returned"]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -40,11 +40,15 @@ except ImportError:  # pragma: no cover (depends on the installation)
 DEFLATE = "zlib" if _isal is None else "ISA-L (isal)"
 # ISA-L's deflate for the pipeline's zlib level 1: its level 2 with its small hash tables, within
 # 0.5 % of zlib 1's size on the sweeps' float chunks (its level 1 is up to 1.7 % larger) at the
-# same speed, 7x zlib's. Its fast levels miss the repeats of a chunk whose rows repeat (a variable
-# constant along K: 5x zlib's size there); a chunk they shrink below REPETITIVE of its size is
-# deflated again by its level 3, a lazy matcher, 10-15 % below zlib 1, and the smaller kept,
-# unless the caller can tell that it does not repeat that way (:func:`encode_part`).
+# same speed, 7x zlib's. Its fast levels miss the long repeats of a chunk whose rows repeat (a
+# variable constant along K: 5x zlib's size there); its level 0 finds them, at about 10x their
+# speed on such data and 1.3x zlib 1's size (its lazy level 3 is 10 % below zlib 1 but as slow as
+# zlib: two seconds of CPU on a 10^8-point sweep, for 1.5 % of its file). A chunk the fast level
+# shrinks below REPETITIVE of its size is deflated again by level 0 and the smaller kept, unless
+# the caller can tell that it does not repeat that way (:func:`encode_part`). Other zlib levels:
+# the lazy level 3.
 ISAL_LEVEL = 2
+ISAL_REPEATS = 0
 ISAL_LAZY = 3
 REPETITIVE = 0.25
 
@@ -78,26 +82,25 @@ def shuffle(data: np.ndarray, itemsize: int, out: np.ndarray | None = None) -> n
 
 def deflate(data, level: int, repeats=False) -> bytes:
     """A zlib stream of ``data`` for a pipeline's deflate ``level``: zlib's at that level, or,
-    with ISA-L and ``level`` >= 1, ISA-L's (module constants: its size is zlib 1's, give or take
-    half a per cent, at several times the speed).
+    with ISA-L and ``level`` >= 1, ISA-L's (module constants: at level 1 its size is zlib 1's,
+    give or take half a per cent, at several times the speed).
 
     ``repeats``: True when the caller knows that the data holds each of its values several times
-    over (a chunk of a variable constant along an axis): ISA-L's lazy level deflates it at once,
-    without the fast level's try. False: the fast level's output is deflated again by the lazy
-    level when it is below REPETITIVE of the data, and the smaller kept. A callable: asked, only
-    then, whether the data repeats that way (the retry costs three times the fast level, and
-    wins nothing on data that shrinks for another reason, runs of one value)."""
+    over (a chunk of a variable constant along an axis), False when it does not know: either
+    way, when the fast level's output is below REPETITIVE of the data, the data is deflated again
+    by the level that finds long repeats, and the smaller kept. A callable: asked, only then,
+    whether the data repeats that way (the retry wins nothing on data that shrinks for another
+    reason, runs of one value)."""
     level = int(level)
     if _isal is None or level < 1:
         return zlib.compress(data, level)
-    if repeats is True and level == 1:
-        return _isal.compress(data, ISAL_LAZY, _isal.COMP_ZLIB)
-    out = _isal.compress(data, ISAL_LEVEL if level == 1 else ISAL_LAZY, _isal.COMP_ZLIB,
-                         _isal.MEM_LEVEL_SMALL)
-    if level == 1 and len(out) < REPETITIVE * len(data) and (not callable(repeats) or repeats()):
-        lazy = _isal.compress(data, ISAL_LAZY, _isal.COMP_ZLIB)
-        if len(lazy) < len(out):
-            out = lazy
+    if level > 1:
+        return _isal.compress(data, ISAL_LAZY, _isal.COMP_ZLIB, _isal.MEM_LEVEL_SMALL)
+    out = _isal.compress(data, ISAL_LEVEL, _isal.COMP_ZLIB, _isal.MEM_LEVEL_SMALL)
+    if len(out) < REPETITIVE * len(data) and (not callable(repeats) or repeats()):
+        again = _isal.compress(data, ISAL_REPEATS, _isal.COMP_ZLIB)
+        if len(again) < len(out):
+            out = again
     return out
 
 

@@ -427,8 +427,31 @@ class WorkStore:
         """Delete the store (after the result is in place), then let its lock go: a run that
         takes the lock afterwards finds the store gone (see :meth:`_take_lock`)."""
         if self.directory is not None:
+            _unlink_blocks(self.directory)
             shutil.rmtree(self.directory, ignore_errors=True)
         self.close()
+
+
+def _unlink_blocks(d: str) -> None:
+    """Delete the block files of store ``d`` in a few threads, the latest first. Deleting a file
+    whose pages the system is writing to disk waits for that write: the waits on several files
+    overlap, and the latest blocks are still in memory (on a 10^8-point sweep's 880 MB of blocks,
+    a fifth to a half of the time of deleting them one by one)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    try:
+        names = sorted((n for n in os.listdir(d) if n.startswith("block_")), reverse=True)
+    except OSError:
+        return
+
+    def unlink(name):
+        try:
+            os.unlink(os.path.join(d, name))
+        except OSError:  # whatever is left, rmtree meets (and ignores) again
+            pass
+
+    with ThreadPoolExecutor(4, thread_name_prefix="cc-store") as pool:
+        list(pool.map(unlink, names))
 
 
 def _read_manifest(d: str) -> dict | None:

@@ -1061,3 +1061,20 @@ def test_ctrl_c_inside_llvm_callbacks_waits_until_they_return():
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_the_command_exits_with_mains_code_and_its_objects_left_to_the_process_end(monkeypatch):
+    """The console entry (the installed command, ``python -m cosserat_channel.cli``) exits with
+    main's code, having told the collector that what is alive then lives until the end: the
+    interpreter's exit does not traverse it again."""
+    import gc
+
+    monkeypatch.setattr(cli, "main", lambda: 3)
+    before = gc.get_freeze_count()
+    try:
+        with pytest.raises(SystemExit) as exit_:
+            cli.console()
+        assert exit_.value.code == 3
+        assert gc.get_freeze_count() > before
+    finally:
+        gc.unfreeze()

@@ -1,8 +1,6 @@
 """``python -m cosserat_channel.cli``: the same as the ``cosserat-channel`` command."""
 
-import sys
-
-from . import main
+from . import console
 
 if __name__ == "__main__":  # importing this module (a documentation tool does) runs nothing
-    sys.exit(main())
+    console()

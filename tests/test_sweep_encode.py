@@ -407,3 +407,62 @@ def test_cluster_workers_encode_and_one_lost_mid_encode_changes_nothing(tmp_path
         assert lost
     assert "encoded where solved" in _written_by(caplog)
     assert_identical(out, run_sweep(spec, workers=1))
+
+
+@pytest.mark.parametrize("reduce", [True, False])
+def test_a_box_of_a_tile_derives_the_values_of_that_box_of_the_grid(reduce):
+    """grid_values on a box of a tile (TileGrid.box, reading the tile's own rows) is, bit for bit,
+    grid_values on the same box of the whole grid (a Region of the plan): boxes at every offset,
+    those that reach the tile's edge and those smaller than a chunk along some axes included."""
+    spec = load_sweep({"grid": GRID, "output": {"variables": VARIABLES}})
+    plan = engine.Plan(spec.coords(), reduce=reduce, block_size=7)
+    rng = np.random.default_rng(7)
+    res = rng.normal(size=(plan.n_triples, dataset.layout.N_R))
+    res[:, dataset.layout.R_STATUS] = rng.integers(0, 3, plan.n_triples)
+    per_triple = {"res": res, "steps": rng.integers(0, 500, (plan.n_triples, 2))}
+    one_minus = rng.uniform(0.01, 1.0, plan.shape)
+    tile = (slice(1, 4), slice(0, 3), slice(1, 6), slice(2, 5), slice(1, 4))
+    job = encode.tile_job(spec, plan.region(tile), per_triple, one_minus[tile], {})
+    for box in [(slice(0, 3), slice(0, 3), slice(0, 5), slice(0, 3), slice(0, 3)),
+                (slice(1, 3), slice(2, 3), slice(3, 5), slice(0, 2), slice(2, 3)),
+                (slice(2, 3), slice(0, 2), slice(0, 1), slice(1, 3), slice(0, 3))]:
+        part = job.grid.box(box)
+        grid_box = tuple(slice(t.start + b.start, t.start + b.stop) for t, b in zip(tile, box))
+        for spread in (True, False):
+            got = dataset.grid_values(spec, part, job.per_triple, job.one_minus[box],
+                                      spread=spread)
+            want = dataset.grid_values(spec, plan.region(grid_box), per_triple,
+                                       one_minus[grid_box], spread=spread)
+            assert list(got) == list(want)
+            for name in want:
+                a, b = np.asarray(got[name][1]), np.asarray(want[name][1])
+                assert a.shape == b.shape and a.dtype == b.dtype, name
+                assert a.tobytes() == b.tobytes(), (name, box, spread)
+
+
+@pytest.mark.parametrize("reduce", [True, False])
+def test_chunks_that_end_inside_a_tile_along_K_are_encoded_whole(tmp_path, monkeypatch, caplog,
+                                                                 reduce):
+    """Chunks of 4 along a K of 6 (every tile holds a column of chunks whose last ends at the
+    grid's edge) and of 3 along an N of 4: every chunk stored, the K-constant variables' included
+    (encoded once, placed at each K position), is the one netCDF4 stores itself, padding and
+    checksum included, and the file holds the in-memory values bit for bit."""
+    chunks = (1, 2, 4, 2, 3)
+    _small_tiles(monkeypatch, chunks=chunks)
+    spec = load_sweep({"grid": GRID, "output": {"variables": VARIABLES + ["sigma_yx_wall"]}})
+    out = tmp_path / "k.nc"
+    with caplog.at_level(logging.INFO, logger="cosserat_channel.sweep"):
+        run_sweep(spec, out, workers=2, block_size=7, reduce=reduce).close()
+    assert "encoded where solved" in _written_by(caplog)
+    monkeypatch.setattr(engine, "LocalEncoder", lambda n: None)
+    lib = tmp_path / "library.nc"
+    run_sweep(spec, lib, workers=2, block_size=7, reduce=reduce).close()
+    with h5py.File(out, "r") as a, h5py.File(lib, "r") as b:
+        for name in ["status", *spec.variables]:
+            assert a[name].chunks == b[name].chunks == chunks
+            for index in np.ndindex(*(-(-n // c) for n, c in zip(a[name].shape, chunks))):
+                offset = tuple(i * c for i, c in zip(index, chunks))
+                got = zlib.decompress(a[name].id.read_direct_chunk(offset)[1])
+                assert got == zlib.decompress(b[name].id.read_direct_chunk(offset)[1]), \
+                    (name, offset)
+    assert_identical(out, run_sweep(spec, workers=1, reduce=reduce))

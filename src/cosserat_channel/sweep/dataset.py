@@ -63,7 +63,7 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
     # Per-triple values enter without their K axis (to_grid's spread=False): an output that needs
     # no eps K (m_wall, the stresses, ...) is computed once per (eps, L, A, N), and derive's final
     # broadcast spreads it. Elementwise either way: the same bits.
-    status = grid.to_grid(res[:, layout.R_STATUS].astype(np.int8), spread=False)
+    status = grid.to_grid(res[:, layout.R_STATUS], spread=False).astype(np.int8)
     inputs = out_.Inputs(
         status,
         grid.eps.reshape(-1, 1, 1, 1, 1), grid.L.reshape(1, -1, 1, 1, 1),
@@ -83,8 +83,10 @@ def grid_values(spec, grid, per_triple: dict, one_minus: np.ndarray | None, xi=N
             data_vars[name] = output_variable(inputs, name, DIMS, spread)
         elif name in out_.COUNTERS:
             c = out_.COUNTERS[name]
-            value = grid.to_grid(per_triple["steps"][:, c.stage - 1].astype(np.int32))
-            data_vars[name] = (DIMS, value, c.attrs)
+            # Constant along K where the status is (a broadcast view with spread=False).
+            value = grid.to_grid(per_triple["steps"][:, c.stage - 1], spread=False)
+            value = np.broadcast_to(value.astype(np.int32), inputs.shape)
+            data_vars[name] = (DIMS, value.copy() if spread else value, c.attrs)
     data_vars["status"] = status_variable(status, DIMS)
     if profiles is not None:
         data_vars.update(_profiles(grid, res, profiles))

@@ -9,39 +9,6 @@ from ._jit import JIT
 
 
 @njit(**JIT)
-def copy_box(src, dst):
-    # dst[:a, :b, :c, :d, :e] = src (5-D, any strides): numpy's copy of a box of short rows
-    # spends more on its loop than on the bytes.
-    n0, n1, n2, n3, n4 = src.shape
-    for i0 in range(n0):
-        for i1 in range(n1):
-            for i2 in range(n2):
-                for i3 in range(n3):
-                    for i4 in range(n4):
-                        dst[i0, i1, i2, i3, i4] = src[i0, i1, i2, i3, i4]
-
-
-@njit(**JIT)
-def _gather(src, fill, words):
-    # words (C order) = a chunk whose leading box is src (any strides, zero ones included) and
-    # the rest fill: an edge chunk padded as HDF5 pads it.
-    c0, c1, c2, c3, c4 = words.shape
-    s0, s1, s2, s3, s4 = src.shape
-    flat = words.reshape(words.size)
-    k = 0
-    for i0 in range(c0):
-        for i1 in range(c1):
-            for i2 in range(c2):
-                for i3 in range(c3):
-                    m = s4 if i0 < s0 and i1 < s1 and i2 < s2 and i3 < s3 else 0
-                    for i4 in range(m):
-                        flat[k + i4] = src[i0, i1, i2, i3, i4]
-                    for i4 in range(m, c4):
-                        flat[k + i4] = fill
-                    k += c4
-
-
-@njit(**JIT)
 def _shuffle_bytes(raw, itemsize, out):
     # HDF5's shuffle of whole elements (byte j of element i to j * count + i). Eight-byte elements
     # (every float variable) element after element, each one's bytes read once and stored to the

@@ -141,24 +141,31 @@ def encode_part(part: np.ndarray, shape: tuple, fill, pipeline, repeats: bool = 
     edge chunk, padded as HDF5 pads it). ``repeats``: see :func:`deflate`; without it, a chunk
     that the fast level shrinks below REPETITIVE is deflated again only if ``part`` is constant
     along an axis (:func:`constant_along_an_axis`), the repeats the fast levels miss."""
-    from ._chunk_kernels import _gather, copy_box
-
     if not repeats:
         def repeats():
             return constant_along_an_axis(part)
 
     n = math.prod(shape) * part.dtype.itemsize
-    if part.dtype.itemsize == 8 and part.ndim == 5:
+    if part.dtype.itemsize == 8:
         bits = np.asarray(fill, dtype=part.dtype).reshape(1).view(np.uint64)[0]
         words, raw, spare = _scratch(tuple(int(c) for c in shape))
-        _gather(part.view(np.uint64), bits, words)
+        _place(part.view(np.uint64), bits, words)
         return _run(raw, n, 8, pipeline, raw, spare, repeats)
     data = np.empty(n + 4, dtype=np.uint8)
     whole = data[:n].view(part.dtype).reshape(shape)
-    if part.shape != tuple(shape):
-        whole[...] = fill
-    copy_box(part, whole)
+    _place(part, fill, whole)
     return _run(data, n, part.dtype.itemsize, pipeline, data, None, repeats)
+
+
+def _place(part: np.ndarray, fill, whole: np.ndarray) -> None:
+    """``whole`` (a chunk) = ``part`` in its leading box and ``fill`` in the rest: an edge chunk
+    padded as HDF5 pads it. numpy's copy, which follows the part's layout (runs of a column,
+    zero strides of a broadcast view): three to forty times the speed of a compiled loop over the
+    chunk's elements."""
+    if part.shape != whole.shape:
+        whole[...] = fill
+        whole = whole[tuple(slice(0, n) for n in part.shape)]
+    np.copyto(whole, part)
 
 
 def constant_along_an_axis(part: np.ndarray) -> bool:

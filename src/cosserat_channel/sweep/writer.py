@@ -245,8 +245,8 @@ class StreamWriter:
         self.tmp = temp_path(store.directory, output)
         n = plan.n_triples
         mapped = n * bytes_per_triple(0 if xi is None else xi.size) > WRITER_MEMORY
-        # Zeros, not empty: a tile's derivation casts the whole status column, rows of blocks
-        # not yet finished included (they are never used, but garbage would warn on the cast).
+        # Zeros, not empty: the rows of blocks not yet finished hold no garbage (a tile reads
+        # only its own rows, once its blocks are stored).
         self.per_triple = {"res": self._array((n, layout.N_R), np.float64, mapped),
                            "steps": self._array((n, 2), np.int64, mapped)}
         self.profiles = None if xi is None else self._array((n, layout.N_PROF, xi.size),

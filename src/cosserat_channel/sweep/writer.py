@@ -585,7 +585,7 @@ class StreamWriter:
         """``(where, per_tile)``: the position of each of block ``k``'s entries in its group's
         array, whose tile ``i`` begins at ``start[i]`` (C order), and how many entries each tile
         gets."""
-        tile, local = self.tiles.locate(self.plan.inputs(k).flat)
+        tile, local = self._tile_local(k)
         per_tile = np.bincount(tile, minlength=self.tiles.count)
         _within_group(k, per_tile, start)
         return start[tile] + local, per_tile

@@ -42,11 +42,11 @@ DEFLATE = "zlib" if _isal is None else "ISA-L (isal)"
 # 0.5 % of zlib 1's size on the sweeps' float chunks (its level 1 is up to 1.7 % larger) at the
 # same speed, 7x zlib's. Its fast levels miss the long repeats of a chunk whose rows repeat (a
 # variable constant along K: 5x zlib's size there); its level 0 finds them, at about 10x their
-# speed on such data and 1.3x zlib 1's size (its lazy level 3 is 10 % below zlib 1 but as slow as
-# zlib: two seconds of CPU on a 10^8-point sweep, for 1.5 % of its file). A chunk the fast level
-# shrinks below REPETITIVE of its size is deflated again by level 0 and the smaller kept, unless
-# the caller can tell that it does not repeat that way (:func:`encode_part`). Other zlib levels:
-# the lazy level 3.
+# speed on such data and 1.3x zlib 1's size (its lazy level 3 is 10 % below zlib 1 but as slow
+# as zlib: 2.0 s of CPU on a 10^8-point sweep against 0.6 s, for 1.1 % of its file). A chunk the
+# fast level shrinks below REPETITIVE of its size is deflated again by level 0 and the smaller
+# kept, unless the caller can tell that it does not repeat that way (:func:`encode_part`). Other
+# zlib levels: the lazy level 3.
 ISAL_LEVEL = 2
 ISAL_REPEATS = 0
 ISAL_LAZY = 3

@@ -435,8 +435,9 @@ class WorkStore:
 def _unlink_blocks(d: str) -> None:
     """Delete the block files of store ``d`` in a few threads, the latest first. Deleting a file
     whose pages the system is writing to disk waits for that write: the waits on several files
-    overlap, and the latest blocks are still in memory (on a 10^8-point sweep's 880 MB of blocks,
-    a fifth to a half of the time of deleting them one by one)."""
+    overlap, and the latest blocks are still in memory (134 files of 6.6 MB written beside a
+    1.2 GB file, as a 10^8-point sweep leaves them: a fifth to a half of the time of deleting
+    them one by one)."""
     from concurrent.futures import ThreadPoolExecutor
 
     try:
